@@ -1,0 +1,16 @@
+"""rs30x-sniff: protocol analyzer and bus logger for the Futaba RS30x command-type servo bus."""
+
+from .bus import BusTracker, Record, ServoState
+from .events import Ack, Event, Garbage, LongPacket, LongRecord, Nack, ReturnPacket, ShortPacket
+from .framing import FrameDecoder, decode_all
+from .memmap import Field, Model, ModelError, ModelRegistry, Register, default_registry, load_model
+from .pipeline import DecodeOptions, Decoder, decode_records
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Ack", "BusTracker", "DecodeOptions", "Decoder", "Event", "Field", "FrameDecoder", "Garbage",
+    "LongPacket", "LongRecord", "Model", "ModelError", "ModelRegistry", "Nack", "Record", "Register",
+    "ReturnPacket", "ServoState", "ShortPacket", "decode_all", "decode_records", "default_registry",
+    "load_model", "__version__",
+]

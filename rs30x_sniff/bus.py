@@ -1,0 +1,285 @@
+"""Request/reply pairing, latencies, and per-servo shadow state (sans-IO, fed with frame events)."""
+
+from __future__ import annotations
+
+from typing import Any, Iterable
+
+from .events import Ack, AnyEvent, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
+from .memmap import Field, Model, ModelRegistry, default_registry
+from .wire import BROADCAST_ID
+
+# Reply status of a record.
+ANSWERED = "answered"        # a request whose reply came
+MISSING = "missing"          # a request whose reply never came
+PAIRED = "paired"            # a reply to the request before it
+UNSOLICITED = "unsolicited"  # a reply nobody asked for
+EXTRA = "extra"              # a second reply to one request (two servos share an ID)
+
+# A return comes 100 us + 50 us x return_delay (at most 12.85 ms, table 4.6 No. 7) after the request;
+# allow for the reply's own transmission and USB jitter before calling it missing.
+DEFAULT_REPLY_TIMEOUT = 0.050
+
+
+class Record:
+    """An event as the rest of the program sees it: decoded fields, its pair, its servo's model."""
+
+    __slots__ = ("event", "index", "model", "request", "reply", "latency", "status", "findings", "_fields",
+                 "_models")
+
+    def __init__(self, event: AnyEvent, index: int, model: Model | None, models: Any = None) -> None:
+        self.event = event
+        self.index = index
+        self.model = model
+        self.request: Record | None = None
+        self.reply: Record | None = None
+        self.latency: float | None = None
+        self.status: str | None = None
+        self.findings: list = []
+        self._fields: list[Field] | None = None
+        self._models = models  # callable id -> Model, for long packets
+
+    # Convenience views of the event.
+    @property
+    def kind(self) -> str:
+        return self.event.kind
+
+    @property
+    def offset(self) -> int:
+        return self.event.offset
+
+    @property
+    def t(self) -> float | None:
+        return self.event.t_start
+
+    @property
+    def id(self) -> int | None:
+        return getattr(self.event, "id", None) if not isinstance(self.event, (Ack, Nack)) else (
+            self.request.id if self.request is not None else None)
+
+    @property
+    def is_request(self) -> bool:
+        return isinstance(self.event, (ShortPacket, LongPacket))
+
+    @property
+    def is_reply(self) -> bool:
+        return isinstance(self.event, (ReturnPacket, Ack, Nack))
+
+    @property
+    def expects(self) -> str | None:
+        """What reply a request asks for: "ack", "return", or None."""
+        ev = self.event
+        if type(ev) is ShortPacket:
+            if ev.read_range is not None:
+                return "return"
+            if ev.wants_ack:
+                return "ack"
+        return None
+
+    @property
+    def fields(self) -> list[Field]:
+        """Named, scaled fields the packet carries (decoded once, on first use)."""
+        f = self._fields
+        if f is None:
+            f = self._fields = self._decode()
+        return f
+
+    def _decode(self) -> list[Field]:
+        ev = self.event
+        t = type(ev)
+        if t is ReturnPacket or (t is ShortPacket and ev.data):
+            return self.model.decode(ev.address, ev.data, ev.id)
+        if t is LongPacket:
+            out: list[Field] = []
+            for rec in ev.records:
+                out += self._models(rec.vid).decode(ev.address, rec.data, rec.vid)
+            return out
+        return []
+
+    @property
+    def read_names(self) -> list[str]:
+        """For a read request: the registers it asks for."""
+        ev = self.event
+        if type(ev) is ShortPacket:
+            rr = ev.read_range
+            if rr is not None:
+                return self.model.names_in(*rr)
+        return []
+
+    def __repr__(self) -> str:
+        return f"<Record {self.index} {self.kind}@{self.offset} status={self.status}>"
+
+
+class ServoState:
+    """What the bus has told us about one servo: a shadow of its memory map."""
+
+    __slots__ = ("id", "model", "image", "known", "updated", "requests", "returns", "latencies", "last_t")
+
+    def __init__(self, servo_id: int, model: Model) -> None:
+        self.id = servo_id
+        self.model = model
+        self.image = bytearray(256)
+        self.known = bytearray(256)  # 1 where image holds a value seen on the bus
+        self.updated: dict[int, float | None] = {}
+        self.requests = 0
+        self.returns = 0
+        self.latencies: list[float] = []
+        self.last_t: float | None = None
+
+    def store(self, address: int, data: bytes, t: float | None = None) -> None:
+        end = address + len(data)
+        if end > 256:
+            data = data[:256 - address]
+            end = 256
+        self.image[address:end] = data
+        self.known[address:end] = b"\x01" * len(data)
+        self.last_t = t
+
+    def get(self, name: str) -> Any:
+        """Latest known engineering value of a register, or None if never seen."""
+        reg = self.model.register(name)
+        a = reg.address
+        if not all(self.known[a:a + reg.size]):
+            return None
+        return reg.convert(int.from_bytes(self.image[a:a + reg.size], "little", signed=reg.signed))
+
+    def values(self) -> dict[str, Any]:
+        """Every named register whose value is known."""
+        out = {}
+        known, image = self.known, self.image
+        for reg in self.model.registers:
+            if reg.name and all(known[reg.address:reg.address + reg.size]):
+                a = reg.address
+                out[reg.name] = reg.convert(int.from_bytes(image[a:a + reg.size], "little", signed=reg.signed))
+        return out
+
+
+class BusTracker:
+    """Pairs requests with replies and keeps the shadow state; yields records in wire order.
+
+    A request that asks for a reply is held back (with everything after it) until its reply
+    arrives, another request shows it will not, the reply timeout passes, or :meth:`close`;
+    so every record leaves complete with its pairing.
+    """
+
+    def __init__(self, registry: ModelRegistry | None = None, models: dict[int, str] | None = None,
+                 reply_timeout: float = DEFAULT_REPLY_TIMEOUT, default_model: str | None = None) -> None:
+        self.registry = registry or default_registry()
+        self.configured = {i: self.registry.get(m) for i, m in (models or {}).items()}
+        self.default = self.registry.get(default_model) if default_model else self.registry.default
+        self.learned: dict[int, Model] = {}
+        self.reply_timeout = reply_timeout
+        self.servos: dict[int, ServoState] = {}
+        self._index = 0
+        self._pending: Record | None = None   # request whose reply is due
+        self._last_request: Record | None = None  # latest request that got its reply (for EXTRA)
+        self._held: list[Record] = []
+
+    def model_of(self, servo_id: int) -> Model:
+        return self.configured.get(servo_id) or self.learned.get(servo_id) or self.default
+
+    def servo(self, servo_id: int) -> ServoState:
+        st = self.servos.get(servo_id)
+        if st is None:
+            st = self.servos[servo_id] = ServoState(servo_id, self.model_of(servo_id))
+        return st
+
+    def feed_all(self, events: Iterable[AnyEvent]) -> list[Record]:
+        out: list[Record] = []
+        for ev in events:
+            out += self.feed(ev)
+        return out
+
+    def feed(self, ev: AnyEvent) -> list[Record]:
+        t = type(ev)
+        sid = getattr(ev, "id", None)
+        model = self.model_of(sid) if sid is not None and sid != 0 else self.default
+        rec = Record(ev, self._index, model, self.model_of)
+        self._index += 1
+        out: list[Record] = []
+        pending = self._pending
+        if pending is not None and ev.t_start is not None and pending.event.t_end is not None \
+                and ev.t_start - pending.event.t_end > self.reply_timeout:
+            self._resolve_missing(out)
+            pending = None
+        if t is ReturnPacket or t is Ack or t is Nack:
+            self._on_reply(rec, pending)
+        elif t is ShortPacket or t is LongPacket:
+            if pending is not None:
+                self._resolve_missing(out)
+            self._on_request(rec)
+        if self._pending is not None:
+            self._held.append(rec)
+            return out
+        if self._held:
+            out += self._held
+            self._held = []
+        out.append(rec)
+        return out
+
+    def close(self) -> list[Record]:
+        out: list[Record] = []
+        if self._pending is not None:
+            self._resolve_missing(out)
+        return out
+
+    # ---- pairing -----------------------------------------------------------------------------
+    def _resolve_missing(self, out: list[Record]) -> None:
+        self._pending.status = MISSING
+        self._pending = None
+        out += self._held
+        self._held = []
+
+    def _on_request(self, rec: Record) -> None:
+        ev = rec.event
+        self._last_request = None
+        if type(ev) is LongPacket:
+            for r in ev.records:
+                if r.data:
+                    self.servo(r.vid).store(ev.address, r.data, ev.t_start)
+            return
+        if ev.data and ev.checksum_ok:
+            targets = list(self.servos.values()) if ev.id == BROADCAST_ID else [self.servo(ev.id)]
+            for st in targets:
+                st.store(ev.address, ev.data, ev.t_start)
+        if ev.id != BROADCAST_ID:
+            self.servo(ev.id).requests += 1
+        if rec.expects is not None:
+            self._pending = rec
+
+    def _on_reply(self, rec: Record, pending: Record | None) -> None:
+        ev = rec.event
+        if pending is not None:
+            req = pending
+            rec.status = PAIRED
+            req.status = ANSWERED
+            req.reply = rec
+            self._pending = None
+            self._last_request = req
+        elif self._last_request is not None:
+            req = self._last_request
+            rec.status = EXTRA
+        else:
+            rec.status = UNSOLICITED
+            req = None
+        rec.request = req
+        if req is not None and ev.t_start is not None and req.event.t_end is not None:
+            rec.latency = ev.t_start - req.event.t_end
+        if type(ev) is ReturnPacket:
+            if ev.checksum_ok:
+                st = self.servo(ev.id)
+                st.returns += 1
+                if rec.latency is not None and rec.status == PAIRED:
+                    st.latencies.append(rec.latency)
+                self._learn(ev, st)
+                st.store(ev.address, ev.data, ev.t_start)
+                rec.model = st.model
+        elif req is not None:
+            rec.model = req.model
+
+    def _learn(self, ev: ReturnPacket, st: ServoState) -> None:
+        # A return of addresses 0-1 carries the model number (table 4.5): 0x3030 RS303MR, 0x3040 RS304MD.
+        if ev.address == 0 and len(ev.data) >= 2 and ev.id not in self.configured:
+            m = self.registry.by_number.get(int.from_bytes(ev.data[:2], "little"))
+            if m is not None and m is not st.model:
+                self.learned[ev.id] = m
+                st.model = m

@@ -1,0 +1,1 @@
+"""Subcommands of the CLI: one module each, thin: parse, call the library, print."""

@@ -1,0 +1,320 @@
+"""Sans-IO resynchronizing frame decoder: feed(bytes, t) -> events; never reads a clock, port or file."""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from functools import reduce
+from operator import xor
+
+from .events import (
+    BAD_HEADER,
+    NOISE,
+    TRUNCATED,
+    Ack,
+    AnyEvent,
+    Garbage,
+    LongPacket,
+    LongRecord,
+    Nack,
+    ReturnPacket,
+    ShortPacket,
+)
+from .wire import ACK, DEFAULT_BAUD, NACK, RETURN_ACK, byte_time
+
+_FA, _AF, _FD, _DF = 0xFA, 0xAF, 0xFD, 0xDF
+
+# A header claiming more data than this is noise, not a frame: the whole memory map is 140 bytes,
+# and even a long packet to 24 servos of 30 registers each stays under 800.
+DEFAULT_MAX_DATA = 1024
+# An idle line longer than this many byte times inside a frame means the sender stopped mid-frame.
+DEFAULT_GAP_BYTES = 20.0
+
+# Results of FrameDecoder._frame_end besides an end index.
+_WAIT = -1      # cannot decide yet: more bytes are needed
+_NOT_SYNC = -2  # no frame header here
+_BAD = -3       # a header whose length cannot be a real frame
+_CUT = -4       # _CUT - k: the frame is cut short at buffer index k
+
+
+class FrameDecoder:
+    """Turns a byte stream into events; every byte lands in exactly one event.
+
+    Call :meth:`feed` with each chunk as it arrives (``t`` is the capture time of the chunk's first
+    byte, or None) and :meth:`close` at the end of input. The events do not depend on how the input
+    was split into chunks, as long as the timestamps agree (later bytes of a chunk are placed one
+    byte time apart at ``baud``).
+    """
+
+    def __init__(self, baud: int = DEFAULT_BAUD, gap_bytes: float | None = DEFAULT_GAP_BYTES,
+                 max_data: int = DEFAULT_MAX_DATA) -> None:
+        self.baud = baud
+        self.byte_time = byte_time(baud)
+        self.gap_bytes = gap_bytes
+        self.max_data = max_data
+        self._buf = bytearray()
+        self._base = 0          # stream offset of _buf[0]
+        self._scan = 0          # index in _buf where scanning resumes; _buf[:_scan] is pending garbage
+        self._garbage_reason = NOISE
+        self._ack_pending = False
+        # Chunk start offsets and their times, for byte times and gap detection.
+        self._chunk_offsets: list[int] = []
+        self._chunk_times: list[float | None] = []
+        self._breaks: list[int] = []  # stream offsets preceded by an idle gap, ascending
+        self._last_t: float | None = None  # start time of the last byte fed so far
+        self.closed = False
+
+    @property
+    def offset(self) -> int:
+        """Stream offset of the next byte to be fed."""
+        return self._base + len(self._buf)
+
+    # ---- input -------------------------------------------------------------------------------
+    def feed(self, data: bytes, t: float | None = None) -> list[AnyEvent]:
+        """Add bytes (their first byte seen at capture time ``t``); return the events now decided."""
+        if self.closed:
+            raise RuntimeError("feed() after close()")
+        if not data:
+            return []
+        start = self.offset
+        if t is not None or self._chunk_times:
+            if t is not None and self._last_t is not None and self.gap_bytes is not None:
+                idle = t - self._last_t - self.byte_time
+                if idle > self.gap_bytes * self.byte_time:
+                    self._breaks.append(start)
+            self._chunk_offsets.append(start)
+            self._chunk_times.append(t)
+            self._last_t = None if t is None else t + (len(data) - 1) * self.byte_time
+        self._buf += data
+        return self._parse(final=False)
+
+    def close(self) -> list[AnyEvent]:
+        """End of input: whatever is still pending becomes truncated frames or garbage."""
+        if self.closed:
+            return []
+        events = self._parse(final=True)
+        self.closed = True
+        return events
+
+    # ---- times -------------------------------------------------------------------------------
+    def time_of(self, offset: int) -> float | None:
+        """Capture time of the byte at stream ``offset`` (None without timestamps)."""
+        offs = self._chunk_offsets
+        if not offs:
+            return None
+        k = bisect_right(offs, offset) - 1
+        if k < 0:
+            return None
+        t = self._chunk_times[k]
+        return None if t is None else t + (offset - offs[k]) * self.byte_time
+
+    def _times(self, start: int, end: int) -> tuple[float | None, float | None]:
+        if not self._chunk_offsets:
+            return None, None
+        t0 = self.time_of(start)
+        t1 = self.time_of(end - 1)
+        return t0, (None if t1 is None else t1 + self.byte_time)
+
+    def _next_break(self, after: int, before: int) -> int | None:
+        """First gap break offset b with after < b < before, if any."""
+        br = self._breaks
+        if not br:
+            return None
+        k = bisect_right(br, after)
+        if k < len(br) and br[k] < before:
+            return br[k]
+        return None
+
+    # ---- parsing -----------------------------------------------------------------------------
+    def _frame_end(self, i: int, final: bool) -> int:
+        """Classify a candidate frame at buffer index i (which holds FA or FD).
+
+        Returns the buffer index one past the frame when it is all here, or one of: ``_WAIT`` (more
+        bytes are needed to know), ``_NOT_SYNC`` (no header here), ``_BAD`` (a header whose length is
+        implausible), or ``_CUT - k``: the frame is cut short at buffer index k (an idle gap inside it,
+        or the end of input).
+        """
+        buf = self._buf
+        n = len(buf)
+        if i + 1 >= n:
+            return _CUT - n if final else _WAIT
+        first = buf[i]
+        second = buf[i + 1]
+        if not ((first == _FA and second == _AF) or (first == _FD and second == _DF)):
+            return _NOT_SYNC
+        base = self._base
+        if i + 7 > n:
+            cut = self._next_break(base + i, base + n)
+            if cut is not None:
+                return _CUT - (cut - base)
+            return _CUT - n if final else _WAIT
+        length = buf[i + 5]
+        # Data bytes = Length x Count for requests, Length for returns ("Format of Packets").
+        data_len = length * buf[i + 6] if first == _FA else length
+        if data_len > self.max_data:
+            return _BAD
+        end = i + 8 + data_len
+        if self._breaks:
+            cut = self._next_break(base + i, base + min(end, n))
+            if cut is not None:
+                return _CUT - (cut - base)
+        if end > n:
+            return _CUT - n if final else _WAIT
+        return end
+
+    def _intact(self, i: int, final: bool) -> int:
+        """Buffer index past an intact (complete, checksum-valid) frame at i; _NOT_SYNC if none; _WAIT."""
+        end = self._frame_end(i, final)
+        if end < 0:
+            return _WAIT if end == _WAIT else _NOT_SYNC
+        buf = self._buf
+        return end if reduce(xor, buf[i + 2:end - 1], 0) == buf[end - 1] else _NOT_SYNC
+
+    def _find_intact_inside(self, i: int, end: int, final: bool) -> int:
+        """Index of the first intact frame starting in (i, end); _NOT_SYNC if none; _WAIT if undecidable."""
+        buf = self._buf
+        j = i + 1
+        while True:
+            a = buf.find(b"\xfa\xaf", j, end + 1)
+            b = buf.find(b"\xfd\xdf", j, end + 1)
+            if a >= end:
+                a = -1
+            if b >= end:
+                b = -1
+            if a < 0 and b < 0:
+                # A sync byte in the last place may start a frame whose second byte is still to come.
+                if end == len(buf) and not final and buf[end - 1] in (_FA, _FD):
+                    return _WAIT
+                return _NOT_SYNC
+            q = a if b < 0 or 0 <= a < b else b
+            r = self._intact(q, final)
+            if r == _WAIT:
+                return _WAIT
+            if r >= 0:
+                return q
+            j = q + 1
+
+    def _parse(self, final: bool) -> list[AnyEvent]:
+        out: list[AnyEvent] = []
+        buf = self._buf
+        i = self._scan
+        n = len(buf)
+        while i < n:
+            base = self._base
+            br = self._breaks
+            if br:
+                while br and br[0] <= base:
+                    br.pop(0)
+                # Garbage runs end at idle gaps, so a live display sees them promptly.
+                if i and br and br[0] == base + i:
+                    self._emit_garbage(out, i)
+                    buf, n, i = self._buf, len(self._buf), 0
+                    continue
+            c = buf[i]
+            if self._ack_pending:
+                # ACK/NACK bytes have no header: only the byte right after a request asking for one.
+                self._ack_pending = False
+                if i == 0 and (c == ACK or c == NACK):
+                    self._emit(out, Ack if c == ACK else Nack, 1)
+                    buf, n = self._buf, len(self._buf)
+                    continue
+            if c == _FA or c == _FD:
+                end = self._frame_end(i, final)
+                if end == _WAIT:
+                    break
+                if end == _NOT_SYNC or end == _BAD:
+                    if end == _BAD:
+                        self._garbage_reason = BAD_HEADER
+                    i += 1
+                    continue
+                ok = end >= 0 and reduce(xor, buf[i + 2:end - 1], 0) == buf[end - 1]
+                if not ok:
+                    stop = end if end >= 0 else _CUT - end
+                    q = self._find_intact_inside(i, stop, final)
+                    if q == _WAIT:
+                        break
+                    if q >= 0 or end < 0:
+                        # Cut short, or corrupt with an intact frame inside: the head is garbage.
+                        if i:
+                            self._emit_garbage(out, i)
+                            stop -= i
+                            q = q - i if q >= 0 else q
+                        self._garbage_reason = TRUNCATED
+                        self._emit_garbage(out, q if q >= 0 else stop)
+                        buf, n, i = self._buf, len(self._buf), 0
+                        continue
+                if i:
+                    self._emit_garbage(out, i)
+                    end -= i
+                self._emit_frame(out, end, ok)
+                buf, n, i = self._buf, len(self._buf), 0
+                continue
+            # Not a sync byte: skip ahead to the next possible one (or the next idle gap).
+            a = buf.find(b"\xfa", i + 1)
+            b = buf.find(b"\xfd", i + 1)
+            nxt = n if a < 0 else a
+            if 0 <= b < nxt:
+                nxt = b
+            if br:
+                gap = self._next_break(base + i, base + nxt)
+                if gap is not None:
+                    nxt = gap - base
+            i = nxt
+        if final and n:
+            self._emit_garbage(out, n)
+            i = 0
+        self._scan = i
+        return out
+
+    # ---- emitting ----------------------------------------------------------------------------
+    def _take(self, size: int) -> tuple[int, bytes, float | None, float | None]:
+        off = self._base
+        raw = bytes(self._buf[:size])
+        del self._buf[:size]
+        self._base = off + size
+        self._scan = 0
+        t0, t1 = self._times(off, off + size)
+        self._trim_chunks()
+        return off, raw, t0, t1
+
+    def _trim_chunks(self) -> None:
+        offs = self._chunk_offsets
+        if len(offs) > 64:
+            k = bisect_right(offs, self._base) - 1
+            if k > 0:
+                del offs[:k]
+                del self._chunk_times[:k]
+
+    def _emit(self, out: list[AnyEvent], cls: type, size: int) -> None:
+        off, raw, t0, t1 = self._take(size)
+        out.append(cls(off, raw, t0, t1))
+
+    def _emit_garbage(self, out: list[AnyEvent], size: int) -> None:
+        off, raw, t0, t1 = self._take(size)
+        out.append(Garbage(off, raw, t0, t1, self._garbage_reason))
+        self._garbage_reason = NOISE
+        self._ack_pending = False
+
+    def _emit_frame(self, out: list[AnyEvent], size: int, ok: bool) -> None:
+        off, raw, t0, t1 = self._take(size)
+        sid, flag, address, length, count = raw[2], raw[3], raw[4], raw[5], raw[6]
+        data = raw[7:-1]
+        self._ack_pending = False
+        if raw[0] == _FD:
+            out.append(ReturnPacket(off, raw, t0, t1, sid, flag, address, length, count, data, ok))
+        elif sid == 0:
+            records = tuple(LongRecord(data[k], data[k + 1:k + length])
+                            for k in range(0, len(data), length)) if length else ()
+            out.append(LongPacket(off, raw, t0, t1, flag, address, length, count, records, ok))
+        else:
+            out.append(ShortPacket(off, raw, t0, t1, sid, flag, address, length, count, data, ok))
+            self._ack_pending = flag & 0x0F == RETURN_ACK
+
+
+def decode_all(chunks, baud: int = DEFAULT_BAUD, **kw) -> list[AnyEvent]:
+    """Decode an iterable of ``(bytes, t)`` chunks completely (a convenience for tests and tools)."""
+    dec = FrameDecoder(baud, **kw)
+    out: list[AnyEvent] = []
+    for data, t in chunks:
+        out += dec.feed(data, t)
+    out += dec.close()
+    return out

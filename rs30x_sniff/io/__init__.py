@@ -1,0 +1,1 @@
+"""Adapters at the edges: capture files, serial ports, MCAP."""

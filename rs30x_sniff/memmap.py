@@ -1,0 +1,337 @@
+"""Memory maps as data: load decoders/*.toml and turn memory bytes into named, scaled fields."""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from .wire import MAX_READ_ADDRESS
+
+ACCESS = ("read", "read-write", "reserved")
+AREAS = ("invariable-rom", "variable-rom", "ram")
+MODES = ("command", "pwm", "both")
+_REGISTER_KEYS = {"name", "address", "size", "signed", "scale", "offset", "unit", "access", "area",
+                  "default", "range", "mode", "enum", "table", "format", "description"}
+_MODEL_KEYS = {"name", "model_number", "top_speed_s_per_60deg", "readable_to"}
+DEFAULT_MODEL = "RS303MR"
+
+
+class ModelError(ValueError):
+    """A memory-map file is wrong; the message names the file and the key."""
+
+
+@dataclass(frozen=True, slots=True)
+class Register:
+    """One register of the memory map: where it is and how its raw value becomes a quantity."""
+
+    name: str | None           # None for reserved and undocumented bytes
+    address: int
+    size: int = 1
+    signed: bool = False
+    scale: float = 1
+    offset: float = 0
+    unit: str | None = None
+    access: str = "read"
+    area: str = "ram"
+    default: int | None = None
+    range: tuple[int, int] | None = None
+    mode: str = "both"
+    enum: dict[int, str] | None = None
+    table: dict[int, float] | None = None
+    format: str | None = None
+    description: str = ""
+
+    @property
+    def reserved(self) -> bool:
+        return self.access == "reserved"
+
+    @property
+    def writable(self) -> bool:
+        return self.access == "read-write"
+
+    @property
+    def label(self) -> str:
+        """The name, or ``reserved_N`` / ``addr_N`` for unnamed bytes."""
+        if self.name:
+            return self.name
+        return f"reserved_{self.address}" if self.reserved else f"addr_{self.address}"
+
+    def raw_int(self, raw: bytes) -> int:
+        return int.from_bytes(raw, "little", signed=self.signed and len(raw) == self.size)
+
+    def convert(self, raw_value: int) -> Any:
+        """Engineering value of a raw register value (a label for enums, None for an unknown code)."""
+        if self.enum is not None:
+            return self.enum.get(raw_value, raw_value)
+        if self.table is not None:
+            return self.table.get(raw_value)
+        scale = self.scale
+        if scale == 1:
+            value = raw_value
+        elif scale < 1 and abs(1 / scale - round(1 / scale)) < 1e-9:
+            value = raw_value / round(1 / scale)  # exact decimal: 900 / 10, not 900 * 0.1
+        else:
+            value = raw_value * scale
+        return value + self.offset if self.offset else value
+
+    def to_raw(self, value: float) -> int:
+        """Inverse of :meth:`convert` for scaled numbers (used by encoders and the simulator)."""
+        if self.table is not None:
+            for k, v in self.table.items():
+                if v == value:
+                    return k
+            raise ValueError(f"{self.label}: no code for {value}")
+        if self.enum is not None:
+            for k, v in self.enum.items():
+                if v == value:
+                    return k
+            return int(value)
+        return round((value - self.offset) / self.scale)
+
+    def encode(self, value: float) -> bytes:
+        return self.to_raw(value).to_bytes(self.size, "little", signed=self.signed)
+
+
+@dataclass(slots=True)
+class Field:
+    """A decoded piece of a packet: one register (or part of one) of one servo."""
+
+    id: int | None
+    address: int
+    register: Register
+    raw: bytes
+    raw_value: int
+    value: Any
+    partial: str | None = None  # "low" / "high" when a packet carries one byte of a 2-byte register
+
+    @property
+    def name(self) -> str | None:
+        return self.register.name
+
+    @property
+    def label(self) -> str:
+        return self.register.label
+
+    @property
+    def unit(self) -> str | None:
+        return None if self.partial else self.register.unit
+
+
+@dataclass(slots=True)
+class Model:
+    """A servo model's memory map, loaded from one ``decoders/*.toml`` file."""
+
+    name: str
+    model_number: int
+    top_speed_s_per_60deg: float
+    readable_to: int
+    registers: tuple[Register, ...]
+    source: str = ""
+    _by_address: dict[int, Register] = field(default_factory=dict, repr=False)
+    _by_name: dict[str, Register] = field(default_factory=dict, repr=False)
+    _layouts: dict[tuple[int, int], tuple] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        for reg in self.registers:
+            for a in range(reg.address, reg.address + reg.size):
+                self._by_address[a] = reg
+            if reg.name:
+                self._by_name[reg.name] = reg
+
+    def register_at(self, address: int) -> Register:
+        """The register covering ``address``; an unnamed one past the documented map."""
+        reg = self._by_address.get(address)
+        if reg is None:
+            reg = self._by_address[address] = Register(None, address, access="read", area="undocumented",
+                                                       mode="both")
+        return reg
+
+    def register(self, name: str) -> Register:
+        try:
+            return self._by_name[name]
+        except KeyError:
+            raise KeyError(f"{self.name} has no register {name!r}") from None
+
+    @property
+    def names(self) -> list[str]:
+        return list(self._by_name)
+
+    def layout(self, address: int, length: int) -> tuple:
+        """(start, size, register, partial) for each field of ``length`` bytes at ``address``; cached."""
+        key = (address, length)
+        lay = self._layouts.get(key)
+        if lay is not None:
+            return lay
+        parts = []
+        a, end = address, address + length
+        while a < end:
+            reg = self.register_at(a)
+            if a == reg.address and a + reg.size <= end:
+                parts.append((a - address, reg.size, reg, None))
+                a += reg.size
+            else:
+                parts.append((a - address, 1, reg, "low" if a == reg.address else "high"))
+                a += 1
+        lay = self._layouts[key] = tuple(parts)
+        return lay
+
+    def decode(self, address: int, data: bytes, servo_id: int | None = None) -> list[Field]:
+        """Named, scaled fields of ``data`` written to or read from ``address``."""
+        out = []
+        for start, size, reg, partial in self.layout(address, len(data)):
+            raw = data[start:start + size]
+            if partial:
+                rv = raw[0]
+                out.append(Field(servo_id, address + start, reg, raw, rv, rv, partial))
+            else:
+                rv = int.from_bytes(raw, "little", signed=reg.signed)
+                out.append(Field(servo_id, address + start, reg, raw, rv, reg.convert(rv)))
+        return out
+
+    def names_in(self, address: int, length: int) -> list[str]:
+        """Register labels a read of ``length`` bytes at ``address`` covers."""
+        return [reg.label for _, _, reg, _ in self.layout(address, length)]
+
+
+# ---- loading ------------------------------------------------------------------------------------
+def _fail(source: str, where: str, msg: str) -> ModelError:
+    return ModelError(f"{source}: {where}: {msg}")
+
+
+def _int_keys(source: str, where: str, table: dict) -> dict[int, Any]:
+    try:
+        return {int(k, 0): v for k, v in table.items()}
+    except ValueError:
+        raise _fail(source, where, "keys must be integers") from None
+
+
+def parse_model(doc: dict[str, Any], source: str = "<memory map>") -> Model:
+    """Build a Model from a parsed TOML document, checking every key."""
+    unknown = set(doc) - {"model", "register"}
+    if unknown:
+        raise _fail(source, sorted(unknown)[0], "unknown key")
+    head = doc.get("model")
+    if not isinstance(head, dict):
+        raise _fail(source, "model", "missing [model] table")
+    for k in head:
+        if k not in _MODEL_KEYS:
+            raise _fail(source, f"model.{k}", "unknown key")
+    for k in ("name", "model_number", "top_speed_s_per_60deg"):
+        if k not in head:
+            raise _fail(source, f"model.{k}", "missing")
+    regs: list[Register] = []
+    owner: dict[int, str] = {}
+    for n, r in enumerate(doc.get("register", [])):
+        where = f"register[{n}]"
+        for k in r:
+            if k not in _REGISTER_KEYS:
+                raise _fail(source, f"{where}.{k}", "unknown key")
+        if "address" not in r:
+            raise _fail(source, f"{where}.address", "missing")
+        address, size = r["address"], r.get("size", 1)
+        label = r.get("name") or f"address {address}"
+        where = f"register[{n}] ({label})"
+        if not isinstance(address, int) or not 0 <= address <= 255:
+            raise _fail(source, f"{where}.address", "must be an integer 0-255")
+        if size not in (1, 2):
+            raise _fail(source, f"{where}.size", "must be 1 or 2")
+        access = r.get("access", "read")
+        if access not in ACCESS:
+            raise _fail(source, f"{where}.access", f"must be one of {', '.join(ACCESS)}")
+        if access != "reserved" and not r.get("name"):
+            raise _fail(source, f"{where}.name", "missing (only reserved registers may be unnamed)")
+        if r.get("area", "ram") not in AREAS:
+            raise _fail(source, f"{where}.area", f"must be one of {', '.join(AREAS)}")
+        if r.get("mode", "both") not in MODES:
+            raise _fail(source, f"{where}.mode", f"must be one of {', '.join(MODES)}")
+        signed = bool(r.get("signed", False))
+        lo_ok = -(1 << (8 * size - 1)) if signed else 0
+        hi_ok = (1 << (8 * size - 1)) - 1 if signed else (1 << 8 * size) - 1
+        rng = r.get("range")
+        if rng is not None:
+            if (not isinstance(rng, list) or len(rng) != 2 or not all(isinstance(x, int) for x in rng)
+                    or rng[0] > rng[1] or rng[0] < lo_ok or rng[1] > hi_ok):
+                raise _fail(source, f"{where}.range", f"must be [min, max] with {lo_ok} <= min <= max <= {hi_ok}")
+            rng = (rng[0], rng[1])
+        default = r.get("default")
+        if default is not None and not (isinstance(default, int) and lo_ok <= default <= hi_ok):
+            raise _fail(source, f"{where}.default", f"must be an integer {lo_ok}-{hi_ok}")
+        scale = r.get("scale", 1)
+        if not isinstance(scale, (int, float)) or scale <= 0:
+            raise _fail(source, f"{where}.scale", "must be a positive number")
+        for a in range(address, address + size):
+            if a in owner:
+                raise _fail(source, f"{where}.address", f"overlaps {owner[a]} at address {a}")
+            owner[a] = label
+        enum = _int_keys(source, f"{where}.enum", r["enum"]) if "enum" in r else None
+        table = _int_keys(source, f"{where}.table", r["table"]) if "table" in r else None
+        regs.append(Register(
+            r.get("name"), address, size, signed, scale, r.get("offset", 0), r.get("unit"), access,
+            r.get("area", "ram"), default, rng, r.get("mode", "both"), enum, table, r.get("format"),
+            r.get("description", ""),
+        ))
+    regs.sort(key=lambda reg: reg.address)
+    return Model(head["name"], head["model_number"], float(head["top_speed_s_per_60deg"]),
+                 head.get("readable_to", MAX_READ_ADDRESS), tuple(regs), source)
+
+
+def load_model(path: str | Path) -> Model:
+    """Load one memory-map file; a mistake raises ModelError naming the file and the key."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise ModelError(f"{path}: cannot read: {e.strerror}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ModelError(f"{path}: not valid TOML: {e}") from None
+    return parse_model(doc, str(path))
+
+
+def decoders_dirs() -> list[Path]:
+    """Where memory maps live: $RS30X_DECODERS, the installed copy, then the source tree's decoders/."""
+    dirs = []
+    env = os.environ.get("RS30X_DECODERS")
+    if env:
+        dirs += [Path(p) for p in env.split(os.pathsep) if p]
+    here = Path(__file__).resolve().parent
+    dirs += [here / "decoders", here.parent / "decoders"]
+    return [d for d in dirs if d.is_dir()]
+
+
+class ModelRegistry:
+    """Every known model, by name and by model number."""
+
+    def __init__(self, models: list[Model]) -> None:
+        if not models:
+            raise ModelError("no memory maps found (looked for decoders/*.toml)")
+        self.models = {m.name.upper(): m for m in models}
+        self.by_number = {m.model_number: m for m in models}
+
+    def get(self, name: str) -> Model:
+        try:
+            return self.models[name.upper()]
+        except KeyError:
+            raise ModelError(f"unknown model {name!r} (known: {', '.join(self.models)})") from None
+
+    @property
+    def default(self) -> Model:
+        return self.models.get(DEFAULT_MODEL) or next(iter(self.models.values()))
+
+    @classmethod
+    def from_dirs(cls, dirs: list[Path]) -> ModelRegistry:
+        seen: dict[str, Model] = {}
+        for d in dirs:
+            for p in sorted(d.glob("*.toml")):
+                m = load_model(p)
+                seen.setdefault(m.name.upper(), m)
+        return cls(list(seen.values()))
+
+
+@lru_cache(maxsize=1)
+def default_registry() -> ModelRegistry:
+    """The registry of the decoders found by :func:`decoders_dirs` (loaded once)."""
+    return ModelRegistry.from_dirs(decoders_dirs())
