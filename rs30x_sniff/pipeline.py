@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Iterable, Iterator
+from typing import Any, Iterable, Iterator
 
 from .bus import DEFAULT_REPLY_TIMEOUT, BusTracker, Record
 from .framing import DEFAULT_GAP_BYTES, FrameDecoder
@@ -24,13 +24,20 @@ class DecodeOptions:
 
 
 class Decoder:
-    """Frame decoder and bus tracker in one object: feed chunks, get records (still sans-IO)."""
+    """Frame decoder, bus tracker and (optionally) linter in one object: feed chunks, get records.
 
-    def __init__(self, options: DecodeOptions | None = None) -> None:
+    Still sans-IO. A linter, if given, sees every record before it is returned, so the record's
+    ``findings`` already hold what the linter could tell at that point; findings that only the end
+    of input reveals are in the list :meth:`close` leaves in ``late_findings``.
+    """
+
+    def __init__(self, options: DecodeOptions | None = None, linter: Any = None) -> None:
         o = self.options = options or DecodeOptions()
         self.frames = FrameDecoder(o.baud, gap_bytes=o.gap_bytes)
         self.bus = BusTracker(o.registry or default_registry(), o.models, o.reply_timeout, o.default_model)
+        self.linter = linter
         self.bytes_in = 0
+        self.late_findings: list = []
 
     def feed(self, data: bytes, t: float | None = None) -> list[Record]:
         self.bytes_in += len(data)
@@ -38,6 +45,10 @@ class Decoder:
         out: list[Record] = []
         for ev in self.frames.feed(data, t):
             out += bus.feed(ev)
+        if self.linter is not None and out:
+            lint = self.linter.feed
+            for rec in out:
+                lint(rec)
         return out
 
     def close(self) -> list[Record]:
@@ -45,6 +56,10 @@ class Decoder:
         for ev in self.frames.close():
             out += self.bus.feed(ev)
         out += self.bus.close()
+        if self.linter is not None:
+            for rec in out:
+                self.linter.feed(rec)
+            self.late_findings = self.linter.close()
         return out
 
 
