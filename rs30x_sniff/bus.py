@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+from collections import deque
 from typing import Any, Iterable
 
 from .events import Ack, AnyEvent, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
 from .memmap import Field, Model, ModelRegistry, default_registry
-from .wire import BROADCAST_ID
+from .wire import BROADCAST_ID, RETURN_ACK, RETURN_MODE_RANGES, RETURN_SPECIFIED
 
 # Reply status of a record.
 ANSWERED = "answered"        # a request whose reply came
@@ -24,7 +25,7 @@ class Record:
     """An event as the rest of the program sees it: decoded fields, its pair, its servo's model."""
 
     __slots__ = ("event", "index", "model", "request", "reply", "latency", "status", "findings", "_fields",
-                 "_models")
+                 "_values", "_models")
 
     def __init__(self, event: AnyEvent, index: int, model: Model | None, models: Any = None) -> None:
         self.event = event
@@ -36,6 +37,7 @@ class Record:
         self.status: str | None = None
         self.findings: list = []
         self._fields: list[Field] | None = None
+        self._values: tuple | None = None
         self._models = models  # callable id -> Model, for long packets
 
     # Convenience views of the event.
@@ -76,24 +78,48 @@ class Record:
         return None
 
     @property
+    def values(self) -> tuple:
+        """Engineering values of the fields the packet carries, in field order (decoded once, on first use)."""
+        v = self._values
+        if v is None:
+            v = self._values = self._decode_values()
+        return v
+
+    @property
     def fields(self) -> list[Field]:
-        """Named, scaled fields the packet carries (decoded once, on first use)."""
+        """Named, scaled fields the packet carries, with their raw bytes (built on first use)."""
         f = self._fields
         if f is None:
-            f = self._fields = self._decode()
+            lay, data = self._layout()
+            f = self._fields = [] if lay is None else (
+                lay.fields(data, self.values, self.event.id) if not isinstance(lay, list) else
+                [x for (sub, d, vid) in lay for x in sub.fields(d, sub.values(d), vid)])
         return f
 
-    def _decode(self) -> list[Field]:
+    def _layout(self):
+        """(layout, data) for the packet's data; for a long packet to servos of mixed models, a list."""
         ev = self.event
         t = type(ev)
-        if t is ReturnPacket or (t is ShortPacket and ev.data):
-            return self.model.decode(ev.address, ev.data, ev.id)
-        if t is LongPacket:
-            out: list[Field] = []
-            for rec in ev.records:
-                out += self._models(rec.vid).decode(ev.address, rec.data, rec.vid)
-            return out
-        return []
+        if t is ReturnPacket or t is ShortPacket:
+            if not ev.data:
+                return None, b""
+            return self.model.layout(ev.address, len(ev.data)), ev.data
+        if t is LongPacket and ev.length and ev.records:
+            data = ev.raw[7:-1]
+            models = self._models
+            first = models(ev.records[0].vid)
+            if all(models(r.vid) is first for r in ev.records) and len(data) == ev.length * ev.count:
+                return first.long_layout(ev.address, ev.length, ev.count), data
+            return [(models(r.vid).layout(ev.address, len(r.data)), r.data, r.vid) for r in ev.records], data
+        return None, b""
+
+    def _decode_values(self) -> tuple:
+        lay, data = self._layout()
+        if lay is None:
+            return ()
+        if isinstance(lay, list):
+            return tuple(v for sub, d, _ in lay for v in sub.values(d))
+        return lay.values(data)
 
     @property
     def read_names(self) -> list[str]:
@@ -109,6 +135,9 @@ class Record:
         return f"<Record {self.index} {self.kind}@{self.offset} status={self.status}>"
 
 
+_ONES = b"\x01" * 256
+
+
 class ServoState:
     """What the bus has told us about one servo: a shadow of its memory map."""
 
@@ -122,7 +151,7 @@ class ServoState:
         self.updated: dict[int, float | None] = {}
         self.requests = 0
         self.returns = 0
-        self.latencies: list[float] = []
+        self.latencies: deque[float] = deque(maxlen=4096)  # recent reply latencies (bounded for live use)
         self.last_t: float | None = None
 
     def store(self, address: int, data: bytes, t: float | None = None) -> None:
@@ -131,7 +160,7 @@ class ServoState:
             data = data[:256 - address]
             end = 256
         self.image[address:end] = data
-        self.known[address:end] = b"\x01" * len(data)
+        self.known[address:end] = _ONES[:end - address]
         self.last_t = t
 
     def get(self, name: str) -> Any:
@@ -173,9 +202,15 @@ class BusTracker:
         self._pending: Record | None = None   # request whose reply is due
         self._last_request: Record | None = None  # latest request that got its reply (for EXTRA)
         self._held: list[Record] = []
+        self._model_cache: dict[int, Model] = {}
+        self._model_of = self.model_of
 
     def model_of(self, servo_id: int) -> Model:
-        return self.configured.get(servo_id) or self.learned.get(servo_id) or self.default
+        m = self._model_cache.get(servo_id)
+        if m is None:
+            m = self._model_cache[servo_id] = (
+                self.configured.get(servo_id) or self.learned.get(servo_id) or self.default)
+        return m
 
     def servo(self, servo_id: int) -> ServoState:
         st = self.servos.get(servo_id)
@@ -191,22 +226,29 @@ class BusTracker:
 
     def feed(self, ev: AnyEvent) -> list[Record]:
         t = type(ev)
-        sid = getattr(ev, "id", None)
-        model = self.model_of(sid) if sid is not None and sid != 0 else self.default
-        rec = Record(ev, self._index, model, self.model_of)
+        if t is ShortPacket or t is ReturnPacket:
+            model = self.model_of(ev[4])
+        else:
+            model = self.default
+        rec = Record(ev, self._index, model, self._model_of)
         self._index += 1
         out: list[Record] = []
         pending = self._pending
-        if pending is not None and ev.t_start is not None and pending.event.t_end is not None \
-                and ev.t_start - pending.event.t_end > self.reply_timeout:
-            self._resolve_missing(out)
-            pending = None
+        if pending is not None:
+            t0, t1 = ev[2], pending.event[3]
+            if t0 is not None and t1 is not None and t0 - t1 > self.reply_timeout:
+                self._resolve_missing(out)
+                pending = None
         if t is ReturnPacket or t is Ack or t is Nack:
             self._on_reply(rec, pending)
         elif t is ShortPacket or t is LongPacket:
             if pending is not None:
                 self._resolve_missing(out)
-            self._on_request(rec)
+            self._last_request = None
+            if t is LongPacket:
+                self._on_long(ev)
+            else:
+                self._on_short(rec, ev)
         if self._pending is not None:
             self._held.append(rec)
             return out
@@ -229,21 +271,28 @@ class BusTracker:
         out += self._held
         self._held = []
 
-    def _on_request(self, rec: Record) -> None:
-        ev = rec.event
-        self._last_request = None
-        if type(ev) is LongPacket:
-            for r in ev.records:
-                if r.data:
-                    self.servo(r.vid).store(ev.address, r.data, ev.t_start)
+    def _on_long(self, ev: LongPacket) -> None:
+        if not ev.checksum_ok:
             return
+        address, t = ev.address, ev.t_start
+        servos = self.servos
+        for vid, data in ev.records:
+            if data:
+                st = servos.get(vid)
+                if st is None:
+                    st = self.servo(vid)
+                st.store(address, data, t)
+
+    def _on_short(self, rec: Record, ev: ShortPacket) -> None:
+        sid = ev.id
         if ev.data and ev.checksum_ok:
-            targets = list(self.servos.values()) if ev.id == BROADCAST_ID else [self.servo(ev.id)]
+            targets = list(self.servos.values()) if sid == BROADCAST_ID else [self.servo(sid)]
             for st in targets:
                 st.store(ev.address, ev.data, ev.t_start)
-        if ev.id != BROADCAST_ID:
-            self.servo(ev.id).requests += 1
-        if rec.expects is not None:
+        if sid != BROADCAST_ID:
+            self.servo(sid).requests += 1
+        mode = ev.flag & 0x0F
+        if mode == RETURN_ACK or mode == RETURN_SPECIFIED or mode in RETURN_MODE_RANGES:
             self._pending = rec
 
     def _on_reply(self, rec: Record, pending: Record | None) -> None:
@@ -282,4 +331,5 @@ class BusTracker:
             m = self.registry.by_number.get(int.from_bytes(ev.data[:2], "little"))
             if m is not None and m is not st.model:
                 self.learned[ev.id] = m
+                self._model_cache.pop(ev.id, None)
                 st.model = m

@@ -196,28 +196,40 @@ class FrameDecoder:
     def _parse(self, final: bool) -> list[AnyEvent]:
         out: list[AnyEvent] = []
         buf = self._buf
-        i = self._scan
         n = len(buf)
+        self._start = 0   # buffer index of the first byte not yet in an event
+        i = self._scan
         while i < n:
+            start = self._start
             base = self._base
             br = self._breaks
             if br:
-                while br and br[0] <= base:
+                while br and br[0] <= base + start:
                     br.pop(0)
                 # Garbage runs end at idle gaps, so a live display sees them promptly.
-                if i and br and br[0] == base + i:
+                if i > start and br and br[0] == base + i:
                     self._emit_garbage(out, i)
-                    buf, n, i = self._buf, len(self._buf), 0
                     continue
             c = buf[i]
             if self._ack_pending:
                 # ACK/NACK bytes have no header: only the byte right after a request asking for one.
                 self._ack_pending = False
-                if i == 0 and (c == ACK or c == NACK):
-                    self._emit(out, Ack if c == ACK else Nack, 1)
-                    buf, n = self._buf, len(self._buf)
+                if i == start and (c == ACK or c == NACK):
+                    self._emit_single(out, Ack if c == ACK else Nack)
+                    i += 1
                     continue
             if c == _FA or c == _FD:
+                # Fast path: an intact frame right here, with no idle gap to consider.
+                if not br and i + 7 <= n and buf[i + 1] == (_AF if c == _FA else _DF):
+                    length = buf[i + 5]
+                    end = i + 8 + (length * buf[i + 6] if c == _FA else length)
+                    if end <= n and end - i - 8 <= self.max_data \
+                            and reduce(xor, buf[i + 2:end - 1], 0) == buf[end - 1]:
+                        if i > start:
+                            self._emit_garbage(out, i)
+                        self._emit_frame(out, end, True)
+                        i = end
+                        continue
                 end = self._frame_end(i, final)
                 if end == _WAIT:
                     break
@@ -234,19 +246,16 @@ class FrameDecoder:
                         break
                     if q >= 0 or end < 0:
                         # Cut short, or corrupt with an intact frame inside: the head is garbage.
-                        if i:
+                        if i > start:
                             self._emit_garbage(out, i)
-                            stop -= i
-                            q = q - i if q >= 0 else q
                         self._garbage_reason = TRUNCATED
-                        self._emit_garbage(out, q if q >= 0 else stop)
-                        buf, n, i = self._buf, len(self._buf), 0
+                        i = q if q >= 0 else stop
+                        self._emit_garbage(out, i)
                         continue
-                if i:
+                if i > start:
                     self._emit_garbage(out, i)
-                    end -= i
                 self._emit_frame(out, end, ok)
-                buf, n, i = self._buf, len(self._buf), 0
+                i = end
                 continue
             # Not a sync byte: skip ahead to the next possible one (or the next idle gap).
             a = buf.find(b"\xfa", i + 1)
@@ -259,21 +268,29 @@ class FrameDecoder:
                 if gap is not None:
                     nxt = gap - base
             i = nxt
-        if final and n:
+        if final and n > self._start:
             self._emit_garbage(out, n)
-            i = 0
+            i = n
+        # Drop what is now in events; keep pending garbage and any partial frame.
+        start = self._start
+        if start:
+            del buf[:start]
+            self._base += start
+            i -= start
         self._scan = i
+        self._trim_chunks()
         return out
 
     # ---- emitting ----------------------------------------------------------------------------
-    def _take(self, size: int) -> tuple[int, bytes, float | None, float | None]:
-        off = self._base
-        raw = bytes(self._buf[:size])
-        del self._buf[:size]
-        self._base = off + size
-        self._scan = 0
-        t0, t1 = self._times(off, off + size)
-        self._trim_chunks()
+    def _take(self, end: int) -> tuple[int, bytes, float | None, float | None]:
+        start = self._start
+        off = self._base + start
+        raw = bytes(self._buf[start:end])
+        self._start = end
+        if self._chunk_offsets:
+            t0, t1 = self._times(off, off + end - start)
+        else:
+            t0 = t1 = None
         return off, raw, t0, t1
 
     def _trim_chunks(self) -> None:
@@ -284,29 +301,29 @@ class FrameDecoder:
                 del offs[:k]
                 del self._chunk_times[:k]
 
-    def _emit(self, out: list[AnyEvent], cls: type, size: int) -> None:
-        off, raw, t0, t1 = self._take(size)
-        out.append(cls(off, raw, t0, t1))
+    def _emit_single(self, out: list[AnyEvent], cls: type) -> None:
+        off, raw, t0, t1 = self._take(self._start + 1)
+        out.append(tuple.__new__(cls, (off, raw, t0, t1)))
 
-    def _emit_garbage(self, out: list[AnyEvent], size: int) -> None:
-        off, raw, t0, t1 = self._take(size)
-        out.append(Garbage(off, raw, t0, t1, self._garbage_reason))
+    def _emit_garbage(self, out: list[AnyEvent], end: int) -> None:
+        off, raw, t0, t1 = self._take(end)
+        out.append(tuple.__new__(Garbage, (off, raw, t0, t1, self._garbage_reason)))
         self._garbage_reason = NOISE
         self._ack_pending = False
 
-    def _emit_frame(self, out: list[AnyEvent], size: int, ok: bool) -> None:
-        off, raw, t0, t1 = self._take(size)
+    def _emit_frame(self, out: list[AnyEvent], end: int, ok: bool) -> None:
+        off, raw, t0, t1 = self._take(end)
         sid, flag, address, length, count = raw[2], raw[3], raw[4], raw[5], raw[6]
         data = raw[7:-1]
         self._ack_pending = False
         if raw[0] == _FD:
-            out.append(ReturnPacket(off, raw, t0, t1, sid, flag, address, length, count, data, ok))
+            out.append(tuple.__new__(ReturnPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok)))
         elif sid == 0:
-            records = tuple(LongRecord(data[k], data[k + 1:k + length])
-                            for k in range(0, len(data), length)) if length else ()
-            out.append(LongPacket(off, raw, t0, t1, flag, address, length, count, records, ok))
+            records = tuple([tuple.__new__(LongRecord, (data[k], data[k + 1:k + length]))
+                             for k in range(0, len(data), length)]) if length else ()
+            out.append(tuple.__new__(LongPacket, (off, raw, t0, t1, flag, address, length, count, records, ok)))
         else:
-            out.append(ShortPacket(off, raw, t0, t1, sid, flag, address, length, count, data, ok))
+            out.append(tuple.__new__(ShortPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok)))
             self._ack_pending = flag & 0x0F == RETURN_ACK
 
 

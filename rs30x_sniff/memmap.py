@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import struct
 import tomllib
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -133,7 +134,7 @@ class Model:
     source: str = ""
     _by_address: dict[int, Register] = field(default_factory=dict, repr=False)
     _by_name: dict[str, Register] = field(default_factory=dict, repr=False)
-    _layouts: dict[tuple[int, int], tuple] = field(default_factory=dict, repr=False)
+    _layouts: dict[tuple, Layout] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         for reg in self.registers:
@@ -160,41 +161,121 @@ class Model:
     def names(self) -> list[str]:
         return list(self._by_name)
 
-    def layout(self, address: int, length: int) -> tuple:
-        """(start, size, register, partial) for each field of ``length`` bytes at ``address``; cached."""
+    def layout(self, address: int, length: int) -> Layout:
+        """How ``length`` bytes at ``address`` split into fields, with a compiled decoder; cached."""
         key = (address, length)
         lay = self._layouts.get(key)
-        if lay is not None:
-            return lay
+        if lay is None:
+            lay = self._layouts[key] = Layout(self, address, length)
+        return lay
+
+    def long_layout(self, address: int, length: int, count: int) -> Layout:
+        """The layout of a whole long packet's data (``count`` records of VID + ``length - 1`` bytes)."""
+        key = (address, length, count, "long")
+        lay = self._layouts.get(key)
+        if lay is None:
+            lay = self._layouts[key] = Layout(self, address, length - 1, count)
+        return lay
+
+    def decode(self, address: int, data: bytes, servo_id: int | None = None) -> list[Field]:
+        """Named, scaled fields of ``data`` written to or read from ``address``."""
+        lay = self.layout(address, len(data))
+        return lay.fields(data, lay.values(data), servo_id)
+
+    def names_in(self, address: int, length: int) -> list[str]:
+        """Register labels a read of ``length`` bytes at ``address`` covers."""
+        return [reg.label for _, _, reg, _ in self.layout(address, length).parts]
+
+
+class Layout:
+    """The fields of one (address, length) of a model, and a decoder compiled for them.
+
+    ``values(data)`` turns the bytes into engineering values with one ``struct.unpack`` and one
+    generated expression, which is what lets annotation keep up with a saturated bus; ``fields``
+    builds the Field objects from those values only when somebody looks at them.
+    With ``records`` > 0 it is a long packet's data: that many repeats of VID + ``length`` bytes.
+    """
+
+    __slots__ = ("parts", "size", "records", "values", "_struct")
+
+    def __init__(self, model: Model, address: int, length: int, records: int = 0) -> None:
         parts = []
         a, end = address, address + length
         while a < end:
-            reg = self.register_at(a)
+            reg = model.register_at(a)
             if a == reg.address and a + reg.size <= end:
                 parts.append((a - address, reg.size, reg, None))
                 a += reg.size
             else:
                 parts.append((a - address, 1, reg, "low" if a == reg.address else "high"))
                 a += 1
-        lay = self._layouts[key] = tuple(parts)
-        return lay
+        self.parts = tuple(parts)
+        self.size = length
+        self.records = records
+        codes, exprs, env = [], [], {}
+        k = 0
+        for rep in range(max(records, 1)):
+            if records:
+                codes.append("B")  # the VID
+                k += 1
+            for j, (_, size, reg, partial) in enumerate(parts):
+                if partial or size == 1:
+                    codes.append("b" if reg.signed and not partial else "B")
+                else:
+                    codes.append("h" if reg.signed else "H")
+                exprs.append(_conversion(reg, partial, f"r[{k}]", env, j))
+                k += 1
+        self._struct = struct.Struct("<" + "".join(codes))
+        unpack = self._struct.unpack
+        if all(e == f"r[{i}]" for i, e in enumerate(exprs)):
+            self.values = unpack
+        else:
+            env["unpack"] = unpack
+            src = f"lambda data: (lambda r: ({', '.join(exprs)},))(unpack(data))"
+            self.values = eval(src, env)  # noqa: S307 - generated from the validated memory map
 
-    def decode(self, address: int, data: bytes, servo_id: int | None = None) -> list[Field]:
-        """Named, scaled fields of ``data`` written to or read from ``address``."""
+    def fields(self, data: bytes, values: tuple, servo_id: int | None = None) -> list[Field]:
+        """Field objects for ``data`` and its already decoded ``values``."""
         out = []
-        for start, size, reg, partial in self.layout(address, len(data)):
-            raw = data[start:start + size]
-            if partial:
-                rv = raw[0]
-                out.append(Field(servo_id, address + start, reg, raw, rv, rv, partial))
-            else:
-                rv = int.from_bytes(raw, "little", signed=reg.signed)
-                out.append(Field(servo_id, address + start, reg, raw, rv, reg.convert(rv)))
+        parts = self.parts
+        if not self.records:
+            for (start, size, reg, partial), v in zip(parts, values):
+                raw = data[start:start + size]
+                rv = raw[0] if partial else int.from_bytes(raw, "little", signed=reg.signed)
+                out.append(Field(servo_id, reg.address if not partial else reg.address + (partial == "high"),
+                                 reg, raw, rv, v, partial))
+            return out
+        stride = self.size + 1
+        n = len(parts)
+        for rec in range(self.records):
+            base = rec * stride
+            vid = data[base]
+            for j, (start, size, reg, partial) in enumerate(parts):
+                raw = data[base + 1 + start:base + 1 + start + size]
+                rv = raw[0] if partial else int.from_bytes(raw, "little", signed=reg.signed)
+                out.append(Field(vid, reg.address if not partial else reg.address + (partial == "high"),
+                                 reg, raw, rv, values[rec * n + j], partial))
         return out
 
-    def names_in(self, address: int, length: int) -> list[str]:
-        """Register labels a read of ``length`` bytes at ``address`` covers."""
-        return [reg.label for _, _, reg, _ in self.layout(address, length)]
+
+def _conversion(reg: Register, partial: str | None, ref: str, env: dict, j: int) -> str:
+    """A Python expression turning the raw value ``ref`` into the register's engineering value."""
+    if partial or reg.name is None:
+        return ref
+    if reg.enum is not None:
+        env[f"E{j}"] = reg.enum
+        return f"E{j}.get({ref}, {ref})"
+    if reg.table is not None:
+        env[f"T{j}"] = reg.table
+        return f"T{j}.get({ref})"
+    scale, offset = reg.scale, reg.offset
+    if scale == 1:
+        expr = ref
+    elif scale < 1 and abs(1 / scale - round(1 / scale)) < 1e-9:
+        expr = f"{ref} / {round(1 / scale)}"
+    else:
+        expr = f"{ref} * {scale!r}"
+    return f"({offset!r} + {expr})" if offset else expr
 
 
 # ---- loading ------------------------------------------------------------------------------------
