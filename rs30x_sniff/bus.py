@@ -38,7 +38,7 @@ class Record:
         self.findings: list = []
         self._fields: list[Field] | None = None
         self._values: tuple | None = None
-        self._models = models  # callable id -> Model, for long packets
+        self._models = models  # the BusTracker, for the models of a long packet's servos
 
     # Convenience views of the event.
     @property
@@ -106,9 +106,11 @@ class Record:
             return self.model.layout(ev.address, len(ev.data)), ev.data
         if t is LongPacket and ev.length and ev.records:
             data = ev.raw[7:-1]
-            models = self._models
+            tracker = self._models
+            models = tracker.model_of
             first = models(ev.records[0].vid)
-            if all(models(r.vid) is first for r in ev.records) and len(data) == ev.length * ev.count:
+            if len(data) == ev.length * ev.count and (
+                    tracker.uniform or all(models(r.vid) is first for r in ev.records)):
                 return first.long_layout(ev.address, ev.length, ev.count), data
             return [(models(r.vid).layout(ev.address, len(r.data)), r.data, r.vid) for r in ev.records], data
         return None, b""
@@ -135,48 +137,48 @@ class Record:
         return f"<Record {self.index} {self.kind}@{self.offset} status={self.status}>"
 
 
-_ONES = b"\x01" * 256
-
-
 class ServoState:
     """What the bus has told us about one servo: a shadow of its memory map."""
 
-    __slots__ = ("id", "model", "image", "known", "updated", "requests", "returns", "latencies", "last_t")
+    __slots__ = ("id", "model", "image", "known", "requests", "returns", "latencies", "last_t")
 
     def __init__(self, servo_id: int, model: Model) -> None:
         self.id = servo_id
         self.model = model
         self.image = bytearray(256)
-        self.known = bytearray(256)  # 1 where image holds a value seen on the bus
-        self.updated: dict[int, float | None] = {}
+        self.known = 0  # bit a set once address a of image holds a value seen on the bus
         self.requests = 0
         self.returns = 0
         self.latencies: deque[float] = deque(maxlen=4096)  # recent reply latencies (bounded for live use)
         self.last_t: float | None = None
 
     def store(self, address: int, data: bytes, t: float | None = None) -> None:
-        end = address + len(data)
-        if end > 256:
-            data = data[:256 - address]
-            end = 256
-        self.image[address:end] = data
-        self.known[address:end] = _ONES[:end - address]
+        n = len(data)
+        if address + n > 256:
+            n = 256 - address
+            data = data[:n]
+        self.image[address:address + n] = data
+        self.known |= ((1 << n) - 1) << address
         self.last_t = t
+
+    def is_known(self, address: int, size: int = 1) -> bool:
+        mask = ((1 << size) - 1) << address
+        return self.known & mask == mask
 
     def get(self, name: str) -> Any:
         """Latest known engineering value of a register, or None if never seen."""
         reg = self.model.register(name)
         a = reg.address
-        if not all(self.known[a:a + reg.size]):
+        if not self.is_known(a, reg.size):
             return None
         return reg.convert(int.from_bytes(self.image[a:a + reg.size], "little", signed=reg.signed))
 
     def values(self) -> dict[str, Any]:
         """Every named register whose value is known."""
         out = {}
-        known, image = self.known, self.image
+        image = self.image
         for reg in self.model.registers:
-            if reg.name and all(known[reg.address:reg.address + reg.size]):
+            if reg.name and self.is_known(reg.address, reg.size):
                 a = reg.address
                 out[reg.name] = reg.convert(int.from_bytes(image[a:a + reg.size], "little", signed=reg.signed))
         return out
@@ -203,7 +205,12 @@ class BusTracker:
         self._last_request: Record | None = None  # latest request that got its reply (for EXTRA)
         self._held: list[Record] = []
         self._model_cache: dict[int, Model] = {}
-        self._model_of = self.model_of
+
+    @property
+    def uniform(self) -> bool:
+        """True while every servo has the default model (the common case: one model on the bus)."""
+        d = self.default
+        return all(m is d for m in self.configured.values()) and all(m is d for m in self.learned.values())
 
     def model_of(self, servo_id: int) -> Model:
         m = self._model_cache.get(servo_id)
@@ -230,7 +237,7 @@ class BusTracker:
             model = self.model_of(ev[4])
         else:
             model = self.default
-        rec = Record(ev, self._index, model, self._model_of)
+        rec = Record(ev, self._index, model, self)
         self._index += 1
         out: list[Record] = []
         pending = self._pending
@@ -275,13 +282,23 @@ class BusTracker:
         if not ev.checksum_ok:
             return
         address, t = ev.address, ev.t_start
+        n = ev.length - 1
+        if n <= 0:
+            return
+        end = address + n
+        if end > 256:
+            for vid, data in ev.records:
+                self.servo(vid).store(address, data, t)
+            return
+        mask = ((1 << n) - 1) << address
         servos = self.servos
         for vid, data in ev.records:
-            if data:
-                st = servos.get(vid)
-                if st is None:
-                    st = self.servo(vid)
-                st.store(address, data, t)
+            st = servos.get(vid)
+            if st is None:
+                st = self.servo(vid)
+            st.image[address:end] = data  # inlined ServoState.store: 18 of these per gait frame
+            st.known |= mask
+            st.last_t = t
 
     def _on_short(self, rec: Record, ev: ShortPacket) -> None:
         sid = ev.id
