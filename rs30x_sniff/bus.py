@@ -25,7 +25,7 @@ class Record:
     """An event as the rest of the program sees it: decoded fields, its pair, its servo's model."""
 
     __slots__ = ("event", "index", "model", "request", "reply", "latency", "status", "findings", "_fields",
-                 "_values", "_models")
+                 "_values", "_models", "resolved_by")
 
     def __init__(self, event: AnyEvent, index: int, model: Model | None, models: Any = None) -> None:
         self.event = event
@@ -39,6 +39,9 @@ class Record:
         self._fields: list[Field] | None = None
         self._values: tuple | None = None
         self._models = models  # the BusTracker, for the models of a long packet's servos
+        # For a MISSING request: the record whose arrival settled that no reply would come (None at end
+        # of input). The linter tells a missing reply from a host that did not wait by it.
+        self.resolved_by: Record | None = None
 
     # Convenience views of the event.
     @property
@@ -244,13 +247,13 @@ class BusTracker:
         if pending is not None:
             t0, t1 = ev[2], pending.event[3]
             if t0 is not None and t1 is not None and t0 - t1 > self.reply_timeout:
-                self._resolve_missing(out)
+                self._resolve_missing(out, rec)
                 pending = None
         if t is ReturnPacket or t is Ack or t is Nack:
             self._on_reply(rec, pending)
         elif t is ShortPacket or t is LongPacket:
             if pending is not None:
-                self._resolve_missing(out)
+                self._resolve_missing(out, rec)
             self._last_request = None
             if t is LongPacket:
                 self._on_long(ev)
@@ -272,8 +275,9 @@ class BusTracker:
         return out
 
     # ---- pairing -----------------------------------------------------------------------------
-    def _resolve_missing(self, out: list[Record]) -> None:
+    def _resolve_missing(self, out: list[Record], by: Record | None = None) -> None:
         self._pending.status = MISSING
+        self._pending.resolved_by = by
         self._pending = None
         out += self._held
         self._held = []
