@@ -142,10 +142,12 @@ class FrameDecoder:
         if not ((first == _FA and second == _AF) or (first == _FD and second == _DF)):
             return _NOT_SYNC
         base = self._base
-        if i + 7 > n:
-            cut = self._next_break(base + i, base + n)
+        if self._breaks:
+            # An idle gap inside the header cuts the frame before its length means anything.
+            cut = self._next_break(base + i, base + min(i + 7, n))
             if cut is not None:
                 return _CUT - (cut - base)
+        if i + 7 > n:
             return _CUT - n if final else _WAIT
         length = buf[i + 5]
         # Data bytes = Length x Count for requests, Length for returns ("Format of Packets").
