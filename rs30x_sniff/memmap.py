@@ -307,15 +307,14 @@ def parse_model(doc: dict[str, Any], source: str = "<memory map>") -> Model:
     regs: list[Register] = []
     owner: dict[int, str] = {}
     for n, r in enumerate(doc.get("register", [])):
-        where = f"register[{n}]"
+        label = r.get("name") or (f"address {r['address']}" if "address" in r else "?")
+        where = f"register[{n}] ({label})"
         for k in r:
             if k not in _REGISTER_KEYS:
                 raise _fail(source, f"{where}.{k}", "unknown key")
         if "address" not in r:
             raise _fail(source, f"{where}.address", "missing")
         address, size = r["address"], r.get("size", 1)
-        label = r.get("name") or f"address {address}"
-        where = f"register[{n}] ({label})"
         if not isinstance(address, int) or not 0 <= address <= 255:
             raise _fail(source, f"{where}.address", "must be an integer 0-255")
         if size not in (1, 2):

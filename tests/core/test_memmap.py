@@ -1,0 +1,113 @@
+"""Memory maps as data: both models load, every documented address is there, mistakes name file and key."""
+
+import pytest
+
+from rs30x_sniff.memmap import ModelError, default_registry, load_model, parse_model
+
+NAMES = """model_number firmware_version servo_id reverse baud_rate return_delay cw_angle_limit ccw_angle_limit
+temperature_limit torque_in_silence warm_up_time cw_compliance_margin ccw_compliance_margin cw_compliance_slope
+ccw_compliance_slope punch goal_position goal_time max_torque torque_enable present_position present_time
+present_speed present_current present_temperature present_voltage""".split()
+
+
+@pytest.fixture(params=["RS303MR", "RS304MD"])
+def model(request):
+    return default_registry().get(request.param)
+
+
+def test_every_address_0_to_59_is_described(model):
+    covered = sorted(a for r in model.registers for a in range(r.address, r.address + r.size))
+    assert covered == list(range(60))
+
+
+def test_the_named_registers(model):
+    assert model.names == NAMES
+
+
+def test_models_differ_in_model_number_punch_and_speed():
+    r3, r4 = default_registry().get("RS303MR"), default_registry().get("RS304MD")
+    assert (r3.model_number, r4.model_number) == (0x3030, 0x3040)
+    assert r3.register("model_number").default == 0x3030 and r4.register("model_number").default == 0x3040
+    assert (r3.register("punch").default, r4.register("punch").default) == (100, 600)  # 1.00 % and 6.00 %
+    assert (r3.top_speed_s_per_60deg, r4.top_speed_s_per_60deg) == (0.11, 0.16)
+
+
+@pytest.mark.parametrize("name,raw,value", [
+    ("goal_position", "84 03", 90.0), ("goal_position", "7C FC", -90.0), ("goal_time", "F4 01", 5.0),
+    ("punch", "64 00", 1.0), ("present_voltage", "E4 02", 7.4), ("return_delay", "12", 1000),
+    ("baud_rate", "07", 115200), ("baud_rate", "04", 38400), ("torque_enable", "02", "brake"),
+    ("ccw_angle_limit", "24 FA", -150.0), ("present_temperature", "2D 00", 45), ("max_torque", "50", 80),
+    ("warm_up_time", "C8", 2.0), ("cw_compliance_margin", "02", 0.2), ("reverse", "01", "reverse"),
+])
+def test_engineering_values(name, raw, value):
+    m = default_registry().get("RS303MR")
+    reg = m.register(name)
+    [field] = m.decode(reg.address, bytes.fromhex(raw), 1)
+    assert field.name == name and field.value == value
+
+
+def test_undocumented_addresses_decode_as_unnamed_bytes():
+    m = default_registry().get("RS303MR")
+    fields = m.decode(60, bytes(range(80)))
+    assert len(fields) == 80 and all(f.name is None for f in fields)
+    assert [f.value for f in fields[:3]] == [0, 1, 2]
+
+
+def test_partial_register_write_is_marked():
+    m = default_registry().get("RS303MR")
+    fields = m.decode(31, bytes([1, 2, 3]))
+    assert [(f.name, f.partial) for f in fields] == [("goal_position", "high"), ("goal_time", None)]
+
+
+def test_encode_is_the_inverse_of_decode():
+    m = default_registry().get("RS303MR")
+    assert m.register("goal_position").encode(-21.6) == (-216).to_bytes(2, "little", signed=True)
+    assert m.register("baud_rate").encode(230400) == b"\x09"
+
+
+GOOD = """
+[model]
+name = "X1"
+model_number = 1
+top_speed_s_per_60deg = 0.1
+[[register]]
+name = "a"
+address = 0
+size = 2
+range = [0, 10]
+"""
+
+
+@pytest.mark.parametrize("text,where", [
+    (GOOD + "colour = 3\n", "register[0] (a).colour: unknown key"),
+    (GOOD.replace("[model]", "[model]\nvendor = 1"), "model.vendor: unknown key"),
+    (GOOD + '[[register]]\nname = "b"\naddress = 1\n', "register[1] (b).address: overlaps a at address 1"),
+    (GOOD.replace("range = [0, 10]", "range = [10, 0]"), "register[0] (a).range"),
+    (GOOD.replace("size = 2", "size = 3"), "register[0] (a).size"),
+    (GOOD.replace('name = "a"\n', ""), "register[0] (address 0).name"),
+])
+def test_mistakes_name_the_file_and_key(tmp_path, text, where):
+    p = tmp_path / "x1.toml"
+    p.write_text(text)
+    with pytest.raises(ModelError) as e:
+        load_model(p)
+    assert str(p) in str(e.value) and where in str(e.value)
+
+
+def test_not_toml_is_a_model_error(tmp_path):
+    p = tmp_path / "bad.toml"
+    p.write_text("[model\n")
+    with pytest.raises(ModelError, match="not valid TOML"):
+        load_model(p)
+
+
+def test_a_new_model_is_a_new_file(tmp_path, monkeypatch):
+    import tomllib
+    from rs30x_sniff.memmap import ModelRegistry, decoders_dirs
+    doc = tomllib.loads(GOOD)
+    m = parse_model(doc, "mem")
+    assert m.name == "X1" and m.register("a").range == (0, 10)
+    (tmp_path / "x1.toml").write_text(GOOD)
+    monkeypatch.setenv("RS30X_DECODERS", str(tmp_path))
+    reg = ModelRegistry.from_dirs(decoders_dirs())
+    assert {"X1", "RS303MR", "RS304MD"} <= set(reg.models)
