@@ -46,7 +46,13 @@ def detect_format(path: str) -> str:
     if text_kind:
         return text_kind
     if ext in _TEXT_EXTENSIONS:
-        raise CaptureError(f"{path}: not a hex capture (expected hex bytes like 'FA AF 01', '#' comments)")
+        try:
+            text = head.decode("ascii")
+        except UnicodeDecodeError:
+            raise CaptureError(f"{path}: not a hex capture (expected text like 'FA AF 01 ...')") from None
+        # A text capture with a bad token: read it as its first line says, so the error names the line.
+        first = next((ln.split("#", 1)[0].split() for ln in text.splitlines() if ln.split("#", 1)[0].split()), [])
+        return TIMESTAMPED if first and _TIME_TOKEN.match(first[0].encode()) else HEX
     if b"\xfa\xaf" in head or b"\xfd\xdf" in head or not head:
         return BINARY
     raise CaptureError(f"{path}: unknown capture format (use --input-format {'|'.join(FORMATS)})")
