@@ -235,14 +235,26 @@ class BusTracker:
         return out
 
     def feed(self, ev: AnyEvent) -> list[Record]:
+        """Records released by one more event (none while a reply is still due)."""
+        out: list[Record] = []
+        self._feed(ev, out)
+        return out
+
+    def feed_many(self, events: list[AnyEvent], out: list[Record]) -> list[Record]:
+        """Append the records released by ``events`` to ``out`` (the batch form the decoder uses)."""
+        step = self._feed
+        for ev in events:
+            step(ev, out)
+        return out
+
+    def _feed(self, ev: AnyEvent, out: list[Record]) -> None:
         t = type(ev)
         if t is ShortPacket or t is ReturnPacket:
-            model = self.model_of(ev[4])
+            model = self._model_cache.get(ev[4]) or self.model_of(ev[4])
         else:
             model = self.default
         rec = Record(ev, self._index, model, self)
         self._index += 1
-        out: list[Record] = []
         pending = self._pending
         if pending is not None:
             t0, t1 = ev[2], pending.event[3]
@@ -261,12 +273,11 @@ class BusTracker:
                 self._on_short(rec, ev)
         if self._pending is not None:
             self._held.append(rec)
-            return out
+            return
         if self._held:
             out += self._held
             self._held = []
         out.append(rec)
-        return out
 
     def close(self) -> list[Record]:
         out: list[Record] = []

@@ -41,10 +41,7 @@ class Decoder:
 
     def feed(self, data: bytes, t: float | None = None) -> list[Record]:
         self.bytes_in += len(data)
-        bus = self.bus
-        out: list[Record] = []
-        for ev in self.frames.feed(data, t):
-            out += bus.feed(ev)
+        out = self.bus.feed_many(self.frames.feed(data, t), [])
         if self.linter is not None and out:
             lint = self.linter.feed
             for rec in out:
@@ -52,9 +49,7 @@ class Decoder:
         return out
 
     def close(self) -> list[Record]:
-        out: list[Record] = []
-        for ev in self.frames.close():
-            out += self.bus.feed(ev)
+        out = self.bus.feed_many(self.frames.close(), [])
         out += self.bus.close()
         if self.linter is not None:
             for rec in out:
