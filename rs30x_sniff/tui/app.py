@@ -1,0 +1,363 @@
+"""The monitor application and the factory the CLI and the tests share to build it."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from textual import on
+from textual.app import App, ComposeResult, SystemCommand
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.message import Message
+from textual.screen import Screen
+from textual.widgets import Footer, Input, Label
+
+from ..memmap import default_registry
+from ..pipeline import DecodeOptions
+from .detail import DetailPane
+from .feed import Batch, Feeder, Source, default_linter
+from .filter import FilterError, parse_filter
+from .header import SessionInfo, StatusHeader
+from .help import HelpScreen
+from .panes import FindingsPane, PlotPane, ServosPane
+from .rows import clean
+from .store import DEFAULT_HISTORY, PLOT_REGISTERS, Store
+from .timeline import Timeline
+
+FILTER_STEP = 20_000  # records a filter scan checks between screen updates
+
+
+class BatchArrived(Message):
+    """Records from the capture thread (posted from that thread; Textual queues it for the screen)."""
+
+    def __init__(self, batch: Batch) -> None:
+        super().__init__()
+        self.batch = batch
+
+
+@dataclass
+class MonitorConfig:
+    """Everything the factory needs besides the source (what the command line decides)."""
+
+    options: DecodeOptions
+    history: int = DEFAULT_HISTORY
+    record_dir: str = "."
+    clock: Callable[[], float] = time.monotonic   # elapsed time and value flashes (tests freeze it)
+    wall: Callable[[], float] = time.time         # names recordings
+    linter_factory: Callable[[], Any] = default_linter
+    sink_factory: Callable[..., Any] | None = None
+    post_interval: float = 0.25
+    tick_interval: float = 0.5
+
+
+class MonitorApp(App):
+    """The bus on one screen. Messages go up (batches from the capture thread, selections from panes);
+    attributes go down (the app tells each pane what to show)."""
+
+    CSS_PATH = "app.tcss"
+    TITLE = "rs30x-sniff monitor"
+    BINDINGS = [
+        Binding("q", "quit", "Quit"),
+        Binding("space", "toggle_pause", "Pause"),
+        Binding("slash", "open_filter", "Filter"),
+        Binding("n", "next_finding", "Next finding"),
+        Binding("N", "prev_finding", "Prev finding", key_display="N"),
+        Binding("f", "follow", "Follow"),
+        Binding("end", "follow", "Follow", show=False),
+        Binding("c", "clear", "Clear"),
+        Binding("r", "toggle_record", "Record"),
+        Binding("g", "goto_pair", "Pair"),
+        Binding("p", "next_plot", "Plot"),
+        Binding("question_mark", "help", "Help", key_display="?"),
+    ]
+
+    def __init__(self, source: Source, config: MonitorConfig) -> None:
+        super().__init__()
+        self.source = source
+        self.config = config
+        opts = config.options
+        self.store = Store(config.history, baud=opts.baud)
+        self.linter = config.linter_factory()
+        self.feeder = Feeder(source, opts, self._post_batch, linter=self.linter, interval=config.post_interval,
+                             clock=config.clock, sink_factory=config.sink_factory)
+        self.info = SessionInfo(source=source.name, source_kind=source.kind, baud=opts.baud,
+                                models=self._models_text(), lint=self.linter is not None)
+        self.started = config.clock()
+        self.done = False
+        self.batches = 0
+        self._filter_task: asyncio.Task | None = None
+
+    def _models_text(self) -> str:
+        opts = self.config.options
+        reg = opts.registry or default_registry()
+        default = reg.get(opts.default_model).name if opts.default_model else reg.default.name
+        per_id = ", ".join(f"{i}={m}" for i, m in sorted(opts.models.items()))
+        return default + (f", {per_id}" if per_id else "")
+
+    # ---- layout ---------------------------------------------------------------------------------------
+    def compose(self) -> ComposeResult:
+        yield StatusHeader(id="status")
+        with Horizontal(id="main"):
+            yield Timeline(self.store, id="timeline")
+            yield DetailPane(id="detail")
+        with Horizontal(id="bottom"):
+            yield ServosPane(self.config.clock, id="servos")
+            yield FindingsPane(id="findings")
+            yield PlotPane(id="plot")
+        with Horizontal(id="filter-bar"):
+            yield Label("filter:", id="filter-label")
+            yield Input(placeholder="id:1-6 kind:return reg:goal_position sev>=warning text", id="filter-input")
+            yield Label("", id="filter-error")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#timeline", Timeline).border_title = "timeline"
+        self.query_one("#detail", DetailPane).border_title = "detail"
+        self.query_one("#plot", PlotPane).border_title = "plot"
+        self.query_one("#timeline", Timeline).focus()
+        self._refresh_header()
+        self.run_worker(self.feeder.run, thread=True, name="capture", group="capture", exit_on_error=False)
+        self.set_interval(self.config.tick_interval, self._tick)
+
+    # ---- capture thread -> screen ---------------------------------------------------------------------
+    def _post_batch(self, batch: Batch) -> None:
+        # Called on the capture thread; post_message is the thread-safe way in.
+        self.post_message(BatchArrived(batch))
+
+    def on_batch_arrived(self, message: BatchArrived) -> None:
+        b = message.batch
+        store = self.store
+        store.add(b.records, b.findings, b.servos, b.bytes_in)
+        self.batches += 1
+        self.info.recording = b.recording
+        if b.note:
+            self.notify(clean(b.note), timeout=4)
+        if b.done:
+            self.done = True
+            self.info.state = f"error: {b.error}" if b.error else "done"
+            if b.error:
+                self.notify(clean(b.error), severity="error", timeout=10)
+        elif self.source.kind in ("port", "simulator"):
+            self.info.state = "live"
+        elif self.source.kind == "replay":
+            self.info.state = "replaying"
+        if store.plot_id is None and store.servos:
+            store.set_plot(min(store.servos))
+        self._refresh_views(new_findings=bool(b.findings))
+
+    def _refresh_views(self, new_findings: bool = False) -> None:
+        timeline = self.query_one("#timeline", Timeline)
+        if new_findings:
+            timeline.invalidate()  # a finding can land on a row already drawn
+        timeline.sync()
+        self.query_one("#servos", ServosPane).update_from(self.store)
+        self.query_one("#findings", FindingsPane).update_from(self.store)
+        self.query_one("#plot", PlotPane).update_from(self.store)
+        self._refresh_header()
+
+    def _refresh_header(self) -> None:
+        self.info.elapsed = self.config.clock() - self.started
+        self.info.filter_progress = self.store.filter_progress
+        self.query_one("#status", StatusHeader).show(self.store, self.info)
+
+    def _tick(self) -> None:
+        self._refresh_header()
+        self.query_one("#servos", ServosPane).tick()
+
+    # ---- selection ------------------------------------------------------------------------------------
+    @on(Timeline.Selected)
+    def _on_selected(self, message: Timeline.Selected) -> None:
+        rec = self.store.get(message.seq) if message.seq is not None else None
+        self.query_one("#detail", DetailPane).show(rec)
+
+    @on(Timeline.FollowChanged)
+    def _on_follow_changed(self, message: Timeline.FollowChanged) -> None:
+        self.info.follow = message.follow
+        self._refresh_header()
+
+    @on(DetailPane.Jump)
+    def _on_jump(self, message: DetailPane.Jump) -> None:
+        seq = self.store.seq_of(message.rec)
+        self._show_seq(seq, "that packet is no longer in the history")
+
+    @on(FindingsPane.JumpTo)
+    def _on_jump_to_finding(self, message: FindingsPane.JumpTo) -> None:
+        seq = self.store.seq_of_offset(message.finding.offset)
+        self._show_seq(seq, f"the packet at @{message.finding.offset} is no longer in the history")
+
+    @on(ServosPane.RowHighlighted)
+    def _on_servo_highlighted(self, event: ServosPane.RowHighlighted) -> None:
+        if event.data_table.id != "servos" or event.row_key.value is None:
+            return
+        sid = int(event.row_key.value)
+        if sid != self.store.plot_id:
+            self.store.set_plot(sid)
+            self.query_one("#plot", PlotPane).update_from(self.store)
+
+    def _show_seq(self, seq: int | None, gone: str) -> bool:
+        timeline = self.query_one("#timeline", Timeline)
+        if seq is None:
+            self.notify(gone, severity="warning")
+            return False
+        if timeline.paused_at is not None and seq >= timeline.paused_at:
+            timeline.paused_at = self.store.end_seq  # show the paused view up to now, to reach it
+            timeline.sync()
+        if not timeline.select_seq(seq):
+            self.notify("that packet is hidden by the filter", severity="warning")
+            return False
+        timeline.focus()
+        return True
+
+    # ---- actions --------------------------------------------------------------------------------------
+    async def action_quit(self) -> None:
+        self.feeder.stop()
+        # Give the capture thread a moment to finish a recording, so the MCAP file is complete.
+        for _ in range(60):
+            if not self.feeder.running:
+                break
+            await asyncio.sleep(0.05)
+        self.exit()
+
+    def action_toggle_pause(self) -> None:
+        timeline = self.query_one("#timeline", Timeline)
+        if timeline.paused_at is None:
+            timeline.paused_at = self.store.end_seq
+            self.info.paused = True
+        else:
+            timeline.paused_at = None
+            self.info.paused = False
+        timeline.sync()
+        self._refresh_header()
+
+    def action_follow(self) -> None:
+        timeline = self.query_one("#timeline", Timeline)
+        timeline.follow = True
+        timeline.sync()
+        timeline.focus()
+
+    def action_next_finding(self) -> None:
+        self._step_finding(True)
+
+    def action_prev_finding(self) -> None:
+        self._step_finding(False)
+
+    def _step_finding(self, forward: bool) -> None:
+        timeline = self.query_one("#timeline", Timeline)
+        seq = self.store.finding_seq(timeline.cursor_seq, forward)
+        if timeline.paused_at is not None and seq is not None and seq >= timeline.paused_at:
+            seq = None
+        if seq is None:
+            self.notify("no further finding" if forward else "no earlier finding", timeout=2)
+            return
+        self._show_seq(seq, "")
+
+    def action_clear(self) -> None:
+        self.store.clear()
+        self.query_one("#servos", ServosPane).reset()
+        self.query_one("#detail", DetailPane).show(None)
+        self.info.filter_text = ""
+        self._refresh_views()
+        self.query_one("#findings", FindingsPane).update_from(self.store)
+
+    def action_toggle_record(self) -> None:
+        feeder = self.feeder
+        if feeder.recording or self.info.recording:
+            feeder.stop_recording()
+            self.notify("stopping the recording", timeout=2)
+            return
+        if self.done or feeder.finished:
+            self.notify("the source has ended: nothing more to record", severity="warning")
+            return
+        stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(self.config.wall()))
+        path = str(Path(self.config.record_dir) / f"rs30x-{stamp}.mcap")
+        feeder.start_recording(path)
+        self.info.recording = path
+        self._refresh_header()
+
+    def action_goto_pair(self) -> None:
+        if not self.query_one("#detail", DetailPane).goto_pair():
+            self.notify("this packet has no reply or request", timeout=2)
+
+    def action_next_plot(self) -> None:
+        store = self.store
+        i = PLOT_REGISTERS.index(store.plot_register) if store.plot_register in PLOT_REGISTERS else -1
+        store.set_plot(store.plot_id, PLOT_REGISTERS[(i + 1) % len(PLOT_REGISTERS)])
+        self.query_one("#plot", PlotPane).update_from(store)
+
+    def action_help(self) -> None:
+        if not isinstance(self.screen, HelpScreen):
+            self.push_screen(HelpScreen())
+
+    # ---- filter ---------------------------------------------------------------------------------------
+    def action_open_filter(self) -> None:
+        bar = self.query_one("#filter-bar")
+        bar.display = True
+        inp = self.query_one("#filter-input", Input)
+        inp.value = self.info.filter_text
+        self.query_one("#filter-error", Label).update("")
+        inp.focus()
+
+    def _close_filter(self) -> None:
+        self.query_one("#filter-bar").display = False
+        self.query_one("#timeline", Timeline).focus()
+
+    @on(Input.Submitted, "#filter-input")
+    def _on_filter_submitted(self, event: Input.Submitted) -> None:
+        self.apply_filter(event.value)
+
+    def apply_filter(self, text: str) -> bool:
+        """Parse and apply a filter; on a parse error keep the bar open with the reason shown."""
+        try:
+            flt = parse_filter(text, self.config.options.registry)
+        except FilterError as e:
+            self.query_one("#filter-bar").display = True
+            self.query_one("#filter-error", Label).update(clean(str(e)))
+            return False
+        self.info.filter_text = flt.text if flt else ""
+        self.store.begin_filter(flt)
+        if self._filter_task is not None:
+            self._filter_task.cancel()
+        self._filter_task = asyncio.ensure_future(self._scan_filter())
+        self._close_filter()
+        self.query_one("#timeline", Timeline).invalidate()
+        return True
+
+    async def _scan_filter(self) -> None:
+        # A long history is scanned in steps so the screen stays responsive (the header shows progress).
+        store = self.store
+        while not store.filter_step(FILTER_STEP):
+            self._refresh_views()
+            await asyncio.sleep(0)
+        self._refresh_views()
+
+    def on_key(self, event) -> None:
+        if event.key == "escape" and self.query_one("#filter-bar").display:
+            event.stop()
+            self._close_filter()
+
+    # ---- command palette ------------------------------------------------------------------------------
+    def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
+        yield from super().get_system_commands(screen)
+        yield SystemCommand("Pause / resume", "Freeze the timeline (the capture goes on)", self.action_toggle_pause)
+        yield SystemCommand("Follow", "Stick to the newest packet", self.action_follow)
+        yield SystemCommand("Filter", "Filter the timeline", self.action_open_filter)
+        yield SystemCommand("Clear filter", "Show every packet", lambda: self.apply_filter(""))
+        yield SystemCommand("Next finding", "Go to the next packet with a finding", self.action_next_finding)
+        yield SystemCommand("Clear", "Forget the history, counts and findings", self.action_clear)
+        yield SystemCommand("Record", "Start or stop recording to MCAP", self.action_toggle_record)
+        for name in PLOT_REGISTERS:
+            yield SystemCommand(f"Plot {name}", f"Plot {name} of the selected servo",
+                                lambda name=name: self._plot(name))
+
+    def _plot(self, name: str) -> None:
+        self.store.set_plot(self.store.plot_id, name)
+        self.query_one("#plot", PlotPane).update_from(self.store)
+
+
+def make_app(source: Source, options: DecodeOptions | None = None, **config: Any) -> MonitorApp:
+    """The monitor for ``source``: what ``rs30x-sniff monitor`` runs and what the tests drive."""
+    return MonitorApp(source, MonitorConfig(options or DecodeOptions(), **config))

@@ -1,0 +1,220 @@
+"""The detail pane: the selected record's field tree and a hex dump that highlights the selected field's bytes."""
+
+from __future__ import annotations
+
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Vertical, VerticalScroll
+from textual.message import Message
+from textual.widgets import Static, Tree
+from textual.widgets.tree import TreeNode
+
+from ..bus import Record
+from ..events import Garbage, LongPacket, ReturnPacket, ShortPacket
+from ..render import format_value, kind_word
+from .rows import SEVERITY_STYLES, clean, kind_style, short_summary
+
+HEADER_NAMES = ("header", "header", "id", "flag", "address", "length", "count")
+HEX_PER_LINE = 16
+
+
+def field_spans(rec: Record) -> list[tuple[int, int]]:
+    """Where each of ``rec.fields`` sits in the raw frame, as (start, end) byte indexes."""
+    ev = rec.event
+    fields = rec.fields
+    t = type(ev)
+    if t is ShortPacket or t is ReturnPacket:
+        return [(7 + f.address - ev.address, 7 + f.address - ev.address + len(f.raw)) for f in fields]
+    if t is LongPacket and ev.count and fields:
+        per = len(fields) // ev.count or 1  # every record of a long packet splits into the same fields
+        out = []
+        for i, f in enumerate(fields):
+            start = 7 + (i // per) * ev.length + 1 + f.address - ev.address
+            out.append((start, start + len(f.raw)))
+        return out
+    return [(0, 0)] * len(fields)
+
+
+def hex_dump(raw: bytes, span: tuple[int, int] | None = None) -> Text:
+    """The frame's bytes, 16 to a line, with ``span`` (a field's bytes) in reverse video."""
+    text = Text(no_wrap=True)
+    for line in range(0, max(len(raw), 1), HEX_PER_LINE):
+        if line:
+            text.append("\n")
+        text.append(f"{line:04X} ", "grey50")
+        for i in range(line, min(line + HEX_PER_LINE, len(raw))):
+            style = ""
+            if i < 2:
+                style = "grey62"
+            elif span is not None and span[0] <= i < span[1]:
+                style = "reverse bold"
+            elif i == len(raw) - 1 and len(raw) > 7:
+                style = "grey62"
+            text.append(f"{raw[i]:02X}", style)
+            if i + 1 < min(line + HEX_PER_LINE, len(raw)):
+                text.append(" ", style if span is not None and span[0] <= i + 1 < span[1] else "")
+    return text
+
+
+class FieldTree(Tree):
+    """The field tree; space pauses the monitor here too (as everywhere), enter opens a node or follows a link."""
+
+    BINDINGS = [Binding("space", "app.toggle_pause", "Pause", show=False)]
+    ICON_NODE = "▸ "
+    ICON_NODE_EXPANDED = "▾ "
+
+
+class DetailPane(Vertical):
+    """Shows one record; ``Jump`` asks the app to select another (a reply's request, a request's reply)."""
+
+    class Jump(Message):
+        def __init__(self, rec: Record) -> None:
+            super().__init__()
+            self.rec = rec
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.rec: Record | None = None
+
+    def compose(self) -> ComposeResult:
+        tree = FieldTree(Text("no packet selected"), id="fields")
+        tree.show_root = True
+        tree.guide_depth = 2
+        yield tree
+        with VerticalScroll(id="hex-scroll"):
+            yield Static(Text(""), id="hex")
+
+    @property
+    def tree(self) -> FieldTree:
+        return self.query_one(FieldTree)
+
+    def show(self, rec: Record | None) -> None:
+        """Rebuild the tree for ``rec`` (None: clear the pane)."""
+        self.rec = rec
+        tree = self.tree
+        tree.clear()
+        hexw = self.query_one("#hex", Static)
+        if rec is None:
+            tree.root.set_label(Text("no packet selected"))
+            hexw.update(Text(""))
+            return
+        ev = rec.event
+        word = kind_word(rec)
+        title = Text()
+        title.append(word, kind_style(word))
+        title.append(f" @{ev.offset} ({len(ev.raw)} bytes)", "grey70")
+        if ev.t_start is not None:
+            title.append(f" t={ev.t_start:.6f}s", "grey70")
+        tree.root.set_label(title)
+        tree.root.data = None
+        self._add_header(tree.root, rec)
+        self._add_fields(tree.root, rec)
+        self._add_pair(tree.root, rec)
+        for f in rec.findings:
+            line = Text()
+            line.append(f"! {f.code} {f.name}", SEVERITY_STYLES.get(f.severity, ""))
+            line.append(f": {clean(f.message)}")
+            tree.root.add_leaf(line, data=None)
+        tree.root.expand()
+        hexw.update(hex_dump(ev.raw))
+
+    def _add_header(self, root: TreeNode, rec: Record) -> None:
+        ev = rec.event
+        t = type(ev)
+        node = root.add(Text("header", "bold"), data=(0, min(7, len(ev.raw))), expand=False)
+        if t is Garbage:
+            node.add_leaf(Text(f"skipped: {ev.reason}"), data=(0, len(ev.raw)))
+            return
+        if t not in (ShortPacket, ReturnPacket, LongPacket):
+            node.set_label(Text(f"{'ACK' if ev.kind == 'ack' else 'NACK'} byte 0x{ev.raw[0]:02X}", "bold"))
+            node.data = (0, 1)
+            node.allow_expand = False
+            return
+        flag = ev.flags if t is ReturnPacket else ev.flag
+        items = [("header", 0, 2, ev.raw[:2].hex(" ").upper()),
+                 ("id", 2, 3, str(ev.raw[2])),
+                 ("flags" if t is ReturnPacket else "flag", 3, 4, f"0x{flag:02X}" + self._flag_text(rec)),
+                 ("address", 4, 5, str(ev.address)),
+                 ("length", 5, 6, str(ev.length)),
+                 ("count", 6, 7, str(ev.count)),
+                 ("sum", len(ev.raw) - 1, len(ev.raw),
+                  f"0x{ev.raw[-1]:02X}" + ("" if ev.checksum_ok else " (mismatch)"))]
+        for name, a, b, value in items:
+            label = Text(f"{name:<10} {ev.raw[a:b].hex(' ').upper():<6} ")
+            label.append(value, "red" if name == "sum" and not ev.checksum_ok else "")
+            node.add_leaf(label, data=(a, b))
+
+    @staticmethod
+    def _flag_text(rec: Record) -> str:
+        ev = rec.event
+        if type(ev) is ReturnPacket:
+            names = ev.flag_names
+        elif type(ev) is ShortPacket:
+            names = list(ev.commands) + ([f"return {ev.read_range[1]}B @{ev.read_range[0]}"] if ev.read_range
+                                         else ["ack"] if ev.wants_ack else [])
+        else:
+            names = []
+        return f" ({', '.join(names)})" if names else ""
+
+    def _add_fields(self, root: TreeNode, rec: Record) -> None:
+        fields = rec.fields
+        if not fields:
+            return
+        spans = field_spans(rec)
+        node = root.add(Text(f"fields ({len(fields)})", "bold"), data=None, expand=True)
+        long = type(rec.event) is LongPacket
+        for f, span in zip(fields, spans):
+            label = Text()
+            if long:
+                label.append(f"[{f.id}] ", "magenta")
+            label.append(f"{f.label:<22}", "bold" if f.name else "grey62")
+            label.append(f" @{f.address:<3} {f.raw.hex(' ').upper():<6} ", "grey70")
+            label.append(clean(format_value(f, with_unit=False)))
+            if f.unit:
+                label.append(f" {f.unit}", "grey70")
+            desc = f.register.description
+            if desc:
+                child = node.add(label, data=span, expand=False)
+                child.add_leaf(Text(clean(desc), "italic grey70"), data=span)
+            else:
+                node.add_leaf(label, data=span)
+
+    def _add_pair(self, root: TreeNode, rec: Record) -> None:
+        other = rec.request if rec.is_reply else rec.reply
+        if other is not None:
+            arrow = "↰ request" if rec.is_reply else "↳ reply"
+            label = Text(f"{arrow} @{other.offset} ", "bold underline")
+            label.append(kind_word(other), kind_style(kind_word(other)))
+            label.append(" " + short_summary(other)[:60])
+            if rec.latency is not None or other.latency is not None:
+                lat = rec.latency if rec.latency is not None else other.latency
+                label.append(f" ({lat * 1e3:.3f} ms)", "grey70")
+            root.add_leaf(label, data=other)
+        elif rec.status == "missing":
+            root.add_leaf(Text("no reply came", "red"), data=None)
+        elif rec.status == "unsolicited":
+            root.add_leaf(Text("unsolicited: no request asked for this", "yellow"), data=None)
+
+    # ---- events ---------------------------------------------------------------------------------------
+    def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:
+        event.stop()
+        if self.rec is None:
+            return
+        data = event.node.data
+        span = data if isinstance(data, tuple) else None
+        self.query_one("#hex", Static).update(hex_dump(self.rec.event.raw, span))
+
+    def on_tree_node_selected(self, event: Tree.NodeSelected) -> None:
+        event.stop()
+        if isinstance(event.node.data, Record):
+            self.post_message(self.Jump(event.node.data))
+
+    def goto_pair(self) -> bool:
+        """Ask to jump to the shown record's pair; False if it has none."""
+        rec = self.rec
+        other = None if rec is None else (rec.request if rec.is_reply else rec.reply)
+        if other is None:
+            return False
+        self.post_message(self.Jump(other))
+        return True

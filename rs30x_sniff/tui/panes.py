@@ -1,0 +1,169 @@
+"""The small panes under the timeline: servos (one row per ID), findings (newest first), and a register plot."""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.containers import Vertical
+from textual.message import Message
+from textual.widgets import DataTable, Label, Sparkline
+
+from .rows import SEVERITY_MARKS, SEVERITY_STYLES, clean
+from .store import SERVO_COLUMNS, ServoRow, Store
+
+FLASH_SECONDS = 1.0  # how long a changed value stays highlighted
+FINDINGS_SHOWN = 1000  # the pane lists the newest ones; the header counts them all
+
+_SHORT = {"torque_enable": "torque", "goal_position": "goal", "present_position": "pos", "present_speed": "speed",
+          "present_current": "cur", "present_temperature": "temp", "present_voltage": "volt"}
+
+
+def value_text(value: Any, unit: str | None) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        s = f"{value:.2f}" if unit == "V" else f"{value:.1f}"
+    else:
+        s = str(value)
+    return clean(s + (unit if unit and not isinstance(value, str) else ""))
+
+
+def _ms(v: float | None) -> str:
+    return "-" if v is None else f"{v * 1e3:.2f}"
+
+
+class ServosPane(DataTable):
+    """One row per servo ID; a value that changed is shown highlighted for a moment."""
+
+    BORDER_TITLE = "servos"
+    COLUMNS = ("ID", "model", *(_SHORT[c] for c in SERVO_COLUMNS), "poll/s", "p50ms", "p95ms", "finds")
+
+    def __init__(self, clock: Callable[[], float], **kwargs) -> None:
+        super().__init__(cursor_type="row", zebra_stripes=False, **kwargs)
+        self.clock = clock
+        self._shown: dict[tuple[int, str], str] = {}
+        self._changed: dict[tuple[int, str], float] = {}
+
+    def on_mount(self) -> None:
+        for name in self.COLUMNS:
+            self.add_column(name, key=name)
+
+    def reset(self) -> None:
+        self.clear()
+        self._shown.clear()
+        self._changed.clear()
+
+    def update_from(self, store: Store) -> None:
+        now = self.clock()
+        new_rows = False
+        for sid in sorted(store.servos):
+            row = store.servos[sid]
+            cells = self._cells(store, row)
+            key = str(sid)
+            if key not in self.rows:
+                self.add_row(*(Text(c) for c in cells.values()), key=key)
+                new_rows = True
+                for col, c in cells.items():
+                    self._shown[(sid, col)] = c
+                continue
+            for col, c in cells.items():
+                old = self._shown.get((sid, col))
+                if old != c:
+                    if old is not None and old != "-":
+                        self._changed[(sid, col)] = now
+                    self._shown[(sid, col)] = c
+                self._paint(sid, col, now)
+        if new_rows:
+            self.sort("ID", key=lambda v: int(v.plain))
+
+    def tick(self) -> None:
+        """Let flashes expire."""
+        now = self.clock()
+        for (sid, col), at in list(self._changed.items()):
+            if now - at >= FLASH_SECONDS:
+                del self._changed[(sid, col)]
+                self._paint(sid, col, now)
+
+    def _paint(self, sid: int, col: str, now: float) -> None:
+        c = self._shown.get((sid, col))
+        if c is None or str(sid) not in self.rows:
+            return
+        at = self._changed.get((sid, col))
+        style = "bold black on yellow" if at is not None and now - at < FLASH_SECONDS else ""
+        self.update_cell(str(sid), col, Text(c, style))
+
+    def _cells(self, store: Store, row: ServoRow) -> dict[str, str]:
+        cells = {"ID": str(row.id), "model": clean(row.model)}
+        for name in SERVO_COLUMNS:
+            cells[_SHORT[name]] = value_text(row.values.get(name), row.units.get(name))
+        rate = store.poll_rate(row)
+        cells["poll/s"] = "-" if rate is None else f"{rate:.1f}"
+        cells["p50ms"] = _ms(row.latency_p50)
+        cells["p95ms"] = _ms(row.latency_p95)
+        cells["finds"] = str(store.findings_by_id.get(row.id, 0))
+        return cells
+
+
+class FindingsPane(DataTable):
+    """Lint findings, newest first; enter asks the app to show the packet (``JumpTo``)."""
+
+    BORDER_TITLE = "findings"
+
+    class JumpTo(Message):
+        def __init__(self, finding: Any) -> None:
+            super().__init__()
+            self.finding = finding
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(cursor_type="row", **kwargs)
+        self._total = -1
+        self._shown: list = []
+
+    def on_mount(self) -> None:
+        for name in ("sev", "code", "name", "ID", "@offset", "message"):
+            self.add_column(name, key=name)
+
+    def update_from(self, store: Store) -> None:
+        if store.findings_total == self._total:
+            return
+        self._total = store.findings_total
+        self._shown = list(store.findings)[-FINDINGS_SHOWN:][::-1]
+        self.clear()
+        for i, f in enumerate(self._shown):
+            style = SEVERITY_STYLES.get(f.severity, "")
+            self.add_row(Text(SEVERITY_MARKS.get(f.severity, "?"), style), Text(f.code, style), Text(clean(f.name)),
+                         Text("-" if f.id is None else str(f.id)), Text(str(f.offset)), Text(clean(f.message)),
+                         key=str(i))
+        self.border_title = f"findings ({store.findings_total})"
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        event.stop()
+        i = int(event.row_key.value)
+        if 0 <= i < len(self._shown):
+            self.post_message(self.JumpTo(self._shown[i]))
+
+
+class PlotPane(Vertical):
+    """A sparkline of one register of one servo over its recent values."""
+
+    def compose(self) -> ComposeResult:
+        yield Label(Text("plot: no servo yet"), id="plot-title")
+        yield Sparkline([], id="plot-line")
+        yield Label(Text(""), id="plot-range")
+
+    def update_from(self, store: Store) -> None:
+        data = list(store.plot)
+        title = Text("plot: ")
+        if store.plot_id is None:
+            title.append("no servo yet")
+        else:
+            title.append(f"ID {store.plot_id} ", "bold")
+            title.append(store.plot_register, "cyan")
+        self.query_one("#plot-title", Label).update(title)
+        self.query_one("#plot-line", Sparkline).data = data
+        rng = Text(f"{len(data)} samples", "grey70")
+        if data:
+            rng = Text(f"min {min(data):g}  max {max(data):g}  last {data[-1]:g}  ({len(data)} samples)", "grey70")
+        self.query_one("#plot-range", Label).update(rng)

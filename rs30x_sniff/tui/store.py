@@ -1,0 +1,413 @@
+"""What the monitor shows, with no Textual in it: a bounded record history, counts, servo rows, findings, filter, plot."""
+
+from __future__ import annotations
+
+import sys
+from array import array
+from bisect import bisect_left
+from collections import Counter, deque
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+from ..bus import BusTracker, Record
+from ..events import LongPacket, ReturnPacket, ShortPacket
+from .filter import SEVERITY_RANK, Filter
+
+DEFAULT_HISTORY = 1_000_000
+PLOT_POINTS = 512
+LOAD_WINDOW = 1.0  # seconds of capture time the bus load is measured over
+# Registers the plot can show, in the order `p` cycles through them.
+PLOT_REGISTERS = ("present_position", "present_speed", "present_current", "present_temperature",
+                  "present_voltage", "goal_position")
+# Registers the servos pane shows.
+SERVO_COLUMNS = ("torque_enable", "goal_position", "present_position", "present_speed", "present_current",
+                 "present_temperature", "present_voltage")
+LATENCY_SAMPLES = 1000  # percentiles over the most recent replies
+
+# Python object sizes on this interpreter, for the memory estimate (measured once, not guessed).
+_EMPTY_LIST = sys.getsizeof([])
+_RECORD_BASE = sys.getsizeof(Record.__new__(Record)) + _EMPTY_LIST
+
+
+def record_size(rec: Record) -> int:
+    """Approximate bytes a record holds on to: the record, its event, and the event's byte strings."""
+    ev = rec.event
+    size = _RECORD_BASE + sys.getsizeof(ev) + sys.getsizeof(ev.raw) + 8  # + the history list's slot
+    t = type(ev)
+    if t is ShortPacket or t is ReturnPacket:
+        size += sys.getsizeof(ev.data)
+    elif t is LongPacket:
+        recs = ev.records
+        size += sys.getsizeof(recs)
+        for r in recs:
+            size += sys.getsizeof(r) + sys.getsizeof(r.data)
+    return size
+
+
+@dataclass
+class ServoRow:
+    """One servo as the servos pane shows it (a snapshot made on the decoding thread)."""
+
+    id: int
+    model: str
+    values: dict[str, Any]
+    units: dict[str, str | None]
+    requests: int
+    returns: int
+    latency_p50: float | None
+    latency_p95: float | None
+    last_t: float | None
+
+
+def _percentile(sorted_values: list[float], q: float) -> float | None:
+    if not sorted_values:
+        return None
+    k = min(len(sorted_values) - 1, max(0, round(q * (len(sorted_values) - 1))))
+    return sorted_values[k]
+
+
+def servo_snapshot(bus: BusTracker) -> dict[int, ServoRow]:
+    """Rows for every servo the bus tracker knows; called on the thread that feeds the tracker."""
+    rows: dict[int, ServoRow] = {}
+    for sid, st in list(bus.servos.items()):
+        values, units = {}, {}
+        for name in SERVO_COLUMNS:
+            try:
+                reg = st.model.register(name)
+            except KeyError:
+                continue
+            values[name] = st.get(name)
+            units[name] = reg.unit
+        lat = sorted(list(st.latencies)[-LATENCY_SAMPLES:])
+        rows[sid] = ServoRow(sid, st.model.name, values, units, st.requests, st.returns,
+                             _percentile(lat, 0.5), _percentile(lat, 0.95), st.last_t)
+    return rows
+
+
+def register_value(rec: Record, servo_id: int, name: str) -> Any:
+    """The value of register ``name`` of ``servo_id`` that a record carries, if it carries all of it."""
+    ev = rec.event
+    t = type(ev)
+    model = rec.model
+    if model is None or not ev.checksum_ok:
+        return None
+    if t is ReturnPacket or t is ShortPacket:
+        if ev.id != servo_id or not ev.data:
+            return None
+        address, data = ev.address, ev.data
+    elif t is LongPacket:
+        for r in ev.records:
+            if r.vid == servo_id:
+                # rec.model is the bus default here; the register addresses the plot offers are the
+                # same in every model's map (tables 4.5 and 4.6), so it finds the right bytes.
+                address, data = ev.address, r.data
+                break
+        else:
+            return None
+    else:
+        return None
+    try:
+        reg = model.register(name)
+    except KeyError:
+        return None
+    start = reg.address - address
+    if start < 0 or start + reg.size > len(data):
+        return None
+    return reg.convert(int.from_bytes(data[start:start + reg.size], "little", signed=reg.signed))
+
+
+@dataclass
+class Stats:
+    """Running counts since the last clear."""
+
+    records: int = 0
+    packets: int = 0       # requests and returns (not ACK/NACK bytes or garbage)
+    replies: int = 0       # returns, ACKs and NACKs
+    garbage: int = 0
+    missing: int = 0       # requests whose reply never came
+    kinds: Counter = field(default_factory=Counter)
+    severities: Counter = field(default_factory=Counter)
+    first_t: float | None = None
+    last_t: float | None = None
+
+
+class Store:
+    """The monitor's model. Records are numbered by ``seq`` (0 for the first one since the last clear);
+    only the newest ``history`` are held, so a seq below :attr:`first_seq` has been dropped."""
+
+    def __init__(self, history: int = DEFAULT_HISTORY, *, baud: int = 115200, plot_points: int = PLOT_POINTS) -> None:
+        if history < 1:
+            raise ValueError("history must hold at least one record")
+        self.history = history
+        self.baud = baud
+        self.plot_points = plot_points
+        self.plot_id: int | None = None
+        self.plot_register = PLOT_REGISTERS[0]
+        self.bytes_in = 0
+        self.servos: dict[int, ServoRow] = {}
+        self.clear()
+
+    # ---- contents --------------------------------------------------------------------------------
+    def clear(self) -> None:
+        """Forget every record, finding and count (the source keeps running)."""
+        self.rows: list[Record] = []
+        self.first_seq = 0
+        self.stats = Stats()
+        self.findings: deque = deque(maxlen=self.history)
+        self.findings_total = 0
+        self.findings_by_id: Counter = Counter()
+        self.memory = 0
+        self.bytes_base = self.bytes_in  # bytes counted from here on
+        self.servos = {}
+        self._load: deque[tuple[float, int]] = deque()
+        self._load_bytes = 0
+        self.plot: deque[float] = deque(maxlen=self.plot_points)
+        self.filter: Filter | None = None
+        self.view: array | None = None  # seqs that pass the filter; None when there is no filter
+        self._scan_seq: int | None = None  # where a filter scan resumes; None when it is complete
+        self.generation = getattr(self, "generation", -1) + 1  # bumps on clear, so views can tell
+
+    @property
+    def end_seq(self) -> int:
+        return self.first_seq + len(self.rows)
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def get(self, seq: int) -> Record | None:
+        i = seq - self.first_seq
+        if 0 <= i < len(self.rows):
+            return self.rows[i]
+        return None
+
+    def add(self, records: Iterable[Record], findings: Iterable = (), servos: dict[int, ServoRow] | None = None,
+            bytes_in: int | None = None) -> None:
+        """Take a batch from the decoding thread: records in wire order, new findings, servo rows."""
+        rows = self.rows
+        stats = self.stats
+        kinds = stats.kinds
+        flt = self.filter if self._scan_seq is None else None
+        view = self.view
+        seq = self.end_seq
+        memory = 0
+        load = self._load
+        load_bytes = 0
+        plot_id, plot_reg, plot = self.plot_id, self.plot_register, self.plot
+        for rec in records:
+            rows.append(rec)
+            kind = rec.event.kind
+            kinds[kind] += 1
+            memory += record_size(rec)
+            if rec.is_reply:
+                stats.replies += 1
+                if kind == "return":
+                    stats.packets += 1
+            elif kind == "garbage":
+                stats.garbage += 1
+            else:
+                stats.packets += 1
+                if rec.status == "missing":
+                    stats.missing += 1
+            t = rec.event.t_start
+            if t is not None:
+                if stats.first_t is None:
+                    stats.first_t = t
+                stats.last_t = t
+                n = len(rec.event.raw)
+                load.append((t, n))
+                load_bytes += n
+            if plot_id is not None:
+                v = register_value(rec, plot_id, plot_reg)
+                if isinstance(v, (int, float)):
+                    plot.append(float(v))
+            if flt is not None and flt.matches(rec):
+                view.append(seq)
+            seq += 1
+        stats.records = seq
+        self.memory += memory
+        self._load_bytes += load_bytes
+        if stats.last_t is not None:
+            horizon = stats.last_t - LOAD_WINDOW
+            while load and load[0][0] < horizon:
+                self._load_bytes -= load.popleft()[1]
+        for f in findings:
+            self.findings.append(f)
+            self.findings_total += 1
+            stats.severities[f.severity] += 1
+            if f.id is not None:
+                self.findings_by_id[f.id] += 1
+        if servos is not None:
+            self.servos = servos
+        if bytes_in is not None:
+            self.bytes_in = bytes_in
+        self._evict()
+
+    def _evict(self) -> None:
+        excess = len(self.rows) - self.history
+        if excess <= 0:
+            return
+        dropped = self.rows[:excess]
+        self.memory -= sum(record_size(r) for r in dropped)
+        del self.rows[:excess]
+        self.first_seq += excess
+        if self.view is not None:
+            del self.view[:bisect_left(self.view, self.first_seq)]
+        if self._scan_seq is not None:
+            self._scan_seq = max(self._scan_seq, self.first_seq)
+
+    # ---- figures for the header --------------------------------------------------------------------
+    @property
+    def bytes_seen(self) -> int:
+        return self.bytes_in - self.bytes_base
+
+    @property
+    def span(self) -> float | None:
+        """Capture time from the first to the last timed record, if the source has timestamps."""
+        s = self.stats
+        if s.first_t is None or s.last_t is None:
+            return None
+        return s.last_t - s.first_t
+
+    @property
+    def bus_load(self) -> float | None:
+        """Fraction of the last second of capture time the wire was busy (8N1: 10 bits a byte)."""
+        load = self._load
+        if not load:
+            return None
+        window = min(LOAD_WINDOW, max(self.stats.last_t - load[0][0], 0.0))
+        if window <= 0:
+            return None
+        # The last record's own bytes end after last_t; count the window up to its start.
+        busy = (self._load_bytes - load[-1][1]) * 10 / self.baud
+        return min(1.0, busy / window)
+
+    def memory_estimate(self) -> int:
+        """Bytes the held history costs, roughly (records, events, byte strings, the list itself)."""
+        return self.memory + sys.getsizeof(self.rows) + (self.view.itemsize * len(self.view) if self.view else 0)
+
+    def poll_rate(self, row: ServoRow) -> float | None:
+        """Requests per second of capture time to one servo."""
+        span = self.span
+        if not span:
+            return None
+        return row.requests / span
+
+    # ---- the filtered view -----------------------------------------------------------------------
+    def set_filter(self, flt: Filter | None) -> None:
+        """Apply a filter to the whole history at once (see :meth:`begin_filter` for the stepwise way)."""
+        self.begin_filter(flt)
+        while not self.filter_step(1 << 30):
+            pass
+
+    def begin_filter(self, flt: Filter | None) -> None:
+        self.filter = flt
+        if flt is None:
+            self.view = None
+            self._scan_seq = None
+        else:
+            self.view = array("q")
+            self._scan_seq = self.first_seq
+
+    def filter_step(self, budget: int = 20_000) -> bool:
+        """Scan up to ``budget`` more records against the filter; True when the scan is complete."""
+        if self._scan_seq is None:
+            return True
+        start = max(self._scan_seq, self.first_seq)
+        stop = min(self.end_seq, start + budget)
+        flt, view, rows, base = self.filter, self.view, self.rows, self.first_seq
+        for seq in range(start, stop):
+            if flt.matches(rows[seq - base]):
+                view.append(seq)
+        if stop >= self.end_seq:
+            self._scan_seq = None
+            return True
+        self._scan_seq = stop
+        return False
+
+    @property
+    def filter_progress(self) -> float | None:
+        """How far a filter scan has got (0..1), or None when no scan is running."""
+        if self._scan_seq is None:
+            return None
+        n = len(self.rows)
+        return (self._scan_seq - self.first_seq) / n if n else 1.0
+
+    def view_len(self, before: int | None = None) -> int:
+        """Rows in the view (those with seq < ``before`` if given)."""
+        if self.view is None:
+            end = self.end_seq if before is None else min(before, self.end_seq)
+            return max(0, end - self.first_seq)
+        if before is None:
+            return len(self.view)
+        return bisect_left(self.view, before)
+
+    def view_seq(self, index: int) -> int | None:
+        """The seq of the view's row ``index``."""
+        if index < 0:
+            return None
+        if self.view is None:
+            seq = self.first_seq + index
+            return seq if seq < self.end_seq else None
+        return self.view[index] if index < len(self.view) else None
+
+    def view_index(self, seq: int) -> int | None:
+        """The row of ``seq`` in the view, or None if it is filtered out or gone."""
+        if seq < self.first_seq or seq >= self.end_seq:
+            return None
+        if self.view is None:
+            return seq - self.first_seq
+        i = bisect_left(self.view, seq)
+        return i if i < len(self.view) and self.view[i] == seq else None
+
+    def view_nearest(self, seq: int) -> int:
+        """The view row at ``seq`` or the first one after it (clamped to the last row)."""
+        n = self.view_len()
+        if self.view is None:
+            return max(0, min(seq - self.first_seq, n - 1))
+        return max(0, min(bisect_left(self.view, seq), n - 1))
+
+    # ---- lookups ---------------------------------------------------------------------------------
+    def seq_of_offset(self, offset: int) -> int | None:
+        """The record that starts at byte ``offset`` of the stream (records are in wire order)."""
+        i = bisect_left(self.rows, offset, key=lambda r: r.event.offset)
+        if i < len(self.rows) and self.rows[i].event.offset == offset:
+            return self.first_seq + i
+        return None
+
+    def seq_of(self, rec: Record) -> int | None:
+        seq = self.seq_of_offset(rec.event.offset)
+        return seq if seq is not None and self.get(seq) is rec else None
+
+    def finding_seq(self, after: int | None, forward: bool = True, min_severity: str = "info") -> int | None:
+        """The next (or previous) record after seq ``after`` that has a finding, in the view."""
+        rank = SEVERITY_RANK[min_severity]
+        rows, base = self.rows, self.first_seq
+        if not rows:
+            return None
+        if after is None:
+            after = base - 1 if forward else self.end_seq
+        rng = range(max(after + 1, base), self.end_seq) if forward else range(min(after, self.end_seq) - 1, base - 1, -1)
+        for seq in rng:
+            rec = rows[seq - base]
+            if rec.findings and any(SEVERITY_RANK.get(f.severity, 0) >= rank for f in rec.findings):
+                if self.view is None or self.view_index(seq) is not None:
+                    return seq
+        return None
+
+    # ---- plot ------------------------------------------------------------------------------------
+    def set_plot(self, servo_id: int | None, register: str | None = None) -> None:
+        """Plot another servo or register: refill the series from the held history."""
+        if register is not None:
+            self.plot_register = register
+        self.plot_id = servo_id
+        self.plot = deque(maxlen=self.plot_points)
+        if servo_id is None:
+            return
+        found: list[float] = []
+        for rec in reversed(self.rows):
+            v = register_value(rec, servo_id, self.plot_register)
+            if isinstance(v, (int, float)):
+                found.append(float(v))
+                if len(found) >= self.plot_points:
+                    break
+        self.plot.extend(reversed(found))

@@ -1,0 +1,207 @@
+"""The timeline: one row per record, drawn with Textual's Line API so only the visible rows are rendered."""
+
+from __future__ import annotations
+
+from rich.segment import Segment
+from rich.style import Style
+from textual.binding import Binding
+from textual.events import Click, MouseScrollUp
+from textual.geometry import Size
+from textual.message import Message
+from textual.reactive import reactive
+from textual.scroll_view import ScrollView
+from textual.strip import Strip
+
+from .rows import COLUMNS, row_text
+from .store import Store
+
+ROW_WIDTH = 400  # virtual width: summaries of long packets run far to the right (scroll with shift+wheel)
+_CACHE_ROWS = 512
+
+
+class Timeline(ScrollView, can_focus=True):
+    """Rows come from the store's view (filtered or not); the cursor is kept as a record seq, so it
+    stays on its record while old records are dropped or a filter changes."""
+
+    BINDINGS = [
+        Binding("up", "cursor(-1)", "Up", show=False),
+        Binding("down", "cursor(1)", "Down", show=False),
+        Binding("pageup", "page(-1)", "Page up", show=False),
+        Binding("pagedown", "page(1)", "Page down", show=False),
+        Binding("home", "first", "First", show=False),
+        Binding("end", "app.follow", "Follow", show=False),
+    ]
+    COMPONENT_CLASSES = {"timeline--cursor", "timeline--header"}
+    DEFAULT_CSS = """
+    Timeline { background: $surface; }
+    Timeline > .timeline--cursor { background: $boost; text-style: bold; }
+    Timeline:focus > .timeline--cursor { background: $accent 40%; }
+    Timeline > .timeline--header { color: $text-muted; text-style: bold; }
+    """
+
+    follow: reactive[bool] = reactive(True)
+
+    class Selected(Message):
+        """The cursor moved to another record (``seq`` None: nothing to show)."""
+
+        def __init__(self, seq: int | None) -> None:
+            super().__init__()
+            self.seq = seq
+
+    class FollowChanged(Message):
+        def __init__(self, follow: bool) -> None:
+            super().__init__()
+            self.follow = follow
+
+    def __init__(self, store: Store, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.store = store
+        self.cursor_seq: int | None = None
+        self.paused_at: int | None = None  # while paused, rows from this seq on are not shown yet
+        self._rows = 0
+        self._top_seq: int | None = None
+        self._generation = store.generation
+        self._cache: dict[tuple, Strip] = {}
+        self._syncing = False
+
+    # ---- model -> view ------------------------------------------------------------------------------
+    @property
+    def row_count(self) -> int:
+        return self._rows
+
+    @property
+    def cursor_row(self) -> int | None:
+        if self.cursor_seq is None:
+            return None
+        return self.store.view_index(self.cursor_seq)
+
+    def sync(self) -> None:
+        """Catch up with the store: new rows, dropped rows, a new filter, a clear."""
+        store = self.store
+        if store.generation != self._generation:
+            self._generation = store.generation
+            self.cursor_seq = self._top_seq = None
+            self._cache.clear()
+            if self.paused_at is not None:
+                self.paused_at = store.end_seq
+        n = store.view_len(self.paused_at)
+        self._rows = n
+        self._syncing = True
+        try:
+            self.virtual_size = Size(ROW_WIDTH, n + 1)  # + the column header row
+            if self.follow:
+                self._move_cursor(store.view_seq(n - 1) if n else None)
+                self.scroll_to(y=max(0, n + 1 - self.scrollable_content_region.height), animate=False,
+                               immediate=True)
+            else:
+                if self._top_seq is not None:
+                    self.scroll_to(y=store.view_nearest(self._top_seq), animate=False, immediate=True)
+                if self.cursor_seq is not None and store.view_index(self.cursor_seq) is None:
+                    self._move_cursor(store.view_seq(store.view_nearest(self.cursor_seq)) if n else None)
+        finally:
+            self._syncing = False
+        if len(self._cache) > _CACHE_ROWS:
+            self._cache.clear()
+        self.refresh()
+
+    def invalidate(self) -> None:
+        """Redraw every row (findings or a filter changed what rows show)."""
+        self._cache.clear()
+        self.refresh()
+
+    # ---- cursor ---------------------------------------------------------------------------------------
+    def _move_cursor(self, seq: int | None) -> None:
+        if seq != self.cursor_seq:
+            self.cursor_seq = seq
+            self.post_message(self.Selected(seq))
+            self.refresh()
+
+    def select_seq(self, seq: int) -> bool:
+        """Put the cursor on record ``seq`` (leaving follow mode); False if it is not in the view."""
+        row = self.store.view_index(seq)
+        if row is None or (self.paused_at is not None and seq >= self.paused_at):
+            return False
+        self.follow = False
+        self._move_cursor(seq)
+        self._scroll_to_row(row)
+        return True
+
+    def _scroll_to_row(self, row: int) -> None:
+        height = max(1, self.scrollable_content_region.height - 1)
+        top = int(self.scroll_y)
+        if row < top:
+            top = row
+        elif row >= top + height:
+            top = row - height + 1
+        self._syncing = True
+        try:
+            self.scroll_to(y=top, animate=False, immediate=True)
+        finally:
+            self._syncing = False
+        self._top_seq = self.store.view_seq(top)
+        self.refresh()
+
+    def action_cursor(self, step: int) -> None:
+        n = self._rows
+        if not n:
+            return
+        row = self.cursor_row
+        row = n - 1 if row is None else max(0, min(n - 1, row + step))
+        self.follow = row == n - 1 and self.follow and step > 0
+        self._move_cursor(self.store.view_seq(row))
+        self._scroll_to_row(row)
+
+    def action_page(self, direction: int) -> None:
+        self.action_cursor(direction * max(1, self.scrollable_content_region.height - 2))
+
+    def action_first(self) -> None:
+        if self._rows:
+            self.follow = False
+            self._move_cursor(self.store.view_seq(0))
+            self._scroll_to_row(0)
+
+    def watch_follow(self, follow: bool) -> None:
+        self.post_message(self.FollowChanged(follow))
+        if follow:
+            self.sync()
+
+    def watch_scroll_y(self, old_value: float, new_value: float) -> None:
+        super().watch_scroll_y(old_value, new_value)
+        if not self._syncing:
+            self._top_seq = self.store.view_seq(int(new_value))
+
+    def _on_mouse_scroll_up(self, event: MouseScrollUp) -> None:
+        # Scrolling up means the user wants to look back: stop sticking to the newest row.
+        self.follow = False
+
+    def on_click(self, event: Click) -> None:
+        row = int(self.scroll_y) + event.y - 1
+        if 0 <= row < self._rows:
+            self.follow = False
+            self._move_cursor(self.store.view_seq(row))
+
+    # ---- rendering ------------------------------------------------------------------------------------
+    def render_line(self, y: int) -> Strip:
+        width = self.size.width
+        scroll_x = int(self.scroll_x)
+        if y == 0:
+            header = Strip([Segment(COLUMNS, self.get_component_rich_style("timeline--header"))])
+            return header.crop_extend(scroll_x, scroll_x + width, self.rich_style)
+        row = int(self.scroll_y) + y - 1
+        seq = self.store.view_seq(row) if row < self._rows else None
+        rec = self.store.get(seq) if seq is not None else None
+        if rec is None:
+            return Strip.blank(width, self.rich_style)
+        cursor = seq == self.cursor_seq
+        key = (seq, len(rec.findings), cursor, self.has_focus, rec.latency, rec.status)
+        strip = self._cache.get(key)
+        if strip is None:
+            prev = self.store.get(seq - 1)
+            text = row_text(rec, prev.event.t_start if prev is not None else None)
+            base: Style = self.rich_style
+            if cursor:
+                base = base + self.get_component_rich_style("timeline--cursor")
+            strip = Strip(text.render(self.app.console), text.cell_len)
+            strip = strip.extend_cell_length(ROW_WIDTH).apply_style(base)
+            self._cache[key] = strip
+        return strip.crop_extend(scroll_x, scroll_x + width, self.rich_style)
