@@ -10,7 +10,7 @@ from mcap.writer import CompressionType, Writer
 
 from .. import __version__
 from ..events import Garbage, ShortPacket
-from ..render import json_value, record_json
+from ..render import record_json
 from ..schemas import schema_bytes
 from ..wire import BROADCAST_ID, byte_time
 
@@ -28,8 +28,8 @@ _LOG_LEVEL = {"info": 2, "warning": 3, "error": 4}
 # The mcap Writer also cuts chunks by size; ours does it first (so every cut is flushed to the OS),
 # this only keeps the library's own check out of the way.
 _WRITER_CHUNK_FACTOR = 4
-# Approximate bytes a message adds to a chunk besides its data: record header and message index entry.
-_MESSAGE_OVERHEAD = 31 + 16
+# Bytes a message record adds to a chunk besides its data (opcode, length, channel, sequence, two times).
+_MESSAGE_OVERHEAD = 31
 
 RAW_SPLIT = 4096  # largest /rs30x/raw message for a capture without timestamps
 
@@ -74,7 +74,8 @@ class McapSink:
         self._chunk_bytes = 0
         self._raw_offset = 0                   # stream offset of the next raw byte
         self._models: dict[int, str] = dict(models or {})
-        self._states: dict[int, dict[str, Any]] = {}
+        self._states: dict[int, dict[str, str]] = {}  # servo -> register name -> '"name":value'
+        self._state_channels: dict[int, int] = {}
         self._finished = False
         self._size = 0
         self.messages = 0
@@ -103,9 +104,11 @@ class McapSink:
         if cid is None:
             sid = self._schemas.get(schema_name)
             if sid is None:
-                sid = self._schemas[schema_name] = self._writer.register_schema(
-                    schema_name, "jsonschema", schema_bytes(schema_name))
+                data = schema_bytes(schema_name)
+                sid = self._schemas[schema_name] = self._writer.register_schema(schema_name, "jsonschema", data)
+                self._chunk_bytes += len(data) + len(schema_name) + 32  # the schema record goes in the chunk
             cid = self._channels[topic] = self._writer.register_channel(topic, "json", sid)
+            self._chunk_bytes += len(topic) + 32
         return cid
 
     def _write(self, cid: int, log_time: int, data: bytes) -> None:
@@ -170,29 +173,37 @@ class McapSink:
                         _encode(transaction_json(rec)).encode())
 
     def _update_state(self, rec: Any, log_time: int) -> None:
-        changed: dict[int, dict[str, Any]] = {}
+        # Each servo's state is kept as its JSON fragments ('"name":value'), so a packet that changes
+        # two registers re-encodes two values, not the whole object (a long packet changes 18 servos).
+        changed: dict[int, dict[str, str]] = {}
         states = self._states
         for f in rec.fields:
             name = f.register.name
             if name is None or f.partial:
                 continue
             sid = f.id
-            targets = list(states) if sid == BROADCAST_ID else (sid,)
-            for tid in targets:
+            frag = _fragment(name, f.value)
+            for tid in (list(states) if sid == BROADCAST_ID else (sid,)):
                 st = changed.get(tid)
                 if st is None:
                     st = states.get(tid)
                     if st is None:
-                        st = states[tid] = {"id": tid, "model": "", "t": None, "offset": 0}
+                        st = states[tid] = {}
                     changed[tid] = st
-                st[name] = json_value(f)
+                st[name] = frag
+        if not changed:
+            return
         ev = rec.event
+        tail = f',"t":{"null" if ev.t_start is None else repr(ev.t_start)},"offset":{ev.offset},'
+        fallback = rec.model.name if rec.model is not None else ""
+        models = self._models
+        channels = self._state_channels
         for tid, st in changed.items():
-            st["model"] = self._models.get(tid) or (rec.model.name if rec.model is not None else "")
-            st["t"] = ev.t_start
-            st["offset"] = ev.offset
-            self._write(self._channel(STATE_TOPIC.format(id=tid), "rs30x.ServoState"), log_time,
-                        _encode(st).encode())
+            cid = channels.get(tid)
+            if cid is None:
+                cid = channels[tid] = self._channel(STATE_TOPIC.format(id=tid), "rs30x.ServoState")
+            body = f'{{"id":{tid},"model":"{models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
+            self._write(cid, log_time, body.encode())
 
     def findings(self, findings: Iterable[Any]) -> None:
         """Lint findings as foxglove.Log messages on /rs30x/diagnostics."""
@@ -220,6 +231,16 @@ class McapSink:
                 self._file.close()
             else:
                 self._file.flush()
+
+
+def _fragment(name: str, value: Any) -> str:
+    """'"name":value' as JSON, the value as the packets channel shows it (floats to 6 decimals)."""
+    t = type(value)
+    if t is float:
+        return f'"{name}":{round(value, 6)!r}'
+    if t is int:
+        return f'"{name}":{value}'
+    return f'"{name}":{_encode(value)}'
 
 
 def _models_text(models: dict[int, str]) -> str:

@@ -1,0 +1,94 @@
+"""`rs30x-sniff info`: what a capture holds: duration, traffic by type, per-servo polls, latencies, bus load."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from ..pipeline import Decoder
+from ..stats import CaptureStats
+from .common import add_decode_options, open_input, output_stream
+from .convert import add_lint_options, prepare
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("info", help="summarize a capture: duration, packets, polls, latencies, bus load",
+                       description="Summarize a capture of any format: duration, bytes, packets by type, per-servo "
+                                   "request and return counts, poll rates, reply latency, bus load, findings.")
+    p.add_argument("input", metavar="INPUT", help="capture file (.bin/.raw, .hex, timestamped hex, .mcap) or - for stdin")
+    add_decode_options(p)
+    add_lint_options(p)
+    p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
+    p.add_argument("-o", "--output", metavar="OUT", help="write to OUT instead of stdout")
+    p.set_defaults(run=run)
+
+
+def gather(chunks, decoder: Decoder, baud: int) -> CaptureStats:
+    """Decode everything and count it."""
+    stats = CaptureStats(baud)
+    add = stats.add
+    for data, t in chunks:
+        for rec in decoder.feed(data, t):
+            add(rec)
+    for rec in decoder.close():
+        add(rec)
+    stats.set_bytes(decoder.bytes_in)
+    if decoder.linter is not None:
+        stats.add_findings(decoder.linter.findings)
+        known = {id(f) for f in decoder.linter.findings}
+        stats.add_findings(f for f in decoder.late_findings if id(f) not in known)
+    return stats
+
+
+def run(args: argparse.Namespace) -> int:
+    opts, linter = prepare(args)
+    decoder = Decoder(opts, linter=linter)
+    stats = gather(open_input(args.input, args.input_format), decoder, opts.baud)
+    with output_stream(args.output) as out:
+        if args.format == "json":
+            out.write(json.dumps({"input": args.input, "linted": decoder.linter is not None, **stats.as_dict()},
+                                 indent=2) + "\n")
+        else:
+            _print_text(out, args.input, stats, decoder.linter is not None)
+    return 0
+
+
+def _ms(v: float | None) -> str:
+    return "-" if v is None else f"{v * 1e3:.3f} ms"
+
+
+def _print_text(out: Any, name: str, s: CaptureStats, linted: bool) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    con = Console(file=out, highlight=False, width=100 if not out.isatty() else None)
+    d = s.as_dict()
+    load = "-" if s.bus_load is None else f"{s.bus_load * 100:.1f} %"
+    timing = "" if s.timed else " (no timestamps: line time at the baud rate)"
+    con.print(f"[bold]{name}[/bold]")
+    con.print(f"  duration   {s.duration:.6f} s{timing}")
+    con.print(f"  bytes      {s.bytes} at {s.baud} bit/s, bus load {load}")
+    kinds = ", ".join(f"{k} {v}" for k, v in d["by_type"].items()) or "none"
+    con.print(f"  records    {s.records}: {kinds}")
+    if d["by_op"]:
+        con.print("  requests   " + ", ".join(f"{k} {v}" for k, v in d["by_op"].items()))
+    con.print(f"  faults     {s.bad_checksums} bad checksums, {s.garbage_bytes} garbage bytes")
+    lat = s.latency
+    con.print(f"  latency    p50 {_ms(lat.percentile(50))}, p95 {_ms(lat.percentile(95))}, max {_ms(lat.max)} "
+              f"over {lat.count} replies")
+    if linted:
+        f = d["findings"]
+        con.print(f"  findings   {f['error']} errors, {f['warning']} warnings, {f['info']} info")
+        for rule, n in list(d["findings_by_rule"].items())[:10]:
+            con.print(f"             {n:>6} {rule}")
+    if s.servos:
+        table = Table(title=None, box=None, pad_edge=False, padding=(0, 2, 0, 0))
+        for col in ("id", "requests", "reads", "long writes", "returns", "acks", "nacks", "missing", "poll rate"):
+            table.add_column(col, justify="right")
+        for sid, v in d["servos"].items():
+            rate = "-" if v["poll_rate_hz"] is None else f"{v['poll_rate_hz']:.1f} Hz"
+            table.add_row(sid, *(str(v[k]) for k in ("requests", "reads", "long_writes", "returns", "acks", "nacks",
+                                                      "missing")), rate)
+        con.print()
+        con.print(table)
