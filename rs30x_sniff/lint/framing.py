@@ -1,0 +1,96 @@
+"""Framing rules (F): bytes that do not make clean frames."""
+
+from __future__ import annotations
+
+from ..wire import encode_short
+from .registry import example, rule
+
+_GOAL = encode_short(1, 0, 0x1E, b"\x84\x03")  # goal_position 90.0 deg on ID 1
+
+
+@rule("F001", "checksum-mismatch", "error", "A packet's Sum is not the XOR of its ID through data bytes.", f"""
+## What it does
+Flags a request or return whose last byte is not the XOR of every byte from ID to the end of the data
+(the Sum of the packet formats in chapter 4). Only this rule, F004 and B007 look at such a packet: its
+other bytes cannot be trusted.
+
+## Why it matters
+A servo silently drops a packet whose Sum is wrong, so the command never happens; a host that ignores a
+bad Sum on a return acts on corrupted positions or temperatures. Repeated mismatches point at noise,
+a weak pull-up, a long cable, or two talkers at once.
+
+## Example
+{example(_GOAL[:-1] + bytes((_GOAL[-1] ^ 0x01,)), note="goal_position 90.0 deg with the Sum off by one bit:")}
+""", kinds=("corrupt",))
+def checksum_mismatch(lint, rec, ev):
+    lint.emit("F001", rec, f"Sum is 0x{ev.raw[-1]:02X} but the bytes from ID on XOR to 0x{_xor(ev.raw[2:-1]):02X}")
+
+
+def _xor(data: bytes) -> int:
+    x = 0
+    for b in data:
+        x ^= b
+    return x
+
+
+@rule("F002", "garbage-bytes", "warning", "Bytes on the bus that belong to no frame.", f"""
+## What it does
+Flags a run of bytes with no frame header in it (noise), or with a header whose length could not be a
+real frame (more than 1024 data bytes).
+
+## Why it matters
+The RS30x bus is quiet between frames: stray bytes mean electrical noise, a baud-rate mismatch (a servo
+answering at its old rate), or another device on the line. Each stray byte can also desynchronise a
+servo's own parser and cost the next command.
+
+## Example
+{example(bytes.fromhex("123456"), _GOAL, note="three stray bytes before a goal_position write:")}
+""", kinds=("garbage",))
+def garbage_bytes(lint, rec, ev):
+    if ev.reason == "truncated":
+        return
+    what = "no frame header" if ev.reason == "noise" else "a header whose length cannot be a frame"
+    lint.emit("F002", rec, f"{len(ev.raw)} byte(s) with {what}")
+
+
+@rule("F003", "truncated-frame", "error", "A frame that was cut short.", f"""
+## What it does
+Flags a frame header followed by fewer bytes than its Length and Count promise: the sender stopped
+(an idle gap of more than the decoder's gap, 20 byte times by default), another frame started inside it,
+or the capture ended.
+
+## Why it matters
+A servo that receives half a packet waits for the rest and may swallow the start of the next packet
+as its tail, so two commands are lost instead of one. A host that stops mid-frame usually crashed,
+was pre-empted, or filled a transmit buffer.
+
+## Example
+{example(_GOAL[:8], note="a goal_position write that stops after 8 of its 10 bytes:")}
+""", kinds=("garbage",))
+def truncated_frame(lint, rec, ev):
+    if ev.reason == "truncated":
+        lint.emit("F003", rec, f"frame cut short after {len(ev.raw)} byte(s)", sid=ev.raw[2] if len(ev.raw) > 2 else None)
+
+
+@rule("F004", "inter-byte-gap", "warning", "Idle time inside a frame, between two of its bytes.", f"""
+## What it does
+Flags a frame whose bytes took longer on the wire than their count needs, by more than `inter-byte-gap`
+byte times (default 5) of idle line somewhere inside it. Needs timestamps. A gap long enough to end
+the frame (the decoder's gap, 20 byte times by default) makes it F003 instead.
+
+## Why it matters
+The servos expect a packet's bytes back to back; a host that pauses inside a packet (a slow loop
+writing byte by byte, a USB adapter flushing half a packet) risks the servo giving up on the packet
+or merging it with the next one.
+
+## Example
+{example((0.0, _GOAL[:5]), (0.001, _GOAL[5:]), note="a goal_position write with 1 ms of silence after its fifth byte:")}
+""", kinds=("packet", "corrupt"), needs_time=True)
+def inter_byte_gap(lint, rec, ev):
+    t0, t1 = ev[2], ev[3]
+    if t0 is None or t1 is None:
+        return
+    bt = lint.byte_time
+    idle = (t1 - t0) - len(ev[1]) * bt
+    if idle > lint.config.inter_byte_gap * bt:
+        lint.emit("F004", rec, f"{idle * 1e3:.3f} ms ({idle / bt:.1f} byte times) of idle line inside the frame")

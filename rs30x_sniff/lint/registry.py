@@ -1,0 +1,175 @@
+"""The rule registry: every lint rule declared once with @rule (code, name, severity, summary, doc)."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterator
+
+SEVERITIES = ("info", "warning", "error")
+SEVERITY_RANK = {"info": 1, "warning": 2, "error": 3}
+FAMILIES = {"F": "Framing", "P": "Packet structure", "M": "Memory map", "B": "Bus", "S": "Servo status",
+            "Q": "Sequences"}
+
+# What a rule's check is called with, by "kind":
+#   short, long, return, ack, nack, garbage  check(lint, rec, ev) for every intact record of that kind
+#   corrupt                                   check(lint, rec, ev) for a packet whose Sum is wrong (only
+#                                             these rules see it: its other bytes cannot be trusted)
+#   command                                   check(lint, rec, ev) for a short packet with flash/reboot/init bits
+#   write                                     check(lint, rec, plan, ids) once per packet that writes memory
+#   target                                    check(lint, rec, sid, plan, raws, shadow) per servo written
+#   close                                     check(lint) at end of input
+KINDS = ("short", "long", "return", "ack", "nack", "garbage", "corrupt", "command", "write", "target", "close")
+_ALIASES = {"request": ("short", "long"), "reply": ("return", "ack", "nack"), "packet": ("short", "long", "return")}
+
+
+@dataclass(frozen=True, slots=True)
+class Finding:
+    """One lint finding, attached to the record it concerns."""
+
+    code: str
+    name: str
+    severity: str
+    message: str
+    offset: int
+    t: float | None
+    id: int | None
+    raw: bytes = field(default=b"", repr=False, compare=False)  # the record's bytes, for reports
+
+    def as_json(self) -> dict[str, Any]:
+        return {"offset": self.offset, "t": self.t, "code": self.code, "name": self.name,
+                "severity": self.severity, "message": self.message, "id": self.id}
+
+
+@dataclass(frozen=True, slots=True)
+class Rule:
+    """A declared rule: its public identity, its documentation and its check."""
+
+    code: str
+    name: str
+    severity: str
+    summary: str
+    doc: str
+    kinds: tuple[str, ...]
+    check: Callable[..., Any]
+    needs_time: bool = False
+    fields: frozenset[str] | None = None  # for "target" rules: run only when the write carries one of these
+
+    @property
+    def family(self) -> str:
+        return FAMILIES[self.code[0]]
+
+    def section(self, title: str) -> str:
+        """The text of one section of the doc ("What it does", "Why it matters", "Example")."""
+        m = re.search(rf"^## {re.escape(title)}\n(.*?)(?=^## |\Z)", self.doc, re.M | re.S)
+        return m.group(1).strip() if m else ""
+
+    @property
+    def example(self) -> str:
+        """The example capture of the doc (hex lines, possibly timestamped)."""
+        m = re.search(r"```\n(.*?)```", self.section("Example"), re.S)
+        return m.group(1) if m else ""
+
+
+class Registry:
+    """Every rule, by code and by name, iterated in code order."""
+
+    def __init__(self) -> None:
+        self._by_code: dict[str, Rule] = {}
+        self._by_name: dict[str, Rule] = {}
+
+    def add(self, r: Rule) -> None:
+        if not re.fullmatch(r"[FPMBSQ]\d{3}", r.code):
+            raise ValueError(f"bad rule code {r.code!r}")
+        if not re.fullmatch(r"[a-z0-9]+(-[a-z0-9]+)*", r.name):
+            raise ValueError(f"{r.code}: name {r.name!r} is not kebab-case")
+        if r.severity not in SEVERITIES:
+            raise ValueError(f"{r.code}: bad severity {r.severity!r}")
+        if r.code in self._by_code or r.name in self._by_name:
+            raise ValueError(f"{r.code} {r.name}: declared twice")
+        for part in ("What it does", "Why it matters", "Example"):
+            if not r.section(part):
+                raise ValueError(f"{r.code}: doc has no {part!r} section")
+        self._by_code[r.code] = r
+        self._by_name[r.name] = r
+
+    def __iter__(self) -> Iterator[Rule]:
+        return iter(sorted(self._by_code.values(), key=lambda r: ("FPMBSQ".index(r.code[0]), r.code)))
+
+    def __len__(self) -> int:
+        return len(self._by_code)
+
+    def __contains__(self, key: str) -> bool:
+        return key in self._by_code or key in self._by_name
+
+    def __getitem__(self, code: str) -> Rule:
+        return self._by_code[code]
+
+    def get(self, key: str) -> Rule | None:
+        """A rule by code (any case) or name."""
+        return self._by_code.get(key.upper()) or self._by_name.get(key.lower())
+
+    def codes(self) -> list[str]:
+        return [r.code for r in self]
+
+    def match(self, selector: str) -> list[str]:
+        """Codes a selector picks: ALL, a code, a code prefix (``Q``, ``B00``) or a name; [] if none."""
+        s = selector.strip()
+        if s.upper() == "ALL":
+            return self.codes()
+        r = self.get(s)
+        if r is not None:
+            return [r.code]
+        up = s.upper()
+        if re.fullmatch(r"[A-Z]\d{0,3}", up):
+            return [c for c in self.codes() if c.startswith(up)]
+        return []
+
+
+RULES = Registry()
+
+
+def frame(*body: int, header: bytes = b"\xfa\xaf") -> bytes:
+    """A frame from its ID..data bytes with the right Sum (for doc examples of malformed packets)."""
+    x = 0
+    for b in body:
+        x ^= b
+    return header + bytes(body) + bytes((x,))
+
+
+def frame(*body: int, header: bytes = b"\xfa\xaf") -> bytes:
+    """A frame from its ID..data bytes with the right Sum (for doc examples of malformed packets)."""
+    x = 0
+    for b in body:
+        x ^= b
+    return header + bytes(body) + bytes((x,))
+
+
+def example(*frames: bytes | tuple[float, bytes], note: str = "") -> str:
+    """A doc's example capture: one frame per line in hex (``(t, bytes)`` for timestamped lines)."""
+    lines = []
+    for fr in frames:
+        if isinstance(fr, tuple):
+            lines.append(f"{fr[0]:.6f} {fr[1].hex(' ').upper()}")
+        else:
+            lines.append(fr.hex(" ").upper())
+    text = ("" if not note else note.strip() + "\n\n") + "```\n" + "\n".join(lines) + "\n```"
+    return text
+
+
+def rule(code: str, name: str, severity: str, summary: str, doc: str, *, kinds: tuple[str, ...],
+         needs_time: bool = False, fields: tuple[str, ...] | None = None) -> Callable:
+    """Declare a rule; the decorated function is its check (see KINDS for how it is called)."""
+    expanded: list[str] = []
+    for k in kinds:
+        for kk in _ALIASES.get(k, (k,)):
+            if kk not in KINDS:
+                raise ValueError(f"{code}: unknown kind {kk!r}")
+            expanded.append(kk)
+
+    def deco(fn: Callable) -> Callable:
+        RULES.add(Rule(code, name, severity, summary, doc.strip() + "\n", tuple(expanded), fn, needs_time,
+                       frozenset(fields) if fields else None))
+        return fn
+
+    return deco

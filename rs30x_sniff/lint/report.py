@@ -1,0 +1,206 @@
+"""Lint reports: text for people, and json, junit, sarif 2.1.0 and github annotations for CI."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import IO, Iterable
+
+from .. import __version__
+from .registry import RULES, SEVERITY_RANK, Finding
+
+SARIF_SCHEMA = "https://json.schemastore.org/sarif-2.1.0.json"
+_SARIF_LEVEL = {"error": "error", "warning": "warning", "info": "note"}
+_GITHUB_LEVEL = {"error": "error", "warning": "warning", "info": "notice"}
+
+
+@dataclass
+class FileResult:
+    """What linting one capture gave: its findings, the rules that ran and those skipped."""
+
+    path: str
+    findings: list[Finding] = field(default_factory=list)
+    rules: list[str] = field(default_factory=list)     # codes of the rules that were enabled
+    skipped: list[str] = field(default_factory=list)   # codes skipped for lack of timestamps
+    records: int = 0
+    error: str | None = None                           # one line, when the file could not be read
+
+
+def fails(f: Finding, fail_on: str) -> bool:
+    """Whether a finding is at or above the --fail-on level."""
+    return fail_on != "never" and SEVERITY_RANK[f.severity] >= SEVERITY_RANK[fail_on]
+
+
+def _sorted(r: FileResult) -> list[Finding]:
+    return sorted(r.findings, key=lambda f: (f.offset, f.code))
+
+
+def _t(f: Finding) -> str:
+    return f" (t={f.t:.6f})" if f.t is not None else ""
+
+
+def write_text(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
+    """``FILE:OFFSET (t=SECONDS) CODE name: message``, the packet under it, then a summary table."""
+    counts: Counter = Counter()
+    for r in results:
+        for f in _sorted(r):
+            out.write(f"{r.path}:{f.offset}{_t(f)} {f.code} {f.name}: {f.message}\n")
+            raw = f.raw[:32].hex(" ").upper() + (" ..." if len(f.raw) > 32 else "")
+            out.write(f"    {raw}\n")
+            counts[f.code] += 1
+    total = sum(counts.values())
+    if counts:
+        out.write("\n")
+        w = max(len(RULES[c].name) for c in counts)
+        out.write(f"{'count':>6}  code  {'name':<{w}}  severity\n")
+        for code in sorted(counts, key=lambda c: (-SEVERITY_RANK[_severity(results, c)], c)):
+            out.write(f"{counts[code]:>6}  {code}  {RULES[code].name:<{w}}  {_severity(results, code)}\n")
+    by_sev = Counter(f.severity for r in results for f in r.findings)
+    files = len(results)
+    parts = ", ".join(f"{by_sev[s]} {s}{'s' if by_sev[s] != 1 else ''}" for s in ("error", "warning", "info") if by_sev[s])
+    out.write(f"\n{total} finding{'s' if total != 1 else ''}{f' ({parts})' if parts else ''} in {files} "
+              f"file{'s' if files != 1 else ''}.\n")
+    order = RULES.codes()
+    skipped = sorted({c for r in results for c in r.skipped}, key=order.index)
+    if skipped:
+        which = [r.path for r in results if r.skipped]
+        out.write(f"Skipped (no timestamps in {', '.join(which)}): {', '.join(skipped)}.\n")
+    failing = sum(1 for r in results for f in r.findings if fails(f, fail_on))
+    if failing:
+        out.write(f"{failing} finding{'s' if failing != 1 else ''} at or above --fail-on {fail_on}.\n")
+
+
+def _severity(results: list[FileResult], code: str) -> str:
+    for r in results:
+        for f in r.findings:
+            if f.code == code:
+                return f.severity
+    return RULES[code].severity
+
+
+def json_findings(results: list[FileResult]) -> list[dict]:
+    return [{"file": r.path, **f.as_json()} for r in results for f in _sorted(r)]
+
+
+def write_json(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
+    json.dump(json_findings(results), out, indent=1)
+    out.write("\n")
+
+
+def write_junit(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
+    """One test case per rule and file; a failure for each rule with findings at or above --fail-on."""
+    suites = ET.Element("testsuites", name="rs30x-sniff lint")
+    total_tests = total_fail = 0
+    for r in results:
+        by_code: dict[str, list[Finding]] = {}
+        for f in _sorted(r):
+            by_code.setdefault(f.code, []).append(f)
+        suite = ET.SubElement(suites, "testsuite", name=r.path)
+        tests = failures = skipped = 0
+        if r.error:
+            case = ET.SubElement(suite, "testcase", classname=r.path, name="read")
+            ET.SubElement(case, "error", message=r.error)
+            tests += 1
+        for code in r.rules:
+            rule = RULES[code]
+            case = ET.SubElement(suite, "testcase", classname=r.path, name=f"{code} {rule.name}")
+            tests += 1
+            found = by_code.get(code, [])
+            if code in r.skipped:
+                ET.SubElement(case, "skipped", message="the capture has no timestamps")
+                skipped += 1
+                continue
+            bad = [f for f in found if fails(f, fail_on)]
+            lines = "\n".join(f"{r.path}:{f.offset}{_t(f)} {f.code} {f.name}: {f.message}" for f in found)
+            if bad:
+                failures += 1
+                fail = ET.SubElement(case, "failure", message=f"{len(bad)} finding(s): {bad[0].message}",
+                                     type=bad[0].severity)
+                fail.text = lines
+            elif found:
+                ET.SubElement(case, "system-out").text = lines
+        suite.set("tests", str(tests))
+        suite.set("failures", str(failures))
+        suite.set("errors", "1" if r.error else "0")
+        suite.set("skipped", str(skipped))
+        total_tests += tests
+        total_fail += failures
+    suites.set("tests", str(total_tests))
+    suites.set("failures", str(total_fail))
+    ET.indent(suites)
+    out.write('<?xml version="1.0" encoding="UTF-8"?>\n')
+    out.write(ET.tostring(suites, encoding="unicode"))
+    out.write("\n")
+
+
+def sarif_log(results: list[FileResult]) -> dict:
+    """A SARIF 2.1.0 log: the registry as the driver's rules, one result per finding."""
+    rules = list(RULES)
+    index = {r.code: k for k, r in enumerate(rules)}
+    driver = {
+        "name": "rs30x-sniff",
+        "version": __version__,
+        "informationUri": "https://pypi.org/project/rs30x-sniff/",
+        "rules": [{
+            "id": r.code,
+            "name": r.name,
+            "shortDescription": {"text": r.summary},
+            "fullDescription": {"text": r.section("What it does")},
+            "help": {"text": r.section("Why it matters"), "markdown": r.doc},
+            "defaultConfiguration": {"level": _SARIF_LEVEL[r.severity]},
+            "properties": {"family": r.family},
+        } for r in rules],
+    }
+    out = []
+    for res in results:
+        for f in _sorted(res):
+            props = {"t": f.t, "servoId": f.id, "severity": f.severity}
+            out.append({
+                "ruleId": f.code,
+                "ruleIndex": index[f.code],
+                "level": _SARIF_LEVEL[f.severity],
+                "message": {"text": f.message},
+                "locations": [{"physicalLocation": {
+                    "artifactLocation": {"uri": res.path},
+                    "region": {"byteOffset": f.offset, "byteLength": max(len(f.raw), 1)},
+                }}],
+                "properties": props,
+            })
+    invocation = {"executionSuccessful": not any(r.error for r in results)}
+    notes = [{"level": "error", "message": {"text": r.error}} for r in results if r.error]
+    if notes:
+        invocation["toolExecutionNotifications"] = notes
+    return {"$schema": SARIF_SCHEMA, "version": "2.1.0",
+            "runs": [{"tool": {"driver": driver}, "results": out, "invocations": [invocation],
+                      "artifacts": [{"location": {"uri": r.path}} for r in results]}]}
+
+
+def write_sarif(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
+    json.dump(sarif_log(results), out, indent=1)
+    out.write("\n")
+
+
+def _gh_escape(s: str, prop: bool = False) -> str:
+    s = s.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
+    return s.replace(":", "%3A").replace(",", "%2C") if prop else s
+
+
+def write_github(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
+    """GitHub Actions workflow commands: ``::error file=F,title=CODE name::message``."""
+    for r in results:
+        if r.error:
+            out.write(f"::error file={_gh_escape(r.path, True)}::{_gh_escape(r.error)}\n")
+        for f in _sorted(r):
+            title = _gh_escape(f"{f.code} {f.name}", True)
+            msg = _gh_escape(f"{f.message} (offset {f.offset}{', t=' + format(f.t, '.6f') if f.t is not None else ''})")
+            out.write(f"::{_GITHUB_LEVEL[f.severity]} file={_gh_escape(r.path, True)},title={title}::{msg}\n")
+
+
+WRITERS = {"text": write_text, "json": write_json, "junit": write_junit, "sarif": write_sarif,
+           "github": write_github}
+
+
+def write_report(fmt: str, results: Iterable[FileResult], out: IO[str], fail_on: str = "error") -> None:
+    WRITERS[fmt](list(results), out, fail_on)

@@ -1,0 +1,244 @@
+"""Sequence rules (Q): commands that are fine alone but wrong in the order or state they come in."""
+
+from __future__ import annotations
+
+from ..wire import BROADCAST_ID, encode_command, encode_long, encode_return, encode_short
+from .registry import example, rule
+
+_FLASH, _REBOOT = 0x40, 0x20
+
+
+def _deg(raw: int) -> str:
+    return f"{raw / 10:.1f}deg"
+
+
+@rule("Q001", "baud-change-not-applied", "warning", "baud_rate written without a following flash write and reboot.", f"""
+## What it does
+Flags a write of baud_rate (table 4.6, No. 6) to a servo that is not followed, before the end of the
+capture, by a flash write and then a reboot of that servo (or of ID 255). Said at the end of input.
+
+## Why it matters
+The manual says the servo keeps running at its old rate until the new value is flashed and the servo
+rebooted. A host that switches its own port to the new rate right after the write loses the servo.
+
+## Example
+{example(encode_short(1, 0, 0x06, bytes((4,))), encode_command(1, _FLASH), note="the baud rate is flashed but the servo never rebooted:")}
+""", kinds=("target", "command", "close"), fields=("baud_rate",))
+def baud_change_not_applied(lint, *args):
+    pending = lint.q001
+    if len(args) == 5:                       # target: a baud_rate write
+        rec, sid, plan, raws, sh = args
+        pending[sid] = [rec, "flash", raws[plan.index["baud_rate"]]]
+    elif len(args) == 2:                     # command: flash / reboot
+        rec, ev = args
+        sid = ev.id
+        for key in (list(pending) if sid == BROADCAST_ID else [sid, BROADCAST_ID]):
+            entry = pending.get(key)
+            if entry is None:
+                continue
+            if ev.flag & _FLASH and entry[1] == "flash":
+                entry[1] = "reboot"
+            if ev.flag & _REBOOT and entry[1] == "reboot":
+                del pending[key]
+    else:                                    # end of input
+        for sid, (rec, stage, code) in pending.items():
+            rate = f"code {code}"
+            why = "no flash write followed" if stage == "flash" else "it was flashed but the servo was never rebooted"
+            lint.emit("Q001", rec, f"baud_rate {rate} written to ID {sid} but {why}: it keeps its old rate", sid=sid)
+
+
+@rule("Q002", "id-change-not-persisted", "warning", "servo_id changed but never written to flash.", f"""
+## What it does
+Flags a write of servo_id that changes a servo's ID when no flash write to the new ID (or to ID 255)
+follows before the end of the capture. Said at the end of input.
+
+## Why it matters
+The servo answers to its new ID at once, so everything looks fine, but the ID reverts at the next
+power-up (table 4.6, No. 4). A flash write sent to the old ID after the change reaches nobody.
+
+## Example
+{example(encode_short(1, 0, 0x04, bytes((5,))), encode_command(1, _FLASH), note="ID 1 becomes 5, then the flash write goes to the old ID 1:")}
+""", kinds=("target", "command", "close"), fields=("servo_id",))
+def id_change_not_persisted(lint, *args):
+    pending = lint.q002
+    if len(args) == 5:
+        rec, sid, plan, raws, sh = args
+        new = raws[plan.index["servo_id"]]
+        if new != sid:
+            pending[new] = (rec, sid)
+    elif len(args) == 2:
+        rec, ev = args
+        if ev.flag & _FLASH:
+            if ev.id == BROADCAST_ID:
+                pending.clear()
+            else:
+                pending.pop(ev.id, None)
+    else:
+        for new, (rec, old) in pending.items():
+            lint.emit("Q002", rec, f"ID {old} changed to {new} but no flash write to ID {new} followed: "
+                                   f"it reverts at the next power-up", sid=old)
+
+
+@rule("Q003", "reboot-too-soon-after-flash", "warning", "A reboot before the flash write had time to finish.", f"""
+## What it does
+Flags a reboot sent to a servo less than `flash-write-time` (default 0.1 s) after a flash write to it
+ended, unless the flash write asked for an ACK and got it first. Needs timestamps.
+
+## Why it matters
+The manual asks to send the reboot only after the flash write has finished, and warns never to cut
+power during one: a reboot in the middle can leave the stored settings half written.
+
+## Example
+{example((0.0, encode_command(1, _FLASH)), (0.002, encode_command(1, _REBOOT)), note="a reboot 1.3 ms after the flash write:")}
+""", kinds=("command",), needs_time=True)
+def reboot_too_soon_after_flash(lint, rec, ev):
+    flag, sid = ev.flag, ev.id
+    if flag & _FLASH and not flag & _REBOOT:
+        reply = rec.reply
+        if reply is not None and reply.kind == "ack" and reply.event[3] is not None:
+            ready = reply.event[3]
+        elif ev[3] is not None:
+            ready = ev[3] + lint.config.flash_write_time
+        else:
+            return
+        lint.q003[sid] = (ready, ev[3], rec.offset)
+    elif flag & _REBOOT and not flag & _FLASH and ev[2] is not None:
+        for key in (sid, BROADCAST_ID):
+            entry = lint.q003.get(key)
+            if entry is not None and ev[2] < entry[0]:
+                dt = ev[2] - (entry[1] or 0)
+                lint.emit("Q003", rec, f"reboot {dt * 1e3:.1f} ms after the flash write @{entry[2]}; "
+                                       f"allow {lint.config.flash_write_time * 1e3:.0f} ms (or wait for its ACK)")
+                break
+        lint.q003.pop(sid, None)
+
+
+@rule("Q004", "goal-while-torque-off", "warning", "A goal position sent to a servo whose torque is off.", f"""
+## What it does
+Flags a goal_position write to a servo whose torque_enable the linter last saw as 0 (written or read,
+or reset by a reboot). Said once per servo until its torque state changes.
+
+## Why it matters
+A servo with torque off does not move, and when torque is switched on it takes its present position
+as the goal (table 4.9, No. 36): the commanded goal is lost. The usual cause is a forgotten torque-on
+step after power-up or a reboot.
+
+## Example
+{example(encode_short(1, 0, 0x24, bytes((0,))), encode_short(1, 0, 0x1E, bytes.fromhex("8403")))}
+""", kinds=("target",), fields=("goal_position",))
+def goal_while_torque_off(lint, rec, sid, plan, raws, sh):
+    if sh.torque == 0 and not sh.q004 and sid != BROADCAST_ID:
+        j = plan.index.get("torque_enable")
+        if j is not None and raws[j] != 0:
+            return  # torque comes on in this very packet: Q005
+        sh.q004 = True
+        lint.emit("Q004", rec, f"goal_position {_deg(raws[plan.index['goal_position']])} to ID {sid}, whose torque is off",
+                  sid=sid)
+
+
+@rule("Q005", "torque-on-with-goal", "warning", "Torque on and a goal position in one packet.", f"""
+## What it does
+Flags a packet that writes goal_position and switches torque_enable to 1 at once (addresses 30-36 in
+one write), for a servo whose torque was not already known to be on.
+
+## Why it matters
+The manual says the servo then turns its torque on but does not move: switching torque on copies the
+present position into the goal, overwriting the goal sent in the same packet.
+
+## Example
+{example(encode_short(1, 0, 0x1E, bytes.fromhex("8403 0000 00 64 01")))}
+""", kinds=("target",), fields=("torque_enable",))
+def torque_on_with_goal(lint, rec, sid, plan, raws, sh):
+    idx = plan.index
+    if "goal_position" in idx and raws[idx["torque_enable"]] == 1 and sh.torque != 1:
+        lint.emit("Q005", rec, f"torque on and goal_position {_deg(raws[idx['goal_position']])} in one packet to ID {sid}: "
+                               f"the servo will not move", sid=sid)
+
+
+@rule("Q006", "goal-beyond-angle-limit", "warning", "A goal position beyond the servo's angle limits.", f"""
+## What it does
+Flags a goal_position beyond the cw_angle_limit or ccw_angle_limit the linter last saw written to or
+read from that servo (table 4.6, No. 8-11). Skipped for a servo set to reverse, whose limits mirror.
+
+## Why it matters
+The servo stops at the limit (as the manual says), so the joint ends short of where the host thinks
+it is; gait and kinematics computed from the commanded angle go wrong.
+
+## Example
+{example(encode_short(1, 0, 0x08, (1000).to_bytes(2, "little")), encode_short(1, 0, 0x1E, (1200).to_bytes(2, "little")),
+         note="cw_angle_limit 100.0 deg, then a goal of 120.0 deg:")}
+""", kinds=("target",), fields=("goal_position",))
+def goal_beyond_angle_limit(lint, rec, sid, plan, raws, sh):
+    if sh.reverse == 1:
+        return
+    g = raws[plan.index["goal_position"]]
+    if sh.cw is not None and g > sh.cw:
+        lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its cw_angle_limit {_deg(sh.cw)}", sid=sid)
+    elif sh.ccw is not None and g < sh.ccw:
+        lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its ccw_angle_limit {_deg(sh.ccw)}", sid=sid)
+
+
+@rule("Q007", "goal-time-too-fast", "warning", "A move faster than the model's top speed.", f"""
+## What it does
+Flags a goal_position with a goal_time (same packet, or the last one written) that asks for more speed
+than the model has: 60 deg in 0.11 s for the RS303MR, 0.16 s for the RS304MD (no load, 7.4 V). The
+distance is from the last goal sent or position reported; goal_time 0 (as fast as possible) is fine.
+
+## Why it matters
+The servo moves at its top speed instead and arrives late (the manual says so for goal_time); a gait
+that relies on the timing drifts, and the servos run hot pushing at their limit.
+
+## Example
+{example(encode_short(1, 0, 0x1E, bytes.fromhex("0000 6400")), encode_short(1, 0, 0x1E, bytes.fromhex("8403 0A00")),
+         note="90 deg in 0.1 s on an RS303MR (it needs 0.165 s):")}
+""", kinds=("target",), fields=("goal_position",))
+def goal_time_too_fast(lint, rec, sid, plan, raws, sh):
+    pos = sh.pos
+    if pos is None:
+        return
+    idx = plan.index
+    j = idx.get("goal_time")
+    gt = raws[j] if j is not None else sh.goal_time
+    if not gt:
+        return
+    dist = abs(raws[idx["goal_position"]] - pos)
+    ts = plan.model.top_speed_s_per_60deg
+    if dist * ts > 6 * gt:  # (dist/10 deg) / (gt/100 s) > 60 deg / ts
+        lint.emit("Q007", rec, f"{dist / 10:.1f} deg in {gt * 10} ms on ID {sid} asks {dist * 10 / gt:.0f} deg/s; "
+                               f"{plan.model.name} tops out at {60 / ts:.0f} deg/s", sid=sid)
+
+
+@rule("Q008", "too-many-servos", "warning", "More than 24 servo IDs on one TTL bus.", f"""
+## What it does
+Flags the packet that brings the number of distinct servo IDs seen on the bus (requests, long-packet
+VIDs, returns; not 255) above `max-servos` (default 24, chapter 3 "Systems"). Said once.
+
+## Why it matters
+The manual limits a TTL command-type bus to 24 servos and warns that more may malfunction: the line's
+load and the time each poll cycle takes both grow with every servo.
+
+## Example
+{example(encode_long(0x23, [(i, bytes((100,))) for i in range(1, 26)]), note="max_torque to 25 servos in one long packet:")}
+""", kinds=("short", "long", "return"))
+def too_many_servos(lint, rec, ev):
+    if not lint.q008 and len(lint.ids) > lint.config.max_servos:
+        lint.q008 = True
+        lint.emit("Q008", rec, f"{len(lint.ids)} servo IDs on the bus; a TTL bus carries at most {lint.config.max_servos}")
+
+
+@rule("Q009", "torque-on-after-temperature-limit", "error", "Torque on for a servo locked by its temperature limit.", f"""
+## What it does
+Flags torque_enable set to 1 for a servo whose return reported the temperature limit (S001) with no
+reboot of it since.
+
+## Why it matters
+The manual says a servo that reached its temperature limit refuses torque on until it is rebooted or
+power-cycled: the command does nothing and the joint stays limp, while the host assumes it holds.
+
+## Example
+{example(encode_return(1, 0x2A, bytes.fromhex("8403"), flags=0x80), encode_short(1, 0, 0x24, bytes((1,))))}
+""", kinds=("target",), fields=("torque_enable",))
+def torque_on_after_temperature_limit(lint, rec, sid, plan, raws, sh):
+    if sh.temp_limit and raws[plan.index["torque_enable"]] == 1:
+        lint.emit("Q009", rec, f"torque on for ID {sid}, which tripped its temperature limit and was not rebooted since",
+                  sid=sid)

@@ -1,0 +1,105 @@
+"""What the linter remembers: per-servo shadow registers, and write plans compiled per (model, address, length)."""
+
+from __future__ import annotations
+
+import struct
+
+from ..memmap import Model
+
+# Registers the sequence rules follow, and the Shadow attribute each one lands in.
+_TRACKED = {
+    "goal_position": "pos", "present_position": "pos", "goal_time": "goal_time", "torque_enable": "torque",
+    "cw_angle_limit": "cw", "ccw_angle_limit": "ccw", "reverse": "reverse", "return_delay": "return_delay",
+}
+
+
+class Shadow:
+    """The few registers of one servo the rules need; None while unknown."""
+
+    __slots__ = ("torque", "pos", "goal_time", "cw", "ccw", "reverse", "return_delay", "temp_limit", "flags",
+                 "q004")
+
+    def __init__(self) -> None:
+        self.torque: int | None = None
+        self.pos: int | None = None        # raw 0.1 deg: the last goal sent or position reported
+        self.goal_time: int | None = None
+        self.cw: int | None = None
+        self.ccw: int | None = None
+        self.reverse: int | None = None
+        self.return_delay: int | None = None
+        self.temp_limit = False            # a return said the temperature limit tripped, no reboot since
+        self.flags = 0                     # status flags of the last return
+        self.q004 = False                  # Q004 already said for the current torque-off spell
+
+    def apply(self, plan: Plan, raws: tuple) -> None:
+        for attr, j in plan.tracked:
+            setattr(self, attr, raws[j])
+        if plan.sets_torque:
+            self.q004 = False
+
+    def reboot(self) -> None:
+        # RAM goes back to its defaults (table 4.9): torque off; the temperature lock clears.
+        self.torque = 0
+        self.temp_limit = False
+        self.q004 = False
+
+
+class Plan:
+    """How a write (or read) of ``n`` bytes at ``address`` meets a model's memory map, worked out once.
+
+    ``unpack(data)`` gives one raw integer per part (a whole register, or one byte of a 2-byte one);
+    ``index`` maps register names written whole to their place in that tuple.
+    """
+
+    __slots__ = ("model", "address", "n", "parts", "index", "read_only", "reserved", "partial", "ranged",
+                 "tracked", "sets_torque", "codes", "unpack", "_long", "target_checks")
+
+    def __init__(self, model: Model, address: int, n: int) -> None:
+        self.model, self.address, self.n = model, address, n
+        parts, codes = [], []
+        a, end = address, address + n
+        while a < end:
+            reg = model.register_at(a)
+            if a == reg.address and a + reg.size <= end:
+                parts.append((reg, None))
+                codes.append(("h" if reg.signed else "H") if reg.size == 2 else ("b" if reg.signed else "B"))
+                a += reg.size
+            else:
+                parts.append((reg, "low" if a == reg.address else "high"))
+                codes.append("B")
+                a += 1
+        self.parts = tuple(parts)
+        self.codes = "".join(codes)
+        self.unpack = struct.Struct("<" + self.codes).unpack
+        self.index = {reg.name: j for j, (reg, p) in enumerate(parts) if reg.name and not p}
+        seen = set()
+        ro, res, part, ranged = [], [], [], []
+        named = [j for j, (reg, _) in enumerate(parts) if reg.name]
+        for j, (reg, p) in enumerate(parts):
+            if reg.name is None:
+                # A reserved byte between two registers of the same write is carried along (the manual
+                # itself writes 30-36 across reserved 34); only the ends of a write are suspicious.
+                bridged = named and named[0] < j < named[-1]
+                if reg.label not in seen and not bridged:
+                    res.append(reg.label)
+            elif reg.access == "read":
+                if reg.name not in seen:
+                    ro.append(reg.name)
+            elif p and reg.name not in seen:
+                part.append(f"{reg.name} ({p} byte)")
+            if not p and reg.range is not None and reg.access == "read-write":
+                ranged.append((j, reg.name, reg.range[0], reg.range[1]))
+            seen.add(reg.label)
+        self.read_only, self.reserved, self.partial = tuple(ro), tuple(res), tuple(part)
+        self.ranged = tuple(ranged)
+        self.tracked = tuple((attr, self.index[name]) for name, attr in _TRACKED.items() if name in self.index)
+        self.sets_torque = "torque_enable" in self.index
+        self._long: dict[int, object] = {}
+        self.target_checks: tuple | None = None  # filled by the linter: the target rules this write wakes
+
+    def unpack_long(self, count: int):
+        """An unpacker for ``count`` records of VID + these bytes (one call for a whole long packet)."""
+        fn = self._long.get(count)
+        if fn is None:
+            fn = self._long[count] = struct.Struct("<" + ("B" + self.codes) * count).unpack
+        return fn
