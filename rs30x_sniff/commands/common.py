@@ -10,7 +10,7 @@ from typing import IO, Iterator
 from ..io.captures import FORMATS, Chunk, read_capture
 from ..memmap import ModelError, default_registry
 from ..pipeline import DecodeOptions
-from ..wire import BAUD_RATES
+from ..wire import BAUD_RATES, DEFAULT_BAUD
 
 
 class CliError(Exception):
@@ -80,9 +80,35 @@ def decode_options(args: argparse.Namespace, config: dict | None = None) -> Deco
     return opts
 
 
-def open_input(path: str, fmt: str | None = None) -> Iterator[Chunk]:
-    """Chunks from a capture file (or '-' for raw bytes on stdin)."""
+def add_live_options(p: argparse.ArgumentParser) -> None:
+    """--duration, for commands whose INPUT may be a serial port (a device or a pyserial URL)."""
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="when INPUT is a serial port: stop after S seconds (default: run until Ctrl-C)")
+
+
+def open_input(path: str, fmt: str | None = None, *, baud: int | None = None,
+               duration: float | None = None) -> Iterator[Chunk]:
+    """Chunks from a capture file (or '-' for raw bytes on stdin), or live from a serial port.
+
+    A port (a character device such as /dev/ttyUSB0, or a pyserial URL such as socket://host:port)
+    is read passively at ``baud`` until Ctrl-C, SIGTERM or ``duration`` seconds; the returned
+    source then has ``live = True`` and, after iteration, ``lost`` tells whether the port failed.
+    """
+    if fmt is None:
+        from ..io.serial_tap import is_port  # no pyserial import unless INPUT is a port
+
+        if is_port(path):
+            from ..io.serial_tap import LiveSource
+
+            if duration is not None and duration <= 0:
+                raise CliError(f"--duration {duration:g}: must be positive")
+            return LiveSource(path, baud or DEFAULT_BAUD, duration=duration).start()
     return read_capture(path, fmt)
+
+
+def is_live(chunks: object) -> bool:
+    """Whether an input from :func:`open_input` is a live port (flush output per batch, then)."""
+    return bool(getattr(chunks, "live", False))
 
 
 @contextmanager

@@ -20,7 +20,7 @@ from ..wire import (
 from .bus import Chunk, SimBus
 from .servo import RETURN_DELAY_STEP, Physics, Servo
 
-CYCLE = 0.020          # 50 Hz goal updates
+CYCLE = 0.020          # 50 Hz goal updates (longer where the baud rate cannot carry them)
 POLL_MODE = 0x09       # return of addresses 42-59 (table 4.3)
 POLL_REPLY_BYTES = 8 + 18
 HOST_TIMEOUT = 0.060   # a careful host waits longer than the sniffer's 50 ms reply timeout
@@ -115,15 +115,17 @@ class Gait:
     period: float = 1.2           # s
     polls: bool = True
     next_poll: int = 0
-    skip: set[int] = field(default_factory=set)
+    hold: dict[int, float] = field(default_factory=dict)  # servos held at a fixed angle (goal time 0)
 
     def angle(self, sid: int, t: float) -> float:
+        if sid in self.hold:
+            return self.hold[sid]
         return self.amplitude * math.sin(2 * math.pi * t / self.period + sid * math.pi / 3)
 
     def goals(self, t: float, goal_time: float) -> list[tuple[int, bytes]]:
         units = round(goal_time / 0.01)
         return [(sid, round(self.angle(sid, t) * 10).to_bytes(2, "little", signed=True)
-                 + units.to_bytes(2, "little")) for sid in self.ids]
+                 + (0 if sid in self.hold else units).to_bytes(2, "little")) for sid in self.ids]
 
 
 def _startup(host: Host, gait: Gait) -> Iterator[None]:
@@ -139,22 +141,37 @@ def _startup(host: Host, gait: Gait) -> Iterator[None]:
     yield
 
 
+def cycle_time(bus: SimBus, servos: int) -> float:
+    """20 ms (50 Hz) when the goals' long packet fits with room for polls; longer on a slow bus."""
+    long_time = (8 + 5 * servos) * bus.bt
+    return max(CYCLE, math.ceil(2 * long_time / 0.01) * 0.01)
+
+
 def _cycles(host: Host, gait: Gait, duration: float, hook: Callable[[int], None] | None = None) -> Iterator[None]:
-    """50 Hz cycles until ``duration``: one long packet of goals, then as many polls as fit."""
+    """Goal cycles until ``duration``: one long packet of goals, then as many polls as fit.
+
+    A cycle the host misses (it was waiting for a reply that never came) is skipped, and the gait
+    waits for it: each goal is one gait step from the last, so no step asks for more speed.
+    """
     bus = host.bus
     bt = bus.bt
+    period = cycle_time(bus, len(gait.ids))
     poll_cost = (8 + POLL_REPLY_BYTES) * bt + 200e-6 + 2 * bus.turnaround
     cycle = 0
-    t0 = bus.t
+    t0 = phase = bus.t
     while True:
-        start = t0 + cycle * CYCLE
+        start = t0 + cycle * period
+        if bus.t > start + 1e-9:
+            cycle = math.ceil((bus.t - t0) / period - 1e-9)
+            continue
         if start >= duration:
             return
         bus.sleep_until(start)
-        host.long(30, gait.goals(start + CYCLE, CYCLE))
+        phase += period
+        host.long(30, gait.goals(phase, period))
         if hook is not None:
             hook(cycle)
-        end = start + CYCLE - 100e-6
+        end = start + period - 100e-6
         while gait.polls and gait.ids and bus.t + poll_cost < end:
             sid = gait.ids[gait.next_poll % len(gait.ids)]
             gait.next_poll += 1
@@ -199,7 +216,7 @@ def setup(bus: SimBus, rng: random.Random, duration: float) -> Iterator[None]:
         host.write(1, 4, bytes((new_id,)))         # new ID: effective at once (No. 4)
         host.write(new_id, 6, bytes((code,)), ack=True)  # baud rate code, applied after flash + reboot (No. 6)
         host.command(new_id, FLAG_WRITE_FLASH)     # save 4-29 to flash (table 4.2 bit 6)
-        bus.sleep(0.1)                             # let the flash write finish before the reboot
+        bus.sleep(0.15)                            # let the flash write finish before the reboot
         host.command(new_id, FLAG_REBOOT)          # a separate packet, as the manual asks
         bus.sleep(0.3)
         host.request(encode_short(new_id, 0x03))   # read back: the ID survived the reboot
@@ -247,8 +264,9 @@ def duplicate_id(bus: SimBus, rng: random.Random, duration: float) -> Iterator[N
     host, gait, _ = _fault_bus(bus, rng)
     # The twin answers later (its return delay was raised), so the two returns follow each other
     # instead of colliding: what a sniffer on a real bus usually sees.
-    delay = POLL_REPLY_BYTES * bus.bt + 300e-6
-    twin = Servo("RS303MR", 2, baud=bus.baud, seed=_seed(rng), return_delay=math.ceil(delay / RETURN_DELAY_STEP))
+    # Below about 57600 baud even the longest delay (255 units, 12.85 ms) is too short, and they collide.
+    delay = min(255, math.ceil((POLL_REPLY_BYTES * bus.bt + 300e-6) / RETURN_DELAY_STEP))
+    twin = Servo("RS303MR", 2, baud=bus.baud, seed=_seed(rng), return_delay=delay)
     bus.attach(twin)
     yield from _startup(host, gait)
     yield from _cycles(host, gait, duration)
@@ -258,11 +276,10 @@ def duplicate_id(bus: SimBus, rng: random.Random, duration: float) -> Iterator[N
           "return has come", 3.0, expects=("B001",), servos=6)
 def request_before_return(bus: SimBus, rng: random.Random, duration: float) -> Iterator[None]:
     host, gait, servos = _fault_bus(bus, rng)
-    # Servo 5 answers late (return delay 2.1 ms), so a short write fits in before its return.
-    late = servos[4]
-    write_time = 9 * bus.bt
-    late.mem[7] = max(40, math.ceil((write_time + 400e-6) / RETURN_DELAY_STEP))
-    late.flash = bytes(late.mem[4:30])
+    # Servo 5 is set to answer late (return delay 2.1 ms or more, No. 7), so a short write fits in
+    # before its return. The host sets it on the bus, so a sniffer knows the delay to expect.
+    delay = max(40, math.ceil((9 * bus.bt + 400e-6) / RETURN_DELAY_STEP))
+    host.write(5, 7, bytes((delay,)))
     yield from _startup(host, gait)
 
     def hook(cycle: int) -> None:
@@ -299,6 +316,7 @@ def overheat(bus: SimBus, rng: random.Random, duration: float) -> Iterator[None]
     hot.physics = Physics(thermal_tau_s=3.0)
     hot.temp = 62.0
     hot.load = 1.0
+    gait.hold[2] = 30.0  # a gripper squeezing: "as fast as you can" (goal time 0), and it cannot get there
     yield from _startup(host, gait)
 
     def hook(cycle: int) -> None:

@@ -1,0 +1,137 @@
+"""`rs30x-sniff simulate`: run a scripted bus of emulated servos into a capture file or onto a port."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from ..io.captures import MCAP, FORMATS, format_for_output, write_capture
+from ..wire import BAUD_RATES, DEFAULT_BAUD
+from .common import CliError
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("simulate", help="a simulated servo bus: scenarios to a capture file or a port",
+                       description="Emulated RS30x servos driven by a scripted host: a healthy hexapod gait, a "
+                                   "setup session, or faults the linter should catch. Writes a capture file "
+                                   "(-o, times at baud-rate pacing) or plays the bus in real time onto a "
+                                   "serial port or pseudo-terminal (--port).")
+    p.add_argument("--scenario", default="hexapod", metavar="NAME", help="what to simulate (see --list)")
+    p.add_argument("--list", action="store_true", help="list the scenarios and exit")
+    p.add_argument("-o", "--output", metavar="FILE",
+                   help="capture file to write (.bin/.raw, .hex, .thex/.log timestamped hex, .mcap)")
+    p.add_argument("--output-format", choices=FORMATS, default=None, help="capture format, if not by extension")
+    p.add_argument("--port", metavar="PORT",
+                   help="play the bus in real time onto a serial device, pty or pyserial URL")
+    p.add_argument("--baud", type=int, default=DEFAULT_BAUD, metavar="BPS",
+                   help=f"bus baud rate, one of table 4.7 (default {DEFAULT_BAUD})")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="simulated seconds (default: the scenario's own length)")
+    p.add_argument("--seed", type=int, default=0, help="random seed: the same seed gives the same bytes")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.set_defaults(run=run)
+
+
+def list_scenarios() -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from ..sim.scenarios import SCENARIOS
+
+    table = Table(box=None, pad_edge=False)
+    for col in ("scenario", "servos", "seconds", "lint findings", "what happens"):
+        table.add_column(col, overflow="fold")
+    for sc in SCENARIOS.values():
+        table.add_row(sc.name, str(sc.servos), f"{sc.duration:g}", " ".join(sc.expects) or "none", sc.summary)
+    Console(width=max(100, Console().width)).print(table)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.list:
+        list_scenarios()
+        return 0
+    from ..sim import scenarios
+
+    if args.scenario not in scenarios.SCENARIOS:
+        raise CliError(f"--scenario {args.scenario}: unknown (known: {', '.join(scenarios.SCENARIOS)})")
+    if args.baud not in BAUD_RATES:
+        raise CliError(f"--baud {args.baud}: the servos run at one of {', '.join(map(str, BAUD_RATES))} (table 4.7)")
+    if args.duration is not None and args.duration <= 0:
+        raise CliError(f"--duration {args.duration:g}: must be positive")
+    if not args.output and not args.port:
+        raise CliError("say where the bus goes: -o FILE, --port PORT, or both")
+    chunks = scenarios.run(args.scenario, baud=args.baud, seed=args.seed, duration=args.duration)
+    if args.output:
+        if os.path.exists(args.output) and not args.force:
+            raise CliError(f"{args.output}: already exists (use --force to overwrite)")
+        if args.port:
+            chunks = list(chunks)  # the same bytes go to both
+        n = write_file(args.output, chunks, format_for_output(args.output, args.output_format), args.baud)
+        if not args.port:
+            print(f"rs30x-sniff: {args.scenario}: {n:,} bytes to {args.output}", file=sys.stderr)
+    if args.port:
+        return play_port(args.port, args.baud, chunks, args.scenario)
+    return 0
+
+
+def write_file(path: str, chunks, fmt: str, baud: int) -> int:
+    """Write the simulated chunks as a capture of ``fmt``; an MCAP file is decoded and linted too."""
+    try:
+        if fmt == MCAP:
+            from ..io.mcap_sink import McapSink, convert
+            from ..pipeline import DecodeOptions, Decoder
+
+            try:
+                from ..lint import Linter
+                linter = Linter()
+            except ImportError:
+                linter = None
+            total = 0
+
+            def counted():
+                nonlocal total
+                for data, t in chunks:
+                    total += len(data)
+                    yield data, t
+            opts = DecodeOptions(baud=baud)
+            with McapSink(path, source="rs30x-sniff simulate", baud=baud, time_base="capture") as sink:
+                convert(counted(), sink, Decoder(opts, linter))
+            return total
+        return write_capture(path, chunks, fmt)
+    except OSError as e:
+        raise CliError(f"{path}: cannot write: {e.strerror}") from None
+
+
+def play_port(port: str, baud: int, chunks, name: str) -> int:
+    from ..sim.port import open_port, play
+
+    try:
+        ser = open_port(port, baud)
+    except Exception as e:  # noqa: BLE001 - SerialException, OSError, ValueError: all one line
+        raise CliError(f"{port}: cannot open port: {' '.join(str(e).split())}") from None
+    sent = 0
+
+    def counted_write(data):
+        nonlocal sent
+        n = ser.write(data)
+        sent += len(data) if n is None else n
+        return n
+
+    try:
+        play(chunks, counted_write)
+        ser.flush()
+    except KeyboardInterrupt:
+        print(f"rs30x-sniff: {name}: stopped (Ctrl-C) after {sent:,} bytes to {port}", file=sys.stderr)
+        return 0
+    except Exception as e:  # noqa: BLE001 - the port went away mid-run
+        print(f"rs30x-sniff: error: {port}: port lost ({' '.join(str(e).split())}) after {sent:,} bytes",
+              file=sys.stderr)
+        return 1
+    finally:
+        try:
+            ser.close()
+        except Exception:  # noqa: BLE001
+            pass
+    print(f"rs30x-sniff: {name}: {sent:,} bytes to {port}", file=sys.stderr)
+    return 0

@@ -1,0 +1,291 @@
+"""Passive serial tap: reads a port on its own thread, stamps each chunk on arrival, and never writes."""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import stat
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable, Iterator
+
+from ..wire import BAUD_RATES, byte_time
+from .captures import CaptureError
+
+Chunk = tuple[bytes, float]
+
+# Rates the tap accepts: the servo's table 4.7, plus 460800 (common USB-UART rate; useful with
+# simulators and for capturing a host that is misconfigured).
+TAP_BAUD_RATES = (*BAUD_RATES, 460800)
+READ_TIMEOUT = 0.05  # how often the reader thread looks at its stop flag
+
+# End reasons of a live capture.
+STOPPED = "stopped"    # Ctrl-C, SIGTERM, or stop() from the program
+DURATION = "duration"  # --duration elapsed
+LOST = "lost"          # the port raised an error or vanished
+
+
+def is_port(path: str) -> bool:
+    """Whether INPUT names a serial port: a pyserial URL (rfc2217://, socket://, loop://, ...) or a
+    character device other than the memory devices (/dev/null, /dev/zero, ...)."""
+    if "://" in path:
+        return True
+    try:
+        st = os.stat(path)
+    except OSError:
+        return False
+    # Major 1 on Linux holds /dev/null, /dev/zero, /dev/random...: files, not ports.
+    return stat.S_ISCHR(st.st_mode) and os.major(st.st_rdev) != 1
+
+
+@dataclass(frozen=True, slots=True)
+class _End:
+    reason: str
+    message: str
+
+
+class SerialTap:
+    """Opens ``port`` at ``baud`` 8N1 for reading only, and reads it on a daemon thread into an
+    unbounded queue, so a slow consumer (decoder, screen, disk) never makes it drop bytes.
+
+    The port is opened with pyserial's ``serial_for_url`` (device paths and URLs alike), with
+    software and hardware flow control off. The tap never calls ``write``. Note that pyserial itself,
+    when it opens a local device, sets DTR and RTS to its defaults (asserted, as the OS and every
+    terminal program do); we leave them alone after that. A tap wired only to RX and GND does not
+    connect those pins to anything, so this is harmless on the bus.
+
+    Each chunk is stamped with ``time.monotonic_ns()`` when the read returns. Its first byte's time
+    is back-computed from the baud rate (``t_arrival - len(chunk) x byte time``) and kept after the
+    previous chunk's last byte. ``t`` is seconds since the port was opened; the wall-clock time of
+    that moment is in :attr:`wall_start_ns` (for the capture's metadata).
+    """
+
+    def __init__(self, port: str, baud: int, *, read_timeout: float = READ_TIMEOUT,
+                 clock: Callable[[], int] = time.monotonic_ns) -> None:
+        if baud not in TAP_BAUD_RATES:
+            raise CaptureError(f"--baud {baud}: not a bus rate (table 4.7: "
+                               f"{', '.join(map(str, TAP_BAUD_RATES))})")
+        self.port = port
+        self.baud = baud
+        self.byte_time = byte_time(baud)
+        self.read_timeout = read_timeout
+        self.clock = clock
+        self.queue: queue.SimpleQueue = queue.SimpleQueue()
+        self.bytes_read = 0
+        self.start_ns = 0
+        self.wall_start_ns = 0
+        self._serial = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._next_t = 0.0  # earliest start time of the next chunk (end of the previous one)
+
+    # ---- lifecycle ---------------------------------------------------------------------------
+    def open(self) -> SerialTap:
+        """Open the port and start the reader thread; a one-line CaptureError if the port cannot be opened."""
+        import serial  # pyserial is needed only for live capture
+
+        try:
+            ser = serial.serial_for_url(self.port, do_not_open=True, baudrate=self.baud,
+                                        bytesize=serial.EIGHTBITS, parity=serial.PARITY_NONE,
+                                        stopbits=serial.STOPBITS_ONE, timeout=self.read_timeout,
+                                        xonxoff=False, rtscts=False, dsrdtr=False)
+            ser.open()
+        except (serial.SerialException, ValueError, OSError) as e:
+            raise CaptureError(f"{self.port}: cannot open port: {_one_line(e)}") from None
+        self._serial = ser
+        self.wall_start_ns = time.time_ns()
+        self.start_ns = self.clock()
+        self._thread = threading.Thread(target=self._run, name=f"tap {self.port}", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Ask the reader to finish (it first reads what the OS still holds), wait for it, close the port."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+        if self._serial is not None:
+            try:
+                self._serial.close()
+            except Exception:  # noqa: BLE001 - closing a vanished device may fail; nothing to save
+                pass
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    # ---- the reader thread ---------------------------------------------------------------------
+    def _run(self) -> None:
+        ser = self._serial
+        put = self.queue.put
+        try:
+            while not self._stop.is_set():
+                first = ser.read(1)  # blocks until a byte arrives or the read timeout passes
+                if not first:
+                    continue
+                more = ser.in_waiting
+                data = first + ser.read(more) if more else first
+                self._stamp(data, self.clock())
+            more = ser.in_waiting  # a requested stop: keep what has already arrived
+            if more:
+                self._stamp(ser.read(more), self.clock())
+            put(_End(STOPPED, "stopped"))
+        except Exception as e:  # noqa: BLE001 - SerialException, OSError, a vanished device: all end the capture
+            put(_End(LOST, _one_line(e)))
+
+    def _stamp(self, data: bytes, arrival_ns: int) -> None:
+        n = len(data)
+        t = (arrival_ns - self.start_ns) / 1e9 - n * self.byte_time
+        if t < self._next_t:
+            t = self._next_t  # bytes cannot overlap the previous chunk's
+        self._next_t = t + n * self.byte_time
+        self.bytes_read += n
+        self.queue.put((data, t))
+
+
+class LiveSource:
+    """A port as an input: chunks until Ctrl-C / SIGTERM, ``duration`` seconds, or the port is lost.
+
+    Iterate it for ``(bytes, t)`` chunks, or call :meth:`poll` for whatever arrived within a
+    timeout (a loop that also refreshes a screen). After the end, :attr:`reason` is ``stopped``,
+    ``duration`` or ``lost`` and :attr:`message` says why; with ``announce`` a lost port is also
+    reported on stderr as one line. SIGINT and SIGTERM handlers are installed while it runs (from
+    the main thread only) and restored at the end.
+    """
+
+    live = True
+
+    def __init__(self, port: str, baud: int, *, duration: float | None = None, announce: bool = True,
+                 tap: SerialTap | None = None) -> None:
+        self.port = port
+        self.tap = tap or SerialTap(port, baud)
+        self.duration = duration
+        self.announce = announce
+        self.reason: str | None = None
+        self.message = ""
+        self._stop_signal: str | None = None
+        self._saved: dict[int, object] = {}
+        self._deadline: float | None = None
+        self._started = False
+
+    @property
+    def lost(self) -> bool:
+        return self.reason == LOST
+
+    @property
+    def ended(self) -> bool:
+        return self.reason is not None
+
+    def start(self) -> LiveSource:
+        if self._started:
+            return self
+        self._started = True
+        self.tap.open()
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._saved[sig] = signal.signal(sig, self._on_signal)
+        if self.duration is not None:
+            self._deadline = time.monotonic() + self.duration
+        return self
+
+    def _on_signal(self, signum: int, frame: object) -> None:
+        self._stop_signal = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+
+    def request_stop(self, why: str = "stop requested") -> None:
+        self._stop_signal = why
+
+    def poll(self, timeout: float = 0.1) -> list[Chunk]:
+        """Chunks that arrived within ``timeout`` seconds (possibly none); [] for ever once ended."""
+        if self.reason is not None:
+            return []
+        self.start()
+        out: list[Chunk] = []
+        q = self.tap.queue
+        end_at = time.monotonic() + timeout
+        while True:
+            if self._stop_signal is not None or (self._deadline is not None and time.monotonic() >= self._deadline):
+                return out + self._finish()
+            wait = end_at - time.monotonic()
+            if self._deadline is not None:
+                wait = min(wait, self._deadline - time.monotonic())
+            try:
+                item = q.get(timeout=max(0.0, min(wait, 0.05))) if wait > 0 else q.get_nowait()
+            except queue.Empty:
+                if wait <= 0:
+                    return out
+                continue
+            if type(item) is _End:
+                self._close(item)
+                return out
+            out.append(item)
+            # Take everything already queued without waiting again.
+            while True:
+                try:
+                    item = q.get_nowait()
+                except queue.Empty:
+                    return out
+                if type(item) is _End:
+                    self._close(item)
+                    return out
+                out.append(item)
+
+    def _finish(self) -> list[Chunk]:
+        """A requested stop or the duration: stop the reader, then hand out everything it read."""
+        why = self._stop_signal
+        self.tap.stop()
+        out: list[Chunk] = []
+        end = _End(STOPPED, why) if why is not None else _End(DURATION, f"{self.duration:g} s elapsed")
+        while True:
+            try:
+                item = self.tap.queue.get_nowait()
+            except queue.Empty:
+                break
+            if type(item) is _End:
+                if item.reason == LOST:
+                    end = item
+                continue
+            out.append(item)
+        self._close(end)
+        return out
+
+    def _close(self, end: _End) -> None:
+        self.reason, self.message = end.reason, end.message
+        self.tap.stop()
+        for sig, handler in self._saved.items():
+            signal.signal(sig, handler)
+        self._saved = {}
+        if self.announce and self.reason == LOST:
+            print(f"rs30x-sniff: {self.port}: port lost ({self.message}); "
+                  f"{self.tap.bytes_read} bytes received", file=sys.stderr)
+
+    def close(self) -> None:
+        """End the capture now (idempotent)."""
+        if self.reason is None:
+            if self._started:
+                self.request_stop("closed")
+                self._finish()
+            else:
+                self.reason, self.message = STOPPED, "closed"
+
+    def __iter__(self) -> Iterator[Chunk]:
+        try:
+            while self.reason is None:
+                yield from self.poll(0.25)
+        finally:
+            self.close()
+
+    @property
+    def metadata(self) -> dict[str, str]:
+        """What a capture file should say about this source."""
+        return {"port": self.port, "baud": str(self.tap.baud),
+                "wall_start_ns": str(self.tap.wall_start_ns),
+                "monotonic_start_ns": str(self.tap.start_ns),
+                "timing": "chunk arrival stamped with a monotonic clock; byte times back-computed from the baud rate"}
+
+
+def _one_line(e: BaseException) -> str:
+    text = str(e).strip() or type(e).__name__
+    return " ".join(text.split())
