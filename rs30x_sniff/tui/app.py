@@ -19,7 +19,8 @@ from textual.widgets import Footer, Input, Label
 from ..memmap import default_registry
 from ..pipeline import DecodeOptions
 from .detail import DetailPane
-from .feed import Batch, Feeder, Source, default_linter
+from .feed import Batch, Feeder, default_linter
+from .sources import Source
 from .filter import FilterError, parse_filter
 from .header import SessionInfo, StatusHeader
 from .help import HelpScreen

@@ -6,18 +6,16 @@ import threading
 import time
 from dataclasses import dataclass, field
 from queue import Empty, SimpleQueue
-from typing import Any, Callable, Iterator, Protocol
+from typing import Any, Callable
 
 from ..bus import Record
-from ..io.captures import CaptureError, read_capture
+from ..io.captures import CaptureError
 from ..pipeline import DecodeOptions, Decoder
-from ..wire import byte_time
+from .sources import Source
 from .store import ServoRow, servo_snapshot
 
-Chunk = tuple[bytes, "float | None"]
 POST_INTERVAL = 0.25    # seconds between batches: a few screen updates a second are plenty
 MAX_BATCH = 50_000      # records per batch, so one batch never stalls the screen for long
-REPLAY_SLICE = 64       # bytes per step when replaying a capture that has no timestamps
 
 
 @dataclass
@@ -32,77 +30,6 @@ class Batch:
     error: str | None = None     # why it ended early, in one line
     recording: str | None = None  # the MCAP file being written, if any
     note: str | None = None      # a one-line message for the user (recording started/stopped, ...)
-
-
-class Source(Protocol):
-    name: str        # what the header shows
-    kind: str        # "file", "replay", "port", "simulator"
-    time_base: str   # for the MCAP sink: "capture", "synthetic" or "monotonic"
-
-    def chunks(self, stop: threading.Event) -> Iterator[Chunk]: ...
-
-    def close(self) -> None: ...
-
-
-class FileSource:
-    """A capture file read as fast as it decodes."""
-
-    kind = "file"
-
-    def __init__(self, path: str, fmt: str | None = None) -> None:
-        self.path = path
-        self.name = path
-        self.fmt = fmt
-        self.time_base = "capture"
-        self._it = read_capture(path, fmt)  # opens the file now, so a bad path fails before the screen starts
-
-    def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
-        for data, t in self._it:
-            if t is None:
-                self.time_base = "synthetic"
-            yield data, t
-            if stop.is_set():
-                return
-
-    def close(self) -> None:
-        close = getattr(self._it, "close", None)
-        if close is not None:
-            close()
-
-
-class ReplaySource(FileSource):
-    """A capture file played at its own pace (``speed`` times faster), as if it were live."""
-
-    kind = "replay"
-
-    def __init__(self, path: str, fmt: str | None = None, *, speed: float = 1.0, baud: int = 115200,
-                 clock: Callable[[], float] = time.monotonic) -> None:
-        if not speed > 0:
-            raise ValueError("speed must be positive")
-        super().__init__(path, fmt)
-        self.speed = speed
-        self.byte_time = byte_time(baud)
-        self.clock = clock
-
-    def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
-        start = self.clock()
-        t0: float | None = None
-        sent = 0  # bytes so far, which pace a capture without timestamps at line rate
-        for data, t in super().chunks(stop):
-            pieces = [(data, t)] if t is not None else [
-                (data[i:i + REPLAY_SLICE], None) for i in range(0, len(data), REPLAY_SLICE)]
-            for piece, pt in pieces:
-                if pt is not None:
-                    if t0 is None:
-                        t0 = pt
-                    due = (pt - t0) / self.speed
-                else:
-                    due = sent * self.byte_time / self.speed
-                wait = start + due - self.clock()
-                if wait > 0 and stop.wait(wait):
-                    return
-                sent += len(piece)
-                yield piece, pt
 
 
 def default_linter() -> Any:

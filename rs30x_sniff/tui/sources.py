@@ -1,0 +1,164 @@
+"""Where the monitor's bytes come from: a capture file (at once or replayed), a serial port, or the simulator."""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable, Iterable, Iterator, Protocol
+
+from ..io.captures import CaptureError, read_capture
+from ..wire import byte_time
+
+Chunk = tuple[bytes, "float | None"]
+REPLAY_SLICE = 64        # bytes per step when replaying a capture that has no timestamps
+POLL_SECONDS = 0.1       # a live source yields at least this often, so commands and batches flow
+SIMULATE_SECONDS = 3600.0  # a simulated session runs for an hour of bus time unless the user quits
+
+
+class Source(Protocol):
+    name: str        # what the header shows
+    kind: str        # "file", "replay", "port", "simulator"
+    time_base: str   # for the MCAP sink: "capture", "synthetic" or "monotonic"
+
+    def chunks(self, stop: threading.Event) -> Iterator[Chunk]: ...
+
+    def close(self) -> None: ...
+
+
+def paced(chunks: Iterable[Chunk], stop: threading.Event, *, speed: float, byte_seconds: float,
+          clock: Callable[[], float] = time.monotonic) -> Iterator[Chunk]:
+    """Hand out chunks when their time comes (``t`` / ``speed`` after the first one); chunks without
+    timestamps go at line rate. Returns early once ``stop`` is set."""
+    start = clock()
+    t0: float | None = None
+    sent = 0
+    for data, t in chunks:
+        pieces = [(data, t)] if t is not None else [
+            (data[i:i + REPLAY_SLICE], None) for i in range(0, len(data), REPLAY_SLICE)]
+        for piece, pt in pieces:
+            if pt is not None:
+                if t0 is None:
+                    t0 = pt
+                due = (pt - t0) / speed
+            else:
+                due = sent * byte_seconds / speed
+            wait = start + due - clock()
+            if wait > 0 and stop.wait(wait):
+                return
+            if stop.is_set():
+                return
+            sent += len(piece)
+            yield piece, pt
+
+
+class FileSource:
+    """A capture file read as fast as it decodes."""
+
+    kind = "file"
+
+    def __init__(self, path: str, fmt: str | None = None) -> None:
+        self.path = path
+        self.name = path
+        self.fmt = fmt
+        self.time_base = "capture"
+        self._it = read_capture(path, fmt)
+        self._first = next(self._it, None)  # reads the head now, so a bad file fails before the screen starts
+
+    def _all(self) -> Iterator[Chunk]:
+        if self._first is not None:
+            first, self._first = self._first, None
+            yield first
+        yield from self._it
+
+    def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
+        for data, t in self._all():
+            if t is None:
+                self.time_base = "synthetic"
+            yield data, t
+            if stop.is_set():
+                return
+
+    def close(self) -> None:
+        close = getattr(self._it, "close", None)
+        if close is not None:
+            close()
+
+
+class ReplaySource(FileSource):
+    """A capture file played at its own pace (``speed`` times faster), as if it were live."""
+
+    kind = "replay"
+
+    def __init__(self, path: str, fmt: str | None = None, *, speed: float = 1.0, baud: int = 115200,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        if not speed > 0:
+            raise ValueError("speed must be positive")
+        super().__init__(path, fmt)
+        self.speed = speed
+        self.byte_seconds = byte_time(baud)
+        self.clock = clock
+
+    def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
+        yield from paced(super().chunks(stop), stop, speed=self.speed, byte_seconds=self.byte_seconds,
+                         clock=self.clock)
+
+
+class PortSource:
+    """A serial port through the passive tap (which never writes to the bus)."""
+
+    kind = "port"
+    time_base = "monotonic"
+
+    def __init__(self, port: str, baud: int) -> None:
+        from ..io.serial_tap import LiveSource  # pyserial is needed only for live capture
+
+        self.name = port
+        self.live = LiveSource(port, baud, announce=False)
+        self.live.start()  # opens the port now: a missing port is a one-line error, not a blank screen
+
+    def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
+        live = self.live
+        while not stop.is_set() and not live.ended:
+            yield from live.poll(POLL_SECONDS)
+            yield b"", None  # let the feeder post and take commands while the bus is idle
+        if live.lost:
+            raise CaptureError(f"{self.name}: port lost ({live.message})")
+
+    def close(self) -> None:
+        self.live.close()
+
+
+class SimulatorSource:
+    """The built-in simulator running a scenario in this process, paced in real time (``speed`` x)."""
+
+    kind = "simulator"
+    time_base = "capture"
+
+    def __init__(self, scenario: str, baud: int, *, speed: float = 1.0, duration: float = SIMULATE_SECONDS,
+                 seed: int = 0, clock: Callable[[], float] = time.monotonic) -> None:
+        from ..sim import SCENARIOS, run
+
+        if scenario not in SCENARIOS:
+            raise CaptureError(f"--simulate {scenario}: unknown scenario (known: {', '.join(SCENARIOS)})")
+        self.name = f"simulator {scenario}"
+        self.speed = speed
+        self.byte_seconds = byte_time(baud)
+        self.clock = clock
+        try:
+            self._it = run(scenario, baud=baud, seed=seed, duration=duration)
+            self._first = next(self._it, None)
+        except ValueError as e:
+            raise CaptureError(f"--simulate {scenario}: {e}") from None
+
+    def _all(self) -> Iterator[Chunk]:
+        if self._first is not None:
+            first, self._first = self._first, None
+            yield first
+        yield from self._it
+
+    def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
+        # The simulator computes far faster than real time: pacing makes it look like a live bus.
+        yield from paced(self._all(), stop, speed=self.speed, byte_seconds=self.byte_seconds, clock=self.clock)
+
+    def close(self) -> None:
+        self._it.close()

@@ -1,0 +1,64 @@
+"""Shared helpers for the monitor's tests: records from the manual's examples, a frozen clock, app factories."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from rs30x_sniff.io.captures import read_capture
+from rs30x_sniff.pipeline import DecodeOptions, Decoder
+
+ROOT = Path(__file__).resolve().parents[2]
+MANUAL = str(ROOT / "captures" / "manual-examples.hex")
+SIZE = (160, 48)
+
+
+def manual_records(linter=None):
+    """Every record of captures/manual-examples.hex, decoded (with findings if a linter is given)."""
+    dec = Decoder(DecodeOptions(), linter=linter)
+    out = []
+    for data, t in read_capture(MANUAL):
+        out += dec.feed(data, t)
+    return out + dec.close()
+
+
+def records_of(chunks, linter=None, options=None):
+    dec = Decoder(options or DecodeOptions(), linter=linter)
+    out = []
+    for data, t in chunks:
+        out += dec.feed(data, t)
+    return out + dec.close()
+
+
+@dataclass(frozen=True)
+class FakeFinding:
+    """The shape of a lint finding, for store tests that need one of a chosen severity."""
+
+    code: str
+    name: str
+    severity: str
+    message: str
+    offset: int
+    t: float | None = None
+    id: int | None = None
+
+
+class FrozenClock:
+    """A clock the test moves by hand (the header's elapsed time and value flashes read it)."""
+
+    def __init__(self, t: float = 0.0) -> None:
+        self.t = t
+
+    def __call__(self) -> float:
+        return self.t
+
+
+async def wait_done(pilot, app, limit: float = 10.0) -> None:
+    """Let the capture thread finish and the screen catch up with it."""
+    waited = 0.0
+    while not app.done and waited < limit:
+        await pilot.pause(0.02)
+        waited += 0.02
+    assert app.done, "the capture thread did not finish"
+    await pilot.pause()
+    await pilot.pause()

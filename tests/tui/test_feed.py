@@ -1,0 +1,211 @@
+"""The monitor's capture thread and sources (no Textual): batches, lint findings, recording, pacing."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from rs30x_sniff.io.captures import CaptureError, read_capture, write_capture
+from rs30x_sniff.pipeline import DecodeOptions
+from rs30x_sniff.tui.feed import Feeder, default_linter
+from rs30x_sniff.tui.sources import FileSource, ReplaySource, SimulatorSource, paced
+from rs30x_sniff.wire import encode_short
+
+from .helpers import MANUAL
+
+
+def run_feeder(source, **kw):
+    batches = []
+    feeder = Feeder(source, DecodeOptions(), batches.append, **kw)
+    feeder.run()
+    return feeder, batches
+
+
+def test_a_file_arrives_whole_with_findings_and_servo_rows():
+    feeder, batches = run_feeder(FileSource(MANUAL), linter=default_linter())
+    assert batches[-1].done and batches[-1].error is None
+    recs = [r for b in batches for r in b.records]
+    assert [r.offset for r in recs][:3] == [0, 10, 18] and len(recs) == 24
+    findings = [f for b in batches for f in b.findings]
+    codes = {f.code for f in findings}
+    # The manual's examples break its own rules; the late finding (Q002) comes with the last batch too.
+    assert {"B002", "M002", "Q002"} <= codes
+    assert len(findings) == len({id(f) for f in findings})
+    assert batches[-1].servos[1].values["torque_enable"] == "brake"
+    assert batches[-1].bytes_in == 253
+
+
+def test_batches_are_cut_by_size():
+    chunks = [(encode_short(1, 0, 30, b"\x00\x00"), i * 0.001) for i in range(100)]
+
+    class Chunks:
+        name, kind, time_base = "test", "file", "capture"
+
+        def chunks(self, stop):
+            yield from chunks
+
+        def close(self):
+            pass
+
+    _, batches = run_feeder(Chunks(), max_batch=30, interval=1e9)
+    assert [len(b.records) for b in batches] == [30, 30, 30, 10]
+    assert [b.done for b in batches] == [False, False, False, True]
+
+
+def test_a_read_error_ends_the_capture_with_one_line(tmp_path):
+    p = tmp_path / "bad.thex"
+    p.write_text("0.0 FA AF 01\n0.1 FA ZZ\n")  # the first line reads fine, the second breaks mid-capture
+    feeder, batches = run_feeder(FileSource(str(p)))
+    assert batches[-1].done
+    assert batches[-1].error == f"{p}:2: not a hex byte: 'ZZ'"
+    assert [r.kind for b in batches for r in b.records] == ["garbage"]  # what came before the error is kept
+
+
+def test_a_bad_file_fails_before_the_screen_starts(tmp_path):
+    with pytest.raises(CaptureError, match="no such file"):
+        FileSource(str(tmp_path / "nope.hex"))
+    p = tmp_path / "bad.hex"
+    p.write_text("FA AF 01\nFA ZZ\n")
+    with pytest.raises(CaptureError, match="not a hex byte"):
+        FileSource(str(p))
+
+
+def test_recording_writes_an_mcap_of_what_follows(tmp_path):
+    from rs30x_sniff.io.mcap_source import read_mcap_raw
+
+    chunks = [(encode_short(1, 0, 30, bytes((i, 0))), i * 0.01) for i in range(50)]
+    go = threading.Event()
+
+    class Gated:
+        name, kind, time_base = "gated", "port", "monotonic"
+
+        def chunks(self, stop):
+            for i, c in enumerate(chunks):
+                if i == 10:
+                    go.wait(5)  # the recording starts before chunk 10 is read
+                yield c
+
+        def close(self):
+            pass
+
+    out = tmp_path / "rec.mcap"
+    batches = []
+    feeder = Feeder(Gated(), DecodeOptions(), batches.append, interval=0)
+    th = threading.Thread(target=feeder.run)
+    th.start()
+    feeder.start_recording(str(out))
+    go.set()
+    th.join(5)
+    assert not th.is_alive()
+    notes = [b.note for b in batches if b.note]
+    assert notes[0] == f"recording to {out}" and notes[-1] == f"saved {out}"
+    assert feeder.recording is None  # the end of the source finished the file
+    got = b"".join(d for d, _ in read_mcap_raw(str(out)))
+    assert got == b"".join(d for d, _ in chunks[10:])
+
+
+def test_stop_recording_finishes_the_file(tmp_path):
+    from rs30x_sniff.io.mcap_source import read_mcap_raw
+
+    release = threading.Event()
+
+    class Slow:
+        name, kind, time_base = "slow", "port", "monotonic"
+
+        def chunks(self, stop):
+            for i in range(40):
+                if i == 20:
+                    release.wait(5)
+                yield encode_short(2, 0, 30, b"\x01\x00"), i * 0.01
+
+        def close(self):
+            pass
+
+    out = tmp_path / "a.mcap"
+    batches = []
+    feeder = Feeder(Slow(), DecodeOptions(), batches.append, interval=0)
+    feeder.start_recording(str(out))
+    th = threading.Thread(target=feeder.run)
+    th.start()
+    deadline = time.monotonic() + 5
+    while feeder.recording is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    feeder.stop_recording()
+    release.set()
+    th.join(5)
+    data = b"".join(d for d, _ in read_mcap_raw(str(out)))
+    assert 0 < len(data) <= 20 * 10 and len(data) % 10 == 0
+
+
+def test_recording_to_an_unwritable_place_is_a_note_not_a_crash(tmp_path):
+    feeder, batches = run_feeder(FileSource(MANUAL))
+    f2 = Feeder(FileSource(MANUAL), DecodeOptions(), batches.append)
+    f2.start_recording(str(tmp_path / "no" / "such" / "dir" / "x.mcap"))
+    f2.run()
+    assert any(b.note and b.note.startswith("cannot record to") for b in batches)
+    assert batches[-1].done and batches[-1].error is None
+
+
+def test_paced_follows_timestamps_and_line_rate():
+    now = [0.0]
+    waits = []
+
+    class Stop(threading.Event):
+        def wait(self, timeout=None):
+            waits.append(round(timeout, 6))
+            now[0] += timeout
+            return False
+
+    clock = lambda: now[0]  # noqa: E731
+    out = list(paced([(b"ab", 10.0), (b"cd", 10.5), (b"ef", 12.0)], Stop(), speed=2.0, byte_seconds=0.001,
+                     clock=clock))
+    assert out == [(b"ab", 10.0), (b"cd", 10.5), (b"ef", 12.0)]
+    assert waits == [0.25, 0.75]  # half a second and 1.5 s of capture, at twice the speed
+    waits.clear()
+    now[0] = 0.0
+    out = list(paced([(bytes(100), None)], Stop(), speed=1.0, byte_seconds=0.001, clock=clock))
+    assert [len(d) for d, _ in out] == [64, 36]
+    assert waits == [0.064]
+
+
+def test_replay_plays_a_timestamped_capture_at_its_own_pace(tmp_path):
+    p = tmp_path / "t.thex"
+    write_capture(p, [(encode_short(1, 0, 30, b"\x00\x00"), 0.1 * i) for i in range(5)], "timestamped")
+    src = ReplaySource(str(p), speed=4.0)
+    start = time.monotonic()
+    chunks = list(src.chunks(threading.Event()))
+    took = time.monotonic() - start
+    assert [t for _, t in chunks] == [0.0, 0.1, 0.2, 0.3, 0.4]
+    assert 0.09 <= took < 0.5  # 0.4 s of capture at 4x: a tenth of a second
+
+
+def test_a_stop_interrupts_a_replay(tmp_path):
+    p = tmp_path / "t.thex"
+    write_capture(p, [(b"\x07", 0.0), (b"\x07", 100.0)], "timestamped")
+    stop = threading.Event()
+    src = ReplaySource(str(p))
+    it = src.chunks(stop)
+    assert next(it) == (b"\x07", 0.0)
+    threading.Timer(0.05, stop.set).start()
+    start = time.monotonic()
+    assert list(it) == []
+    assert time.monotonic() - start < 2
+
+
+def test_the_simulator_source_runs_a_scenario():
+    src = SimulatorSource("hexapod", 115200, speed=50.0, duration=0.5)
+    stop = threading.Event()
+    data = b"".join(d for d, _ in src.chunks(stop))
+    assert data.startswith(b"\xfa\xaf")
+    with pytest.raises(CaptureError, match="unknown scenario"):
+        SimulatorSource("nope", 115200)
+    with pytest.raises(CaptureError, match="cannot run at 1234"):
+        SimulatorSource("hexapod", 1234)
+
+
+def test_file_source_reads_what_read_capture_reads():
+    src = FileSource(MANUAL)
+    assert list(src.chunks(threading.Event())) == list(read_capture(MANUAL))
+    assert src.time_base == "synthetic"
