@@ -13,7 +13,9 @@ EXAMPLES = str(CAPTURES / "manual-examples.hex")
 def test_text_lines(capsys):
     assert main(["decode", EXAMPLES]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert len(out) == 24
+    # 24 events, then the lint findings only the end of input reveals (issue 3).
+    assert len([line for line in out if " lint  " not in line]) == 24
+    assert any(" lint  Q002 id-change-not-persisted" in line for line in out[24:])
     assert "host  WRITE id=1 goal_position=90.0deg goal_time=5.00s" in "\n".join(out)
     assert any("servo RETURN id=1 present_position=90.0deg" in line and "reply_to=@219" in line for line in out)
 
@@ -21,6 +23,9 @@ def test_text_lines(capsys):
 def test_jsonl_has_the_documented_keys(capsys):
     assert main(["decode", EXAMPLES, "--format", "jsonl"]) == 0
     objs = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    late = [o for o in objs if o["type"] == "diagnostic"]  # end-of-input lint findings come last (issue 3)
+    assert [o["code"] for o in late] == ["Q002"] and objs[-1] is late[-1]
+    objs = [o for o in objs if o["type"] != "diagnostic"]
     keys = {"type", "offset", "t", "raw", "checksum_ok", "id", "flag", "address", "length", "count", "fields",
             "flags", "reply_to", "latency_s", "diagnostics"}
     assert all(keys <= set(o) for o in objs)
