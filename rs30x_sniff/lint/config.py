@@ -87,7 +87,7 @@ def find_config(start: Path | None = None) -> Path | None:
             try:
                 doc = tomllib.loads(py.read_text(encoding="utf-8"))
             except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-                continue
+                return py  # broken: let load_config say so rather than silently skip the project's settings
             if "rs30x-sniff" in doc.get("tool", {}):
                 return py
     return None
