@@ -11,10 +11,23 @@ _RET = encode_return(1, 0x2A, bytes.fromhex("8403"))
 _POLL2 = encode_read(2, 0x2A, 2)
 _TIMING = """
 Without timestamps a request that got no reply is always B002 (unless other bytes came back in its
-place, which F002, F003 and B007 describe); with them, B001 and B002 are told apart by the reply timeout
-(`reply-timeout`, default 0.05 s): a next request sooner than that after the end of the unanswered one
-is the host's fault (B001), a later one or none is the servo's (B002).
+place, which F002, F003 and B007 describe). With them, B001 and B002 are told apart by the time the reply
+was due: the servo's return delay (100 us + 50 us x return_delay, the last value seen, else 0), plus the
+reply's own transmission time, plus `latency-margin` (default 2 ms), and never more than the reply timeout
+(`reply-timeout`, default 0.05 s). A next request inside that window is the host's fault (B001); a later
+one, or none, is the servo's (B002).
 """
+
+
+def reply_due(lint, req) -> float:
+    """Seconds after the end of ``req`` until which its reply was still due (see _TIMING)."""
+    ev = req.event
+    sh = lint.servos.get(ev.id)
+    rd = sh.return_delay if sh is not None and sh.return_delay is not None else 0
+    rr = ev.read_range
+    size = 1 if rr is None else 8 + rr[1]
+    due = 100e-6 + 50e-6 * rd + size * lint.byte_time + lint.config.latency_margin
+    return min(due, lint.config.reply_timeout)
 
 
 def _asked(rec) -> str:
@@ -26,8 +39,7 @@ def _asked(rec) -> str:
 
 @rule("B001", "request-before-return", "error", "A new request while a reply was still due.", f"""
 ## What it does
-Flags a request sent within the reply timeout after an earlier request that asked for a reply which had
-not come yet. The finding is on the new request. Needs timestamps.
+Flags a request sent while an earlier request's reply was still due and had not come yet. The finding is on the new request. Needs timestamps.
 {_TIMING}
 ## Why it matters
 The bus is half duplex: the manual says not to send anything until the return has been received. The
@@ -44,7 +56,7 @@ def request_before_return(lint, rec, ev):
     if t1 is None or ev[2] is None:
         return
     gap = ev[2] - t1
-    if gap <= lint.config.reply_timeout:
+    if gap <= reply_due(lint, p):
         lint.emit("B001", rec, f"sent {gap * 1e3:.3f} ms after request @{p.offset} to ID {p.id}, "
                                f"whose reply was still due")
 
@@ -69,7 +81,7 @@ def missing_return(lint, rec, ev):
         if by.event[0] > ev.end_offset:
             return  # bytes came back in the reply's place: the framing and collision rules describe them
         if lint.timed and by.is_request and by.event[2] is not None and ev[3] is not None \
-                and by.event[2] - ev[3] <= lint.config.reply_timeout:
+                and by.event[2] - ev[3] <= reply_due(lint, rec):
             return  # the host did not wait: B001
     lint.emit("B002", rec, f"ID {ev.id} did not answer; the request asked for {_asked(rec)}")
 
