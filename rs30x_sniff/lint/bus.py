@@ -47,7 +47,7 @@ servo's reply and the host's next packet collide, both are lost, and the host ma
 
 ## Example
 {example((0.0, _READ), (0.0012, _POLL2), note="two polls 0.5 ms apart, the first never answered:")}
-""", kinds=("request",), needs_time=True)
+""", kinds=("request",), needs_time=True, when="settles")
 def request_before_return(lint, rec, ev):
     p = lint.missing
     if p is None or p.resolved_by is not rec or not p.event.checksum_ok:
@@ -72,7 +72,7 @@ is answering too late (return_delay). A control loop that waits for it stalls or
 
 ## Example
 {example(_READ, _POLL2, encode_return(2, 0x2A, bytes.fromhex("0000")), note="ID 1 never answers; ID 2 does:")}
-""", kinds=("short",))
+""", kinds=("short",), when="unpaired")
 def missing_return(lint, rec, ev):
     if rec.status != MISSING or ev.id == BROADCAST_ID:
         return
@@ -96,7 +96,7 @@ the host had given up on it and will read it as the answer to its next question.
 
 ## Example
 {example(encode_short(1, 0, 0x1E, bytes.fromhex("8403")), _RET, note="a write that asked for nothing, then a return:")}
-""", kinds=("reply",))
+""", kinds=("reply",), when="unpaired")
 def unsolicited_return(lint, rec, ev):
     if rec.status != UNSOLICITED:
         return
@@ -197,7 +197,7 @@ servos with one ID, or a second host. Both frames are damaged; the one that surv
 
 ## Example
 {example(encode_short(1, 0x09, 0, b"", length=0, count=1)[:6] + _RET, note="a poll of ID 1 cut off by a return that started inside it:")}
-""", kinds=("packet", "corrupt"))
+""", kinds=("packet", "corrupt"), when="after-cut")
 def bus_collision(lint, rec, ev):
     prev = lint.prev
     if prev is None:
@@ -237,7 +237,7 @@ and every read is a collision waiting to happen.
 
 ## Example
 {example(_READ, _RET, encode_return(1, 0x2A, bytes.fromhex("8003")))}
-""", kinds=("reply",))
+""", kinds=("reply",), when="unpaired")
 def multiple_returns(lint, rec, ev):
     req = rec.request
     if rec.status == EXTRA and req is not None and req.event.id != BROADCAST_ID:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..bus import MISSING, Record
+from ..bus import ANSWERED, MISSING, PAIRED, Record
 from ..wire import BROADCAST_ID, byte_time
 from .config import LintConfig
 from .registry import KINDS, RULES, Finding
@@ -52,7 +52,14 @@ class Linter:
         run = [r for r in self.rules if timed or not r.needs_time]
         self.skipped = tuple(r.code for r in self.rules if r.needs_time and not timed)
         self._target_rules = [r for r in run if "target" in r.kinds]
-        self._on = {k: tuple(r.check for r in run if k in r.kinds) for k in KINDS}
+        self._on = {k: tuple(r.check for r in run if k in r.kinds and r.when is None) for k in KINDS}
+        self._when = {}
+        for k in KINDS:
+            conds: dict[str, list] = {}
+            for r in run:
+                if k in r.kinds and r.when is not None:
+                    conds.setdefault(r.when, []).append(r.check)
+            self._when[k] = tuple((c, tuple(fns)) for c, fns in conds.items())
 
     def shadow(self, sid: int) -> Shadow:
         sh = self.servos.get(sid)
@@ -94,6 +101,7 @@ class Linter:
             for fn in on["garbage"]:
                 fn(self, rec, ev)
         elif not ev.checksum_ok:
+            kind = "corrupt"
             for fn in on["corrupt"]:
                 fn(self, rec, ev)
         else:
@@ -101,6 +109,24 @@ class Linter:
                 self._count_ids(kind, ev)
             for fn in on[kind]:
                 fn(self, rec, ev)
+        for cond, fns in self._when[kind]:
+            if cond == "unpaired":
+                st = rec.status
+                ok = st is not None and st != PAIRED and st != ANSWERED
+            elif cond == "flagged":
+                ok = ev[5] != 0
+            elif cond == "after-cut":
+                prev = self.prev
+                ok = prev is not None and prev.event.kind == "garbage" and prev.event[4] == "truncated" \
+                    and prev.event.end_offset == ev[0]
+            elif cond == "settles":
+                ok = self.missing is not None and self.missing.resolved_by is rec
+            else:  # crowded
+                ok = len(self.ids) > self.config.max_servos
+            if ok:
+                for fn in fns:
+                    fn(self, rec, ev)
+        if kind == "short" or kind == "long" or kind == "return":
             if kind == "short":
                 self._short(rec, ev)
             elif kind == "long":
@@ -147,9 +173,10 @@ class Linter:
             if len(data) == plan.n:
                 raws = plan.unpack(data)
                 sh = self.shadow(sid)
+                targets = [(sid, raws, sh)]
                 for fn in plan.target_checks:
-                    fn(self, rec, sid, plan, raws, sh)
-                sh.apply(plan, raws)
+                    fn(self, rec, plan, targets)
+                plan.apply(sh, raws)
         if ev.flag & _COMMAND_BITS:
             for fn in self._on["command"]:
                 fn(self, rec, ev)
@@ -184,13 +211,16 @@ class Linter:
         if uniform and len(data) == ev.length * ev.count:
             flat = plan.unpack_long(ev.count)(data)
             stride = len(plan.parts) + 1
+            get = self.servos.get
+            targets = []
             for k in range(0, len(flat), stride):
                 vid = flat[k]
-                raws = flat[k + 1:k + stride]
-                sh = shadow(vid)
-                for fn in checks:
-                    fn(self, rec, vid, plan, raws, sh)
-                sh.apply(plan, raws)
+                targets.append((vid, flat[k + 1:k + stride], get(vid) or shadow(vid)))
+            for fn in checks:
+                fn(self, rec, plan, targets)
+            apply = plan.apply
+            for _, raws, sh in targets:
+                apply(sh, raws)
             return
         for vid, d in records:
             p = self.plan(model_of(vid), ev.address, len(d))
@@ -198,9 +228,10 @@ class Linter:
                 continue
             raws = p.unpack(d)
             sh = shadow(vid)
+            targets = [(vid, raws, sh)]
             for fn in p.target_checks:
-                fn(self, rec, vid, p, raws, sh)
-            sh.apply(p, raws)
+                fn(self, rec, p, targets)
+            p.apply(sh, raws)
 
     def _return(self, rec: Record, ev: Any) -> None:
         sh = self.shadow(ev.id)

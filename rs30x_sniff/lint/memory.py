@@ -64,10 +64,12 @@ servo stop somewhere the host did not plan for.
 ## Example
 {example(encode_short(1, 0, 0x23, bytes((120,))), note="max_torque 120 %:")}
 """, kinds=("target",))
-def value_out_of_range(lint, rec, sid, plan, raws, sh):
+def value_out_of_range(lint, rec, plan, targets):
     for j, name, lo, hi in plan.ranged:
-        v = raws[j]
-        if v < lo or v > hi:
+        for sid, raws, _ in targets:
+            v = raws[j]
+            if lo <= v <= hi:
+                continue
             reg = plan.parts[j][0]
             shown = reg.convert(v)
             lint.emit("M003", rec, f"{name}={v} (raw) on ID {sid} outside {lo}-{hi}"

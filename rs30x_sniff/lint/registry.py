@@ -17,9 +17,19 @@ FAMILIES = {"F": "Framing", "P": "Packet structure", "M": "Memory map", "B": "Bu
 #                                             these rules see it: its other bytes cannot be trusted)
 #   command                                   check(lint, rec, ev) for a short packet with flash/reboot/init bits
 #   write                                     check(lint, rec, plan, ids) once per packet that writes memory
-#   target                                    check(lint, rec, sid, plan, raws, shadow) per servo written
+#   target                                    check(lint, rec, plan, targets) once per write, with targets a
+#                                             list of (servo id, raw values per plan part, Shadow)
 #   close                                     check(lint) at end of input
 KINDS = ("short", "long", "return", "ack", "nack", "garbage", "corrupt", "command", "write", "target", "close")
+# Preconditions a rule may declare with when=: the linter tests each once per record and calls the
+# rule only when it holds, so the common healthy record costs few calls.
+WHEN = {
+    "after-cut": "the record starts where a cut-short frame (truncated garbage) ended",
+    "unpaired": "the record's reply status is missing, unsolicited or extra",
+    "flagged": "a return packet with any status flag set",
+    "crowded": "more distinct servo IDs seen than max-servos",
+    "settles": "the record settled that the latest unanswered request got no reply",
+}
 _ALIASES = {"request": ("short", "long"), "reply": ("return", "ack", "nack"), "packet": ("short", "long", "return")}
 
 
@@ -54,6 +64,7 @@ class Rule:
     check: Callable[..., Any]
     needs_time: bool = False
     fields: frozenset[str] | None = None  # for "target" rules: run only when the write carries one of these
+    when: str | None = None  # a cheap precondition the linter tests once for all rules sharing it (WHEN)
 
     @property
     def family(self) -> str:
@@ -158,7 +169,7 @@ def example(*frames: bytes | tuple[float, bytes], note: str = "") -> str:
 
 
 def rule(code: str, name: str, severity: str, summary: str, doc: str, *, kinds: tuple[str, ...],
-         needs_time: bool = False, fields: tuple[str, ...] | None = None) -> Callable:
+         needs_time: bool = False, fields: tuple[str, ...] | None = None, when: str | None = None) -> Callable:
     """Declare a rule; the decorated function is its check (see KINDS for how it is called)."""
     expanded: list[str] = []
     for k in kinds:
@@ -167,9 +178,12 @@ def rule(code: str, name: str, severity: str, summary: str, doc: str, *, kinds: 
                 raise ValueError(f"{code}: unknown kind {kk!r}")
             expanded.append(kk)
 
+    if when is not None and when not in WHEN:
+        raise ValueError(f"{code}: unknown precondition {when!r}")
+
     def deco(fn: Callable) -> Callable:
         RULES.add(Rule(code, name, severity, summary, doc.strip() + "\n", tuple(expanded), fn, needs_time,
-                       frozenset(fields) if fields else None))
+                       frozenset(fields) if fields else None, when))
         return fn
 
     return deco

@@ -26,9 +26,11 @@ rebooted. A host that switches its own port to the new rate right after the writ
 """, kinds=("target", "command", "close"), fields=("baud_rate",))
 def baud_change_not_applied(lint, *args):
     pending = lint.q001
-    if len(args) == 5:                       # target: a baud_rate write
-        rec, sid, plan, raws, sh = args
-        pending[sid] = [rec, "flash", raws[plan.index["baud_rate"]]]
+    if len(args) == 3:                       # target: a baud_rate write
+        rec, plan, targets = args
+        j = plan.index["baud_rate"]
+        for sid, raws, _ in targets:
+            pending[sid] = [rec, "flash", raws[j]]
     elif len(args) == 2:                     # command: flash / reboot
         rec, ev = args
         sid = ev.id
@@ -61,11 +63,12 @@ power-up (table 4.6, No. 4). A flash write sent to the old ID after the change r
 """, kinds=("target", "command", "close"), fields=("servo_id",))
 def id_change_not_persisted(lint, *args):
     pending = lint.q002
-    if len(args) == 5:
-        rec, sid, plan, raws, sh = args
-        new = raws[plan.index["servo_id"]]
-        if new != sid:
-            pending[new] = (rec, sid)
+    if len(args) == 3:
+        rec, plan, targets = args
+        j = plan.index["servo_id"]
+        for sid, raws, _ in targets:
+            if raws[j] != sid:
+                pending[raws[j]] = (rec, sid)
     elif len(args) == 2:
         rec, ev = args
         if ev.flag & _FLASH:
@@ -126,14 +129,15 @@ step after power-up or a reboot.
 ## Example
 {example(encode_short(1, 0, 0x24, bytes((0,))), encode_short(1, 0, 0x1E, bytes.fromhex("8403")))}
 """, kinds=("target",), fields=("goal_position",))
-def goal_while_torque_off(lint, rec, sid, plan, raws, sh):
-    if sh.torque == 0 and not sh.q004 and sid != BROADCAST_ID:
-        j = plan.index.get("torque_enable")
-        if j is not None and raws[j] != 0:
-            return  # torque comes on in this very packet: Q005
-        sh.q004 = True
-        lint.emit("Q004", rec, f"goal_position {_deg(raws[plan.index['goal_position']])} to ID {sid}, whose torque is off",
-                  sid=sid)
+def goal_while_torque_off(lint, rec, plan, targets):
+    for sid, raws, sh in targets:
+        if sh.torque == 0 and not sh.q004 and sid != BROADCAST_ID:
+            j = plan.index.get("torque_enable")
+            if j is not None and raws[j] != 0:
+                continue  # torque comes on in this very packet: Q005
+            sh.q004 = True
+            lint.emit("Q004", rec, f"goal_position {_deg(raws[plan.index['goal_position']])} to ID {sid}, "
+                                   f"whose torque is off", sid=sid)
 
 
 @rule("Q005", "torque-on-with-goal", "warning", "Torque on and a goal position in one packet.", f"""
@@ -148,11 +152,14 @@ present position into the goal, overwriting the goal sent in the same packet.
 ## Example
 {example(encode_short(1, 0, 0x1E, bytes.fromhex("8403 0000 00 64 01")))}
 """, kinds=("target",), fields=("torque_enable",))
-def torque_on_with_goal(lint, rec, sid, plan, raws, sh):
+def torque_on_with_goal(lint, rec, plan, targets):
     idx = plan.index
-    if "goal_position" in idx and raws[idx["torque_enable"]] == 1 and sh.torque != 1:
-        lint.emit("Q005", rec, f"torque on and goal_position {_deg(raws[idx['goal_position']])} in one packet to ID {sid}: "
-                               f"the servo will not move", sid=sid)
+    if "goal_position" not in idx:
+        return
+    for sid, raws, sh in targets:
+        if raws[idx["torque_enable"]] == 1 and sh.torque != 1:
+            lint.emit("Q005", rec, f"torque on and goal_position {_deg(raws[idx['goal_position']])} in one packet "
+                                   f"to ID {sid}: the servo will not move", sid=sid)
 
 
 @rule("Q006", "goal-beyond-angle-limit", "warning", "A goal position beyond the servo's angle limits.", f"""
@@ -168,14 +175,17 @@ it is; gait and kinematics computed from the commanded angle go wrong.
 {example(encode_short(1, 0, 0x08, (1000).to_bytes(2, "little")), encode_short(1, 0, 0x1E, (1200).to_bytes(2, "little")),
          note="cw_angle_limit 100.0 deg, then a goal of 120.0 deg:")}
 """, kinds=("target",), fields=("goal_position",))
-def goal_beyond_angle_limit(lint, rec, sid, plan, raws, sh):
-    if sh.reverse == 1:
-        return
-    g = raws[plan.index["goal_position"]]
-    if sh.cw is not None and g > sh.cw:
-        lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its cw_angle_limit {_deg(sh.cw)}", sid=sid)
-    elif sh.ccw is not None and g < sh.ccw:
-        lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its ccw_angle_limit {_deg(sh.ccw)}", sid=sid)
+def goal_beyond_angle_limit(lint, rec, plan, targets):
+    j = plan.index["goal_position"]
+    for sid, raws, sh in targets:
+        if sh.reverse == 1:
+            continue
+        g = raws[j]
+        if sh.cw is not None and g > sh.cw:
+            lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its cw_angle_limit {_deg(sh.cw)}", sid=sid)
+        elif sh.ccw is not None and g < sh.ccw:
+            lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its ccw_angle_limit {_deg(sh.ccw)}",
+                      sid=sid)
 
 
 @rule("Q007", "goal-time-too-fast", "warning", "A move faster than the model's top speed.", f"""
@@ -192,18 +202,21 @@ that relies on the timing drifts, and the servos run hot pushing at their limit.
 {example(encode_short(1, 0, 0x1E, bytes.fromhex("0000 6400")), encode_short(1, 0, 0x1E, bytes.fromhex("8403 0A00")),
          note="90 deg in 0.1 s on an RS303MR (it needs 0.165 s):")}
 """, kinds=("target",), fields=("goal_position",))
-def goal_time_too_fast(lint, rec, sid, plan, raws, sh):
-    pos = sh.pos
-    if pos is None:
-        return
+def goal_time_too_fast(lint, rec, plan, targets):
     idx = plan.index
     j = idx.get("goal_time")
-    gt = raws[j] if j is not None else sh.goal_time
-    if not gt:
-        return
-    dist = abs(raws[idx["goal_position"]] - pos)
+    g = idx["goal_position"]
     ts = plan.model.top_speed_s_per_60deg
-    if dist * ts > 6 * gt:  # (dist/10 deg) / (gt/100 s) > 60 deg / ts
+    for sid, raws, sh in targets:
+        pos = sh.pos
+        if pos is None:
+            continue
+        gt = raws[j] if j is not None else sh.goal_time
+        if not gt:
+            continue
+        dist = abs(raws[g] - pos)
+        if dist * ts <= 6 * gt:  # (dist/10 deg) / (gt/100 s) <= 60 deg / ts: within the top speed
+            continue
         lint.emit("Q007", rec, f"{dist / 10:.1f} deg in {gt * 10} ms on ID {sid} asks {dist * 10 / gt:.0f} deg/s; "
                                f"{plan.model.name} tops out at {60 / ts:.0f} deg/s", sid=sid)
 
@@ -219,7 +232,7 @@ load and the time each poll cycle takes both grow with every servo.
 
 ## Example
 {example(encode_long(0x23, [(i, bytes((100,))) for i in range(1, 26)]), note="max_torque to 25 servos in one long packet:")}
-""", kinds=("short", "long", "return"))
+""", kinds=("short", "long", "return"), when="crowded")
 def too_many_servos(lint, rec, ev):
     if not lint.q008 and len(lint.ids) > lint.config.max_servos:
         lint.q008 = True
@@ -238,7 +251,9 @@ power-cycled: the command does nothing and the joint stays limp, while the host 
 ## Example
 {example(encode_return(1, 0x2A, bytes.fromhex("8403"), flags=0x80), encode_short(1, 0, 0x24, bytes((1,))))}
 """, kinds=("target",), fields=("torque_enable",))
-def torque_on_after_temperature_limit(lint, rec, sid, plan, raws, sh):
-    if sh.temp_limit and raws[plan.index["torque_enable"]] == 1:
-        lint.emit("Q009", rec, f"torque on for ID {sid}, which tripped its temperature limit and was not rebooted since",
-                  sid=sid)
+def torque_on_after_temperature_limit(lint, rec, plan, targets):
+    j = plan.index["torque_enable"]
+    for sid, raws, sh in targets:
+        if sh.temp_limit and raws[j] == 1:
+            lint.emit("Q009", rec, f"torque on for ID {sid}, which tripped its temperature limit and was not "
+                                   f"rebooted since", sid=sid)

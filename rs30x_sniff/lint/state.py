@@ -31,11 +31,6 @@ class Shadow:
         self.flags = 0                     # status flags of the last return
         self.q004 = False                  # Q004 already said for the current torque-off spell
 
-    def apply(self, plan: Plan, raws: tuple) -> None:
-        for attr, j in plan.tracked:
-            setattr(self, attr, raws[j])
-        if plan.sets_torque:
-            self.q004 = False
 
     def reboot(self) -> None:
         # RAM goes back to its defaults (table 4.9): torque off; the temperature lock clears.
@@ -52,7 +47,7 @@ class Plan:
     """
 
     __slots__ = ("model", "address", "n", "parts", "index", "read_only", "reserved", "partial", "ranged",
-                 "tracked", "sets_torque", "codes", "unpack", "_long", "target_checks")
+                 "tracked", "sets_torque", "codes", "unpack", "_long", "target_checks", "apply")
 
     def __init__(self, model: Model, address: int, n: int) -> None:
         self.model, self.address, self.n = model, address, n
@@ -94,6 +89,14 @@ class Plan:
         self.ranged = tuple(ranged)
         self.tracked = tuple((attr, self.index[name]) for name, attr in _TRACKED.items() if name in self.index)
         self.sets_torque = "torque_enable" in self.index
+        # apply(shadow, raws): store the tracked registers, generated once per plan (it runs per servo written).
+        body = [f"s.{attr} = r[{j}]" for attr, j in self.tracked]
+        if self.sets_torque:
+            body.append("s.q004 = False")
+        src = "def apply(s, r):\n    " + ("\n    ".join(body) or "pass") + "\n"
+        env: dict = {}
+        exec(src, env)  # noqa: S102 - generated from register names of the validated memory map
+        self.apply = env["apply"]
         self._long: dict[int, object] = {}
         self.target_checks: tuple | None = None  # filled by the linter: the target rules this write wakes
 

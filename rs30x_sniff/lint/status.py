@@ -33,7 +33,7 @@ it cools down and is rebooted (see Q009); the motor is then at 120-140 degC.
 
 ## Example
 {_ret(0x80)}
-""", kinds=("return",))
+""", kinds=("return",), when="flagged")
 def temperature_limit(lint, rec, ev):
     if _turned_on(lint, ev, 0x80):
         lint.emit("S001", rec, f"ID {ev.id} passed its temperature limit and cut torque")
@@ -48,7 +48,7 @@ It is the last warning before the servo cuts its torque (S001). Reduce the load 
 
 ## Example
 {_ret(0x20)}
-""", kinds=("return",))
+""", kinds=("return",), when="flagged")
 def temperature_alarm(lint, rec, ev):
     if _turned_on(lint, ev, 0x20):
         lint.emit("S002", rec, f"ID {ev.id} is within 10 degC of its temperature limit")
@@ -64,7 +64,7 @@ comes back with old values, maybe on another ID or baud rate.
 
 ## Example
 {_ret(0x08)}
-""", kinds=("return",))
+""", kinds=("return",), when="flagged")
 def flash_write_error(lint, rec, ev):
     if _turned_on(lint, ev, 0x08):
         lint.emit("S003", rec, f"ID {ev.id} failed to write its flash ROM")
@@ -81,7 +81,7 @@ differs from the tap's (noise near the servo, a marginal baud rate).
 
 ## Example
 {_ret(0x02)}
-""", kinds=("return",))
+""", kinds=("return",), when="flagged")
 def received_packet_error(lint, rec, ev):
     if _turned_on(lint, ev, 0x02):
         lint.emit("S004", rec, f"ID {ev.id} received a packet it could not accept")

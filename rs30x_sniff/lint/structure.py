@@ -266,7 +266,7 @@ does not know; its other status bits are then not to be trusted either.
 
 ## Example
 {example(encode_return(1, 0x2A, _G90, flags=0x40))}
-""", kinds=("return",))
+""", kinds=("return",), when="flagged")
 def return_reserved_flag(lint, rec, ev):
     if ev.flags & 0x55:
         lint.emit("P013", rec, f"return flags 0x{ev.flags:02X} set reserved bit(s) 0x{ev.flags & 0x55:02X}")

@@ -1,0 +1,67 @@
+"""Benchmark: decode + lint with every rule on, against the bare split-and-XOR loop (and plain decode).
+
+Run: python bench/lint.py [--frames N] [--repeat R]
+Target (issue 3): linting reaches at least 0.5 of the bare loop's frames/s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from decode import bare_loop, best_of  # noqa: E402
+from traffic import hexapod_frames  # noqa: E402
+
+from rs30x_sniff.lint import LintConfig, Linter  # noqa: E402
+from rs30x_sniff.pipeline import Decoder  # noqa: E402
+
+
+def decode_only(chunks) -> int:
+    dec = Decoder()
+    n = 0
+    for data, t in chunks:
+        n += len(dec.feed(data, t))
+    return n + len(dec.close())
+
+
+def decode_lint(chunks) -> tuple[int, int]:
+    linter = Linter(LintConfig())  # every rule
+    dec = Decoder(None, linter)
+    n = 0
+    for data, t in chunks:
+        n += len(dec.feed(data, t))
+    n += len(dec.close())
+    return n, len(linter.findings)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=300_000)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    chunks = hexapod_frames(args.frames)
+    data = b"".join(d for d, _ in chunks)
+    blocks = [(data[i:i + 4096], None) for i in range(0, len(data), 4096)]
+    t_bare, n_bare = best_of(bare_loop, data, args.repeat)
+    rows = []
+    for label, feed in (("4 KiB blocks, no timestamps", blocks), ("one chunk per frame, timestamped", chunks)):
+        t_dec, n_dec = best_of(decode_only, feed, args.repeat)
+        t_lint, (n_lint, n_find) = best_of(decode_lint, feed, args.repeat)
+        assert n_dec == n_lint == args.frames, (n_dec, n_lint)
+        rows.append((label, n_dec / t_dec, n_lint / t_lint, n_find))
+    bare = n_bare / t_bare
+    print(f"capture: {args.frames} frames, {len(data) / 1e6:.1f} MB (bench/traffic.py hexapod_frames)")
+    print(f"bare split+XOR loop:              {bare:12,.0f} frames/s")
+    for label, dec, lint, n_find in rows:
+        print(f"{label}:")
+        print(f"  decode only:                    {dec:12,.0f} frames/s   ratio {dec / bare:.2f}")
+        print(f"  decode + lint (all rules):      {lint:12,.0f} frames/s   ratio {lint / bare:.2f}"
+              f"   ({lint / dec:.2f} of decode alone, {n_find} findings)")
+    print("target: decode + lint ratio >= 0.50")
+
+
+if __name__ == "__main__":
+    main()
