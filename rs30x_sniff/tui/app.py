@@ -101,25 +101,36 @@ class MonitorApp(App):
 
     # ---- layout ---------------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
-        yield StatusHeader(id="status")
+        # The app keeps its widgets by reference: a query would search whatever screen is on top (help).
+        self.status = StatusHeader(id="status")
+        self.timeline = Timeline(self.store, id="timeline")
+        self.detail = DetailPane(id="detail")
+        self.servos = ServosPane(self.config.clock, id="servos")
+        self.findings = FindingsPane(id="findings")
+        self.plot = PlotPane(id="plot")
+        self.filter_bar = Horizontal(id="filter-bar")
+        self.filter_input = Input(placeholder="id:1-6 kind:return reg:goal_position sev>=warning text",
+                                  id="filter-input")
+        self.filter_error = Label("", id="filter-error")
+        yield self.status
         with Horizontal(id="main"):
-            yield Timeline(self.store, id="timeline")
-            yield DetailPane(id="detail")
+            yield self.timeline
+            yield self.detail
         with Horizontal(id="bottom"):
-            yield ServosPane(self.config.clock, id="servos")
-            yield FindingsPane(id="findings")
-            yield PlotPane(id="plot")
-        with Horizontal(id="filter-bar"):
+            yield self.servos
+            yield self.findings
+            yield self.plot
+        with self.filter_bar:
             yield Label("filter:", id="filter-label")
-            yield Input(placeholder="id:1-6 kind:return reg:goal_position sev>=warning text", id="filter-input")
-            yield Label("", id="filter-error")
+            yield self.filter_input
+            yield self.filter_error
         yield Footer()
 
     def on_mount(self) -> None:
-        self.query_one("#timeline", Timeline).border_title = "timeline"
-        self.query_one("#detail", DetailPane).border_title = "detail"
-        self.query_one("#plot", PlotPane).border_title = "plot"
-        self.query_one("#timeline", Timeline).focus()
+        self.timeline.border_title = "timeline"
+        self.detail.border_title = "detail"
+        self.plot.border_title = "plot"
+        self.timeline.focus()
         self._refresh_header()
         self.run_worker(self.feeder.run, thread=True, name="capture", group="capture", exit_on_error=False)
         self.set_interval(self.config.tick_interval, self._tick)
@@ -130,6 +141,8 @@ class MonitorApp(App):
         self.post_message(BatchArrived(batch))
 
     def on_batch_arrived(self, message: BatchArrived) -> None:
+        if not self.status.is_attached:
+            return  # shutting down: the widgets are gone
         b = message.batch
         store = self.store
         store.add(b.records, b.findings, b.servos, b.bytes_in)
@@ -151,29 +164,31 @@ class MonitorApp(App):
         self._refresh_views(new_findings=bool(b.findings))
 
     def _refresh_views(self, new_findings: bool = False) -> None:
-        timeline = self.query_one("#timeline", Timeline)
+        timeline = self.timeline
         if new_findings:
             timeline.invalidate()  # a finding can land on a row already drawn
         timeline.sync()
-        self.query_one("#servos", ServosPane).update_from(self.store)
-        self.query_one("#findings", FindingsPane).update_from(self.store)
-        self.query_one("#plot", PlotPane).update_from(self.store)
+        self.servos.update_from(self.store)
+        self.findings.update_from(self.store)
+        self.plot.update_from(self.store)
         self._refresh_header()
 
     def _refresh_header(self) -> None:
         self.info.elapsed = self.config.clock() - self.started
         self.info.filter_progress = self.store.filter_progress
-        self.query_one("#status", StatusHeader).show(self.store, self.info)
+        self.status.show(self.store, self.info)
 
     def _tick(self) -> None:
+        if not self.status.is_attached:
+            return
         self._refresh_header()
-        self.query_one("#servos", ServosPane).tick()
+        self.servos.tick()
 
     # ---- selection ------------------------------------------------------------------------------------
     @on(Timeline.Selected)
     def _on_selected(self, message: Timeline.Selected) -> None:
         rec = self.store.get(message.seq) if message.seq is not None else None
-        self.query_one("#detail", DetailPane).show(rec)
+        self.detail.show(rec)
 
     @on(Timeline.FollowChanged)
     def _on_follow_changed(self, message: Timeline.FollowChanged) -> None:
@@ -197,10 +212,10 @@ class MonitorApp(App):
         sid = int(event.row_key.value)
         if sid != self.store.plot_id:
             self.store.set_plot(sid)
-            self.query_one("#plot", PlotPane).update_from(self.store)
+            self.plot.update_from(self.store)
 
     def _show_seq(self, seq: int | None, gone: str) -> bool:
-        timeline = self.query_one("#timeline", Timeline)
+        timeline = self.timeline
         if seq is None:
             self.notify(gone, severity="warning")
             return False
@@ -224,7 +239,7 @@ class MonitorApp(App):
         self.exit()
 
     def action_toggle_pause(self) -> None:
-        timeline = self.query_one("#timeline", Timeline)
+        timeline = self.timeline
         if timeline.paused_at is None:
             timeline.paused_at = self.store.end_seq
             self.info.paused = True
@@ -235,7 +250,7 @@ class MonitorApp(App):
         self._refresh_header()
 
     def action_follow(self) -> None:
-        timeline = self.query_one("#timeline", Timeline)
+        timeline = self.timeline
         timeline.follow = True
         timeline.sync()
         timeline.focus()
@@ -247,7 +262,7 @@ class MonitorApp(App):
         self._step_finding(False)
 
     def _step_finding(self, forward: bool) -> None:
-        timeline = self.query_one("#timeline", Timeline)
+        timeline = self.timeline
         seq = self.store.finding_seq(timeline.cursor_seq, forward)
         if timeline.paused_at is not None and seq is not None and seq >= timeline.paused_at:
             seq = None
@@ -258,11 +273,11 @@ class MonitorApp(App):
 
     def action_clear(self) -> None:
         self.store.clear()
-        self.query_one("#servos", ServosPane).reset()
-        self.query_one("#detail", DetailPane).show(None)
+        self.servos.reset()
+        self.detail.show(None)
         self.info.filter_text = ""
         self._refresh_views()
-        self.query_one("#findings", FindingsPane).update_from(self.store)
+        self.findings.update_from(self.store)
 
     def action_toggle_record(self) -> None:
         feeder = self.feeder
@@ -280,14 +295,14 @@ class MonitorApp(App):
         self._refresh_header()
 
     def action_goto_pair(self) -> None:
-        if not self.query_one("#detail", DetailPane).goto_pair():
+        if not self.detail.goto_pair():
             self.notify("this packet has no reply or request", timeout=2)
 
     def action_next_plot(self) -> None:
         store = self.store
         i = PLOT_REGISTERS.index(store.plot_register) if store.plot_register in PLOT_REGISTERS else -1
         store.set_plot(store.plot_id, PLOT_REGISTERS[(i + 1) % len(PLOT_REGISTERS)])
-        self.query_one("#plot", PlotPane).update_from(store)
+        self.plot.update_from(store)
 
     def action_help(self) -> None:
         if not isinstance(self.screen, HelpScreen):
@@ -295,16 +310,16 @@ class MonitorApp(App):
 
     # ---- filter ---------------------------------------------------------------------------------------
     def action_open_filter(self) -> None:
-        bar = self.query_one("#filter-bar")
+        bar = self.filter_bar
         bar.display = True
-        inp = self.query_one("#filter-input", Input)
+        inp = self.filter_input
         inp.value = self.info.filter_text
-        self.query_one("#filter-error", Label).update("")
+        self.filter_error.update("")
         inp.focus()
 
     def _close_filter(self) -> None:
-        self.query_one("#filter-bar").display = False
-        self.query_one("#timeline", Timeline).focus()
+        self.filter_bar.display = False
+        self.timeline.focus()
 
     @on(Input.Submitted, "#filter-input")
     def _on_filter_submitted(self, event: Input.Submitted) -> None:
@@ -315,8 +330,8 @@ class MonitorApp(App):
         try:
             flt = parse_filter(text, self.config.options.registry)
         except FilterError as e:
-            self.query_one("#filter-bar").display = True
-            self.query_one("#filter-error", Label).update(clean(str(e)))
+            self.filter_bar.display = True
+            self.filter_error.update(clean(str(e)))
             return False
         self.info.filter_text = flt.text if flt else ""
         self.store.begin_filter(flt)
@@ -324,7 +339,7 @@ class MonitorApp(App):
             self._filter_task.cancel()
         self._filter_task = asyncio.ensure_future(self._scan_filter())
         self._close_filter()
-        self.query_one("#timeline", Timeline).invalidate()
+        self.timeline.invalidate()
         return True
 
     async def _scan_filter(self) -> None:
@@ -336,7 +351,7 @@ class MonitorApp(App):
         self._refresh_views()
 
     def on_key(self, event) -> None:
-        if event.key == "escape" and self.query_one("#filter-bar").display:
+        if event.key == "escape" and self.filter_bar.display:
             event.stop()
             self._close_filter()
 
@@ -356,7 +371,7 @@ class MonitorApp(App):
 
     def _plot(self, name: str) -> None:
         self.store.set_plot(self.store.plot_id, name)
-        self.query_one("#plot", PlotPane).update_from(self.store)
+        self.plot.update_from(self.store)
 
 
 def make_app(source: Source, options: DecodeOptions | None = None, **config: Any) -> MonitorApp:

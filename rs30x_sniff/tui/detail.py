@@ -65,6 +65,10 @@ class FieldTree(Tree):
     ICON_NODE_EXPANDED = "▾ "
 
 
+class HexScroll(VerticalScroll, can_focus=False):
+    """Scrolls a long frame's dump with the mouse; Tab skips it (the tree drives what it shows)."""
+
+
 class DetailPane(Vertical):
     """Shows one record; ``Jump`` asks the app to select another (a reply's request, a request's reply)."""
 
@@ -82,7 +86,7 @@ class DetailPane(Vertical):
         tree.show_root = True
         tree.guide_depth = 2
         yield tree
-        with VerticalScroll(id="hex-scroll"):
+        with HexScroll(id="hex-scroll"):
             yield Static(Text(""), id="hex")
 
     @property

@@ -108,6 +108,8 @@ class Feeder:
                     break
         except (CaptureError, OSError) as e:
             error = str(e)
+        except Exception as e:  # noqa: BLE001 - a bug must not cost the records decoded so far
+            error = f"capture stopped: {type(e).__name__}: {e}"
         finally:
             self.source.close()
         tail = dec.close()

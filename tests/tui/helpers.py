@@ -59,6 +59,6 @@ async def wait_done(pilot, app, limit: float = 10.0) -> None:
     while not app.done and waited < limit:
         await pilot.pause(0.02)
         waited += 0.02
-    assert app.done, "the capture thread did not finish"
+    assert app.done, f"the capture thread did not finish: {[(w.name, w.state, w.error) for w in app.workers]}"
     await pilot.pause()
     await pilot.pause()
