@@ -13,6 +13,7 @@ from ..pipeline import Decoder
 from ..render import text_line
 from ..wire import byte_time
 from .common import CliError, add_decode_options, decode_options
+from .lint import add_lint_selection, build_config, settings_from
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 FLUSH_INTERVAL = 1.0    # an idle bus still gets its open MCAP chunk written within about a second
@@ -31,18 +32,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="also print each decoded packet as a text line (like decode)")
     p.add_argument("--split-size", type=float, default=None, metavar="MB",
                    help="start a new numbered file (OUT-001.mcap, OUT-002.mcap, ...) after about MB megabytes")
+    add_lint_selection(p)
     p.add_argument("--no-lint", action="store_true", help="do not run the linter while recording")
     p.set_defaults(run=run)
-
-
-def _make_linter(enabled: bool):
-    if not enabled:
-        return None
-    try:
-        from ..lint import Linter  # the linter is optional here: record works without it
-    except ImportError:
-        return None
-    return Linter()
 
 
 class _Files:
@@ -118,7 +110,13 @@ class _Status:
 
 
 def run(args: argparse.Namespace) -> int:
-    opts = decode_options(args)
+    settings = settings_from(args)
+    opts = decode_options(args, settings)
+    linter = None
+    if not args.no_lint:
+        from ..lint import Linter
+
+        linter = Linter(build_config(args, settings, opts))
     if args.duration is not None and args.duration <= 0:
         raise CliError(f"--duration {args.duration:g}: must be positive")
     if args.split_size is not None and args.split_size <= 0:
@@ -141,8 +139,7 @@ def run(args: argparse.Namespace) -> int:
     except BaseException:
         src.close()
         raise
-    dec = Decoder(opts, _make_linter(not args.no_lint))
-    linter = dec.linter
+    dec = Decoder(opts, linter)
     status = _Status(sys.stderr.isatty(), opts.baud, args.output)
     out = sys.stdout  # after the status line starts: on a terminal it routes stdout above itself
     nbytes = packets = seen = 0

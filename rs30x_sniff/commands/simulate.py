@@ -82,11 +82,9 @@ def write_file(path: str, chunks, fmt: str, baud: int) -> int:
             from ..io.mcap_sink import McapSink, convert
             from ..pipeline import DecodeOptions, Decoder
 
-            try:
-                from ..lint import Linter
-                linter = Linter()
-            except ImportError:
-                linter = None
+            from ..lint import LintConfig, Linter
+
+            linter = Linter(LintConfig(baud=baud))
             total = 0
 
             def counted():

@@ -73,7 +73,9 @@ class SerialTap:
         self.byte_time = byte_time(baud)
         self.read_timeout = read_timeout
         self.clock = clock
-        self.queue: queue.SimpleQueue = queue.SimpleQueue()
+        # queue.Queue, not SimpleQueue: CPython 3.11's SimpleQueue.get(timeout) can block for good when
+        # a signal (Ctrl-C) interrupts it, and the main thread waits on this queue with signals live.
+        self.queue: queue.Queue = queue.Queue()
         self.bytes_read = 0
         self.start_ns = 0
         self.wall_start_ns = 0
@@ -121,13 +123,21 @@ class SerialTap:
     def _run(self) -> None:
         ser = self._serial
         put = self.queue.put
+        if hasattr(signal, "pthread_sigmask"):
+            # Ctrl-C and SIGTERM go to the main thread, whose handler stops the capture: delivered
+            # there, they also wake it from its wait at once.
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             while not self._stop.is_set():
                 first = ser.read(1)  # blocks until a byte arrives or the read timeout passes
                 if not first:
                     continue
-                more = ser.in_waiting
-                data = first + ser.read(more) if more else first
+                try:
+                    more = ser.in_waiting
+                    data = first + ser.read(more) if more else first
+                except Exception:
+                    self._stamp(first, self.clock())  # the port failed: keep the byte already read
+                    raise
                 self._stamp(data, self.clock())
             more = ser.in_waiting  # a requested stop: keep what has already arrived
             if more:

@@ -1,0 +1,102 @@
+"""`record` and live `decode` on real pseudo-terminals fed by the simulator at baud-rate pacing."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import time
+
+import pytest
+
+from tests.e2e.helpers import Pty, assert_finalized_mcap, cli, events, recorded_bytes, wait_for
+
+
+@pytest.fixture
+def pty():
+    p = Pty()
+    yield p
+    p.close()
+
+
+def _finish(proc, timeout: float = 20.0) -> tuple[int, str, str]:
+    out, err = proc.communicate(timeout=timeout)
+    return proc.returncode, out.decode(), err.decode()
+
+
+@pytest.mark.parametrize("sig,word", [(signal.SIGINT, "Ctrl-C"), (signal.SIGTERM, "SIGTERM")])
+def test_stop_by_signal_keeps_every_byte(pty, tmp_path, sig, word):
+    out = tmp_path / "bus.mcap"
+    proc = cli("record", pty.path, "-o", str(out), "--print")
+    wait_for(out, proc)
+    sent = pty.write_sim("hexapod", duration=1.6)
+    time.sleep(0.3)
+    proc.send_signal(sig)
+    rc, stdout, stderr = _finish(proc)
+    assert rc == 0, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and word in lines[0] and f"{len(sent):,} bytes" in lines[0]
+    got = recorded_bytes(out)
+    assert got == sent
+    assert events(got) == events(sent)  # the recorded events are the simulator's
+    topics = assert_finalized_mcap(out)
+    assert topics["/rs30x/packets"] == len(events(sent))
+    assert len(stdout.splitlines()) == len(events(sent))  # --print: one line per event
+    assert pty.master_silent()  # the sniffer wrote nothing to the port
+
+
+def test_far_end_closed_mid_frame_is_a_lost_port(pty, tmp_path):
+    out = tmp_path / "cut.mcap"
+    proc = cli("record", pty.path, "-o", str(out))
+    wait_for(out, proc)
+    sent = pty.write_sim("noise", duration=1.2)
+    half = bytes.fromhex("FA AF 03 09 00")  # a poll cut after its fifth byte
+    os.write(pty.master, half)
+    time.sleep(0.3)
+    assert pty.master_silent(0.05)
+    pty.close_master()
+    rc, _, stderr = _finish(proc)
+    assert rc == 1, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and "port lost" in lines[0]
+    assert recorded_bytes(out) == sent + half
+    assert_finalized_mcap(out)
+
+
+def test_duration_and_split_size_rotate_complete_files(pty, tmp_path):
+    out = tmp_path / "long.mcap"
+    proc = cli("record", pty.path, "-o", str(out), "--duration", "3.5", "--split-size", "0.03", "--no-lint")
+    first = tmp_path / "long-001.mcap"
+    wait_for(first, proc)
+    sent = pty.write_sim("hexapod", duration=2.5)
+    rc, _, stderr = _finish(proc)
+    assert rc == 0, stderr
+    assert "3.5 s recorded" in stderr
+    parts = sorted(tmp_path.glob("long-*.mcap"))
+    assert len(parts) >= 2 and not out.exists()
+    for p in parts:
+        assert_finalized_mcap(p)  # each one complete on its own
+    assert b"".join(recorded_bytes(p) for p in parts) == sent
+
+
+def test_decode_streams_lines_from_a_port_while_it_runs(pty):
+    proc = cli("decode", pty.path, "--duration", "6", "--no-lint")
+    time.sleep(1.0)  # the port is open (and its input flushed) well before this
+    pty.write_sim("setup", duration=None)
+    readable, _, _ = select.select([proc.stdout], [], [], 3.0)
+    assert readable and proc.poll() is None  # a line while decode is still running
+    first = os.read(proc.stdout.fileno(), 1 << 16).decode()  # unbuffered: communicate() reads the rest
+    assert first.startswith(" ") and "PING id=1" in first.splitlines()[0]
+    rc, rest, stderr = _finish(proc)
+    assert rc == 0, stderr
+    assert "REBOOT id=12" in first + rest
+    assert pty.master_silent()
+
+
+def test_record_on_a_missing_port_is_one_line_and_no_file(tmp_path):
+    out = tmp_path / "x.mcap"
+    proc = cli("record", "/dev/ttyDOES-NOT-EXIST", "-o", str(out))
+    rc, _, stderr = _finish(proc)
+    assert rc == 2
+    assert stderr.count("\n") == 1 and "cannot open port" in stderr and "Traceback" not in stderr
+    assert not out.exists()
