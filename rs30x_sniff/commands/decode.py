@@ -72,4 +72,4 @@ def run(args: argparse.Namespace) -> int:
             else:
                 ts = f"{f.t:12.6f}" if f.t is not None else f"{'-':>12}"
                 out.write(f"{ts} @{f.offset:<8} lint  {f.code} {f.name}: {f.message}\n")
-    return 0
+    return 1 if getattr(chunks, "lost", False) else 0  # a live port that failed (the source said why)
