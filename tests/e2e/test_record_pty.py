@@ -100,3 +100,16 @@ def test_record_on_a_missing_port_is_one_line_and_no_file(tmp_path):
     assert rc == 2
     assert stderr.count("\n") == 1 and "cannot open port" in stderr and "Traceback" not in stderr
     assert not out.exists()
+
+
+def test_decode_on_a_port_that_goes_away_exits_1_with_one_line(pty):
+    proc = cli("decode", pty.path, "--no-lint")
+    time.sleep(1.0)
+    pty.write_sim("setup", duration=None)
+    time.sleep(0.3)
+    pty.close_master()
+    rc, out, stderr = _finish(proc)
+    assert rc == 1
+    assert "REBOOT id=12" in out
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and "port lost" in lines[0] and "Traceback" not in stderr
