@@ -15,7 +15,7 @@ from ..lint.linter import Linter
 from ..lint.report import FileResult, fails, write_report
 from ..memmap import ModelError, default_registry
 from ..pipeline import DecodeOptions, Decoder
-from .common import CliError, add_decode_options, decode_options, open_input, output_stream
+from .common import CliError, add_decode_options, add_live_options, decode_options, open_input, output_stream
 
 PROGRESS_MIN_BYTES = 1 << 20  # a progress bar only for inputs worth waiting for
 
@@ -38,6 +38,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "config or input error.")
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="capture files (.bin/.raw, .hex, timestamped hex, .mcap)")
     add_decode_options(p)
+    add_live_options(p)
     add_lint_selection(p)
     p.add_argument("--severity", action="append", default=[], metavar="RULE=LEVEL",
                    help="change a rule's severity (error, warning, info); repeatable")
@@ -117,17 +118,19 @@ def build_config(args: argparse.Namespace, settings: dict[str, Any], opts: Decod
 
 
 def lint_file(path: str, fmt: str | None, opts: DecodeOptions, cfg: LintConfig,
-              progress: Callable[[int], None] | None = None) -> FileResult:
-    """Lint one capture; an unreadable file gives a result with ``error`` set (findings so far kept)."""
+              progress: Callable[[int], None] | None = None, duration: float | None = None) -> FileResult:
+    """Lint one capture (or a port, live); an unreadable input gives a result with ``error`` set
+    (findings so far kept)."""
     linter = Linter(cfg)
     dec = Decoder(opts, linter)
     result = FileResult(path, rules=[r.code for r in linter.rules])
     try:
-        for data, t in open_input(path, fmt):
+        source = open_input(path, fmt, baud=opts.baud, duration=duration)
+        for data, t in source:
             dec.feed(data, t)
             if progress is not None:
                 progress(len(data))
-        dec.close()
+        dec.close()  # a lost port has already said so on stderr; its findings so far still count
     except (CaptureError, ModelError) as e:
         result.error = str(e)
     result.findings = list(linter.findings)
@@ -190,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
                         advance(_size(path))
         else:
             for p in args.inputs:
-                results.append(lint_file(p, args.input_format, opts, cfg, advance))
+                results.append(lint_file(p, args.input_format, opts, cfg, advance, args.duration))
     finally:
         if progress_ctx is not None:
             progress_ctx.stop()
