@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import time
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
@@ -97,6 +98,10 @@ class MonitorApp(App):
         reg = opts.registry or default_registry()
         default = reg.get(opts.default_model).name if opts.default_model else reg.default.name
         per_id = ", ".join(f"{i}={m}" for i, m in sorted(opts.models.items()))
+        if self.store.servos:
+            # What the bus says: each servo's model, configured or learned from its model number.
+            seen = Counter(row.model for row in self.store.servos.values())
+            return " ".join(f"{m}×{n}" for m, n in sorted(seen.items()))
         return default + (f", {per_id}" if per_id else "")
 
     # ---- layout ---------------------------------------------------------------------------------------
@@ -168,12 +173,16 @@ class MonitorApp(App):
         if new_findings:
             timeline.invalidate()  # a finding can land on a row already drawn
         timeline.sync()
+        if timeline.follow:
+            # Show the newest record now rather than after the next batch (the Selected message queues behind it).
+            self.detail.show(self.store.get(timeline.cursor_seq) if timeline.cursor_seq is not None else None)
         self.servos.update_from(self.store)
         self.findings.update_from(self.store)
         self.plot.update_from(self.store)
         self._refresh_header()
 
     def _refresh_header(self) -> None:
+        self.info.models = self._models_text()
         self.info.elapsed = self.config.clock() - self.started
         self.info.filter_progress = self.store.filter_progress
         self.status.show(self.store, self.info)

@@ -94,7 +94,9 @@ class DetailPane(Vertical):
         return self.query_one(FieldTree)
 
     def show(self, rec: Record | None) -> None:
-        """Rebuild the tree for ``rec`` (None: clear the pane)."""
+        """Rebuild the tree for ``rec`` (None: clear the pane); showing the same record again is free."""
+        if rec is self.rec and rec is not None:
+            return
         self.rec = rec
         tree = self.tree
         tree.clear()

@@ -111,7 +111,10 @@ class Feeder:
         except Exception as e:  # noqa: BLE001 - a bug must not cost the records decoded so far
             error = f"capture stopped: {type(e).__name__}: {e}"
         finally:
-            self.source.close()
+            try:
+                self.source.close()
+            except Exception as e:  # noqa: BLE001 - closing must not cost the last batch
+                error = error or f"closing the source: {type(e).__name__}: {e}"
         tail = dec.close()
         records += tail
         late = self._new_findings()

@@ -93,9 +93,9 @@ def status_text(store: Store, info: SessionInfo) -> Text:
     t.append("findings ", "grey70")
     if not info.lint:
         t.append("(lint unavailable) ", "grey62")
-    for sev in ("error", "warning", "info"):
+    for k, sev in enumerate(("error", "warning", "info")):
         n = st.severities.get(sev, 0)
-        t.append(f"{SEVERITY_MARKS[sev]}{n:,} ", SEVERITY_STYLES[sev] if n else "grey50")
+        t.append(f"{' ' if k else ''}{SEVERITY_MARKS[sev]}{n:,}", SEVERITY_STYLES[sev] if n else "grey50")
     t.append(*sep)
     load = store.bus_load
     t.append("load ", "grey70")

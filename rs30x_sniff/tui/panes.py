@@ -18,16 +18,18 @@ FINDINGS_SHOWN = 1000  # the pane lists the newest ones; the header counts them 
 
 _SHORT = {"torque_enable": "torque", "goal_position": "goal", "present_position": "pos", "present_speed": "speed",
           "present_current": "cur", "present_temperature": "temp", "present_voltage": "volt"}
+_HEADINGS = {"torque": "trq", "goal": "goal°", "pos": "pos°", "speed": "°/s", "cur": "mA", "temp": "°C",
+             "volt": "V", "finds": "!"}
 
 
-def value_text(value: Any, unit: str | None) -> str:
+def value_text(value: Any, unit: str | None = None) -> str:
     if value is None:
         return "-"
     if isinstance(value, float):
         s = f"{value:.2f}" if unit == "V" else f"{value:.1f}"
     else:
         s = str(value)
-    return clean(s + (unit if unit and not isinstance(value, str) else ""))
+    return clean(s)
 
 
 def _ms(v: float | None) -> str:
@@ -39,6 +41,8 @@ class ServosPane(DataTable):
 
     BORDER_TITLE = "servos"
     COLUMNS = ("ID", "model", *(_SHORT[c] for c in SERVO_COLUMNS), "poll/s", "p50ms", "p95ms", "finds")
+    # The headings carry the units (the same in every model's map), so the cells stay narrow.
+    HEADINGS = _HEADINGS
 
     def __init__(self, clock: Callable[[], float], **kwargs) -> None:
         super().__init__(cursor_type="row", zebra_stripes=False, **kwargs)
@@ -48,7 +52,7 @@ class ServosPane(DataTable):
 
     def on_mount(self) -> None:
         for name in self.COLUMNS:
-            self.add_column(name, key=name)
+            self.add_column(self.HEADINGS.get(name, name), key=name)
 
     def reset(self) -> None:
         self.clear()
@@ -92,7 +96,7 @@ class ServosPane(DataTable):
             return
         at = self._changed.get((sid, col))
         style = "bold black on yellow" if at is not None and now - at < FLASH_SECONDS else ""
-        self.update_cell(str(sid), col, Text(c, style))
+        self.update_cell(str(sid), col, Text(c, style), update_width=True)
 
     def _cells(self, store: Store, row: ServoRow) -> dict[str, str]:
         cells = {"ID": str(row.id), "model": clean(row.model)}
@@ -122,7 +126,7 @@ class FindingsPane(DataTable):
         self._shown: list = []
 
     def on_mount(self) -> None:
-        for name in ("sev", "code", "name", "ID", "@offset", "message"):
+        for name in ("sev", "code", "@offset", "ID", "message", "name"):
             self.add_column(name, key=name)
 
     def update_from(self, store: Store) -> None:
@@ -133,8 +137,8 @@ class FindingsPane(DataTable):
         self.clear()
         for i, f in enumerate(self._shown):
             style = SEVERITY_STYLES.get(f.severity, "")
-            self.add_row(Text(SEVERITY_MARKS.get(f.severity, "?"), style), Text(f.code, style), Text(clean(f.name)),
-                         Text("-" if f.id is None else str(f.id)), Text(str(f.offset)), Text(clean(f.message)),
+            self.add_row(Text(SEVERITY_MARKS.get(f.severity, "?"), style), Text(f.code, style), Text(str(f.offset)),
+                         Text("-" if f.id is None else str(f.id)), Text(clean(f.message)), Text(clean(f.name), "grey70"),
                          key=str(i))
         self.border_title = f"findings ({store.findings_total})"
 
@@ -165,5 +169,5 @@ class PlotPane(Vertical):
         self.query_one("#plot-line", Sparkline).data = data
         rng = Text(f"{len(data)} samples", "grey70")
         if data:
-            rng = Text(f"min {min(data):g}  max {max(data):g}  last {data[-1]:g}  ({len(data)} samples)", "grey70")
+            rng = Text(f"last {data[-1]:g}  min {min(data):g}  max {max(data):g}  n={len(data)}", "grey70")
         self.query_one("#plot-range", Label).update(rng)

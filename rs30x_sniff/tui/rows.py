@@ -30,7 +30,7 @@ SEVERITY_MARKS = {"error": "E", "warning": "W", "info": "i"}
 ARROWS = {"host": "→", "servo": "←", "?": "?"}
 
 _LATENCY = re.compile(r" latency=[0-9.]+ms")
-COLUMNS = f"  {'time(s)':>11} {'delta(ms)':>10} {'dir':^3} {'ID':>3} {'kind':<12} {'latency':>9}  summary"
+COLUMNS = f"  {'time(s)':>11} {'delta(ms)':>10} {'dir':^3} {'ID':>3} {'kind':<12} {'latency':>9} summary"
 
 
 def worst_severity(rec: Record) -> str | None:

@@ -114,7 +114,22 @@ class PortSource:
 
         self.name = port
         self.live = LiveSource(port, baud, announce=False)
-        self.live.start()  # opens the port now: a missing port is a one-line error, not a blank screen
+        # Open the port now, so a missing one is a one-line error rather than a blank screen. Started
+        # off the main thread, the tap installs no signal handlers: the screen owns Ctrl-C, and the
+        # handlers could not be restored from the capture thread at the end.
+        failure: list[BaseException] = []
+
+        def start() -> None:
+            try:
+                self.live.start()
+            except BaseException as e:  # noqa: BLE001 - handed back to the caller below
+                failure.append(e)
+
+        opener = threading.Thread(target=start, name=f"open {port}")
+        opener.start()
+        opener.join()
+        if failure:
+            raise failure[0]
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
         live = self.live
@@ -140,7 +155,7 @@ class SimulatorSource:
 
         if scenario not in SCENARIOS:
             raise CaptureError(f"--simulate {scenario}: unknown scenario (known: {', '.join(SCENARIOS)})")
-        self.name = f"simulator {scenario}"
+        self.name = scenario
         self.speed = speed
         self.byte_seconds = byte_time(baud)
         self.clock = clock

@@ -434,11 +434,11 @@ async def test_changed_servo_values_flash_briefly():
             if 3 in app.store.servos and app.store.servos[3].values["present_position"] is not None:
                 break
         pane = app.query_one(ServosPane)
-        assert pane.get_cell("3", "pos").plain == "10.0deg" and not pane.get_cell("3", "pos").style
+        assert pane.get_cell("3", "pos").plain == "10.0" and not pane.get_cell("3", "pos").style
         gate.set()
         await wait_done(pilot, app)
         cell = pane.get_cell("3", "pos")
-        assert cell.plain == "20.0deg" and "yellow" in str(cell.style)
+        assert cell.plain == "20.0" and "yellow" in str(cell.style)
         assert not pane.get_cell("3", "volt").style  # unchanged values stay plain
         clock.t += 1.5
         pane.tick()

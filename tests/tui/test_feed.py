@@ -209,3 +209,18 @@ def test_file_source_reads_what_read_capture_reads():
     src = FileSource(MANUAL)
     assert list(src.chunks(threading.Event())) == list(read_capture(MANUAL))
     assert src.time_base == "synthetic"
+
+
+def test_a_source_that_fails_to_close_still_delivers_the_last_batch():
+    class Broken:
+        name, kind, time_base = "broken", "port", "monotonic"
+
+        def chunks(self, stop):
+            yield encode_short(1, 0, 30, b"\x00\x00"), 0.0
+
+        def close(self):
+            raise ValueError("signal only works in main thread")
+
+    _, batches = run_feeder(Broken())
+    assert batches[-1].done and len([r for b in batches for r in b.records]) == 1
+    assert batches[-1].error == "closing the source: ValueError: signal only works in main thread"
