@@ -177,3 +177,23 @@ class SimulatorSource:
 
     def close(self) -> None:
         self._it.close()
+
+
+class ChunkSource:
+    """Chunks already in memory (a simulated capture, a test's bytes), handed out at once."""
+
+    kind = "file"
+    time_base = "capture"
+
+    def __init__(self, name: str, chunks: Iterable[Chunk]) -> None:
+        self.name = name
+        self._chunks = chunks
+
+    def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
+        for chunk in self._chunks:
+            yield chunk
+            if stop.is_set():
+                return
+
+    def close(self) -> None:
+        pass

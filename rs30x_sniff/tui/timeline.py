@@ -123,15 +123,20 @@ class Timeline(ScrollView, can_focus=True):
             return False
         self.follow = False
         self._move_cursor(seq)
-        self._scroll_to_row(row)
+        self._scroll_to_row(row, center=True)
         return True
 
-    def _scroll_to_row(self, row: int) -> None:
+    def _scroll_to_row(self, row: int, center: bool = False) -> None:
+        """Scroll just enough to show ``row`` (a jump from afar puts it in the middle)."""
         height = max(1, self.scrollable_content_region.height - 1)
         top = int(self.scroll_y)
-        if row < top:
+        if top <= row < top + height:
+            pass
+        elif center:
+            top = max(0, row - height // 2)
+        elif row < top:
             top = row
-        elif row >= top + height:
+        else:
             top = row - height + 1
         self._syncing = True
         try:
