@@ -8,7 +8,7 @@ from typing import Any
 
 from ..pipeline import Decoder
 from ..stats import CaptureStats
-from .common import add_decode_options, open_input, output_stream
+from .common import add_decode_options, add_live_options, open_input, output_stream
 from .convert import add_lint_options, prepare
 
 
@@ -18,6 +18,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "request and return counts, poll rates, reply latency, bus load, findings.")
     p.add_argument("input", metavar="INPUT", help="capture file (.bin/.raw, .hex, timestamped hex, .mcap) or - for stdin")
     add_decode_options(p)
+    add_live_options(p)
     add_lint_options(p)
     p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
     p.add_argument("-o", "--output", metavar="OUT", help="write to OUT instead of stdout")
@@ -44,7 +45,8 @@ def gather(chunks, decoder: Decoder, baud: int) -> CaptureStats:
 def run(args: argparse.Namespace) -> int:
     opts, linter = prepare(args)
     decoder = Decoder(opts, linter=linter)
-    stats = gather(open_input(args.input, args.input_format), decoder, opts.baud)
+    source = open_input(args.input, args.input_format, baud=opts.baud, duration=args.duration)
+    stats = gather(source, decoder, opts.baud)
     with output_stream(args.output) as out:
         if args.format == "json":
             out.write(json.dumps({"input": args.input, "linted": decoder.linter is not None, **stats.as_dict()},
@@ -60,13 +62,14 @@ def _ms(v: float | None) -> str:
 
 def _print_text(out: Any, name: str, s: CaptureStats, linted: bool) -> None:
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     con = Console(file=out, highlight=False, width=100 if not out.isatty() else None)
     d = s.as_dict()
     load = "-" if s.bus_load is None else f"{s.bus_load * 100:.1f} %"
     timing = "" if s.timed else " (no timestamps: line time at the baud rate)"
-    con.print(f"[bold]{name}[/bold]")
+    con.print(f"[bold]{escape(name)}[/bold]")
     con.print(f"  duration   {s.duration:.6f} s{timing}")
     con.print(f"  bytes      {s.bytes} at {s.baud} bit/s, bus load {load}")
     kinds = ", ".join(f"{k} {v}" for k, v in d["by_type"].items()) or "none"
