@@ -16,7 +16,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="capture file (.bin/.raw, .hex, timestamped hex, .mcap) or serial port (/dev/ttyUSB0, COM3)")
     add_decode_options(p)
     p.add_argument("--replay", action="store_true", help="play a capture file at its own pace instead of at once")
-    p.add_argument("--speed", type=float, default=1.0, metavar="X", help="replay (or simulate) X times faster than real time (default 1)")
+    p.add_argument("--speed", type=float, default=1.0, metavar="X",
+                   help="replay (or simulate) X times faster than real time (default 1)")
     p.add_argument("--simulate", metavar="SCENARIO", help="watch the built-in simulator run SCENARIO instead of INPUT")
     p.add_argument("--history", type=int, default=None, metavar="N",
                    help="records kept for scrolling back (default 1,000,000; older ones are dropped)")

@@ -1,4 +1,4 @@
-"""The monitor's filter language: ``id:1-6 kind:return reg:goal_position sev>=warning text``, parsed into a predicate."""
+"""The monitor's filter language (``id:1-6 kind:return reg:goal_position sev>=warning text``) as a predicate."""
 
 from __future__ import annotations
 

@@ -138,7 +138,8 @@ class FindingsPane(DataTable):
         for i, f in enumerate(self._shown):
             style = SEVERITY_STYLES.get(f.severity, "")
             self.add_row(Text(SEVERITY_MARKS.get(f.severity, "?"), style), Text(f.code, style), Text(str(f.offset)),
-                         Text("-" if f.id is None else str(f.id)), Text(clean(f.message)), Text(clean(f.name), "grey70"),
+                         Text("-" if f.id is None else str(f.id)), Text(clean(f.message)),
+                         Text(clean(f.name), "grey70"),
                          key=str(i))
         self.border_title = f"findings ({store.findings_total})"
 

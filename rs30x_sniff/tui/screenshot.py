@@ -1,4 +1,4 @@
-"""Render the monitor on a simulated bus into an SVG (docs/monitor.svg): ``python -m rs30x_sniff.tui.screenshot OUT``."""
+"""Render the monitor on a simulated bus as an SVG: ``python -m rs30x_sniff.tui.screenshot docs/monitor.svg``."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""What the monitor shows, with no Textual in it: a bounded record history, counts, servo rows, findings, filter, plot."""
+"""What the monitor shows, without Textual: a bounded record history, counts, servo rows, findings, filter, plot."""
 
 from __future__ import annotations
 
@@ -386,7 +386,10 @@ class Store:
             return None
         if after is None:
             after = base - 1 if forward else self.end_seq
-        rng = range(max(after + 1, base), self.end_seq) if forward else range(min(after, self.end_seq) - 1, base - 1, -1)
+        if forward:
+            rng = range(max(after + 1, base), self.end_seq)
+        else:
+            rng = range(min(after, self.end_seq) - 1, base - 1, -1)
         for seq in rng:
             rec = rows[seq - base]
             if rec.findings and any(SEVERITY_RANK.get(f.severity, 0) >= rank for f in rec.findings):

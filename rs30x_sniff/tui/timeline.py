@@ -92,10 +92,10 @@ class Timeline(ScrollView, can_focus=True):
             if self.follow:
                 self._move_cursor(store.view_seq(n - 1) if n else None)
                 self.scroll_to(y=max(0, n + 1 - self.scrollable_content_region.height), animate=False,
-                               immediate=True)
+                               immediate=True, force=True)
             else:
                 if self._top_seq is not None:
-                    self.scroll_to(y=store.view_nearest(self._top_seq), animate=False, immediate=True)
+                    self.scroll_to(y=store.view_nearest(self._top_seq), animate=False, immediate=True, force=True)
                 if self.cursor_seq is not None and store.view_index(self.cursor_seq) is None:
                     self._move_cursor(store.view_seq(store.view_nearest(self.cursor_seq)) if n else None)
         finally:
@@ -140,7 +140,7 @@ class Timeline(ScrollView, can_focus=True):
             top = row - height + 1
         self._syncing = True
         try:
-            self.scroll_to(y=top, animate=False, immediate=True)
+            self.scroll_to(y=top, animate=False, immediate=True, force=True)
         finally:
             self._syncing = False
         self._top_seq = self.store.view_seq(top)
@@ -175,7 +175,7 @@ class Timeline(ScrollView, can_focus=True):
         if not self._syncing:
             self._top_seq = self.store.view_seq(int(new_value))
 
-    def _on_mouse_scroll_up(self, event: MouseScrollUp) -> None:
+    def on_mouse_scroll_up(self, event: MouseScrollUp) -> None:
         # Scrolling up means the user wants to look back: stop sticking to the newest row.
         self.follow = False
 

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import asyncio
 import threading
 
 import pytest
-from rich.text import Text
 
 from rs30x_sniff.lint import Linter
 from rs30x_sniff.pipeline import DecodeOptions
@@ -492,3 +490,23 @@ async def test_batches_arriving_under_the_help_screen_are_not_lost():
         await wait_done(pilot, app)
         await pilot.press("escape")
         assert len(app.store) == 20 and timeline(app).row_count == 20
+
+
+async def test_the_mouse_wheel_scrolls_back_and_leaves_follow_mode(tmp_path):
+    from rs30x_sniff.io.captures import write_capture
+
+    p = tmp_path / "many.thex"
+    write_capture(p, [(encode_short(1, 0, 30, bytes((i % 256, 0))), i * 0.01) for i in range(300)], "timestamped")
+    app = make_app(FileSource(str(p)), DecodeOptions(), clock=FrozenClock())
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_done(pilot, app)
+        tl = timeline(app)
+        bottom = tl.scroll_y
+        assert tl.follow and bottom > 200
+        from textual.events import MouseScrollUp
+        for _ in range(3):  # what a wheel turn sends (Pilot has no helper for it)
+            tl.post_message(MouseScrollUp(tl, 20, 5, 0, -1, 0, False, False, False))
+        await pilot.pause()
+        assert not tl.follow and tl.scroll_y < bottom
+        await pilot.click(tl, offset=(20, 5))
+        assert tl.cursor_seq == int(tl.scroll_y) + 4
