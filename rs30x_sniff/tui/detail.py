@@ -82,25 +82,22 @@ class DetailPane(Vertical):
         self.rec: Record | None = None
 
     def compose(self) -> ComposeResult:
-        tree = FieldTree(Text("no packet selected"), id="fields")
+        tree = self.tree = FieldTree(Text("no packet selected"), id="fields")
         tree.show_root = True
         tree.guide_depth = 2
+        self.hex = Static(Text(""), id="hex")
         yield tree
         with HexScroll(id="hex-scroll"):
-            yield Static(Text(""), id="hex")
-
-    @property
-    def tree(self) -> FieldTree:
-        return self.query_one(FieldTree)
+            yield self.hex
 
     def show(self, rec: Record | None) -> None:
         """Rebuild the tree for ``rec`` (None: clear the pane); showing the same record again is free."""
-        if rec is self.rec and rec is not None:
+        if (rec is self.rec and rec is not None) or not self.is_attached:
             return
         self.rec = rec
         tree = self.tree
         tree.clear()
-        hexw = self.query_one("#hex", Static)
+        hexw = self.hex
         if rec is None:
             tree.root.set_label(Text("no packet selected"))
             hexw.update(Text(""))
@@ -209,7 +206,7 @@ class DetailPane(Vertical):
             return
         data = event.node.data
         span = data if isinstance(data, tuple) else None
-        self.query_one("#hex", Static).update(hex_dump(self.rec.event.raw, span))
+        self.hex.update(hex_dump(self.rec.event.raw, span))
 
     def on_tree_node_selected(self, event: Tree.NodeSelected) -> None:
         event.stop()

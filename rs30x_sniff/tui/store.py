@@ -29,18 +29,24 @@ _EMPTY_LIST = sys.getsizeof([])
 _RECORD_BASE = sys.getsizeof(Record.__new__(Record)) + _EMPTY_LIST
 
 
+_SIZES: dict[tuple, int] = {}  # events of one type and shape all weigh the same
+
+
 def record_size(rec: Record) -> int:
     """Approximate bytes a record holds on to: the record, its event, and the event's byte strings."""
     ev = rec.event
-    size = _RECORD_BASE + sys.getsizeof(ev) + sys.getsizeof(ev.raw) + 8  # + the history list's slot
     t = type(ev)
-    if t is ShortPacket or t is ReturnPacket:
-        size += sys.getsizeof(ev.data)
-    elif t is LongPacket:
-        recs = ev.records
-        size += sys.getsizeof(recs)
-        for r in recs:
-            size += sys.getsizeof(r) + sys.getsizeof(r.data)
+    key = (t, len(ev.raw), ev.count if t is LongPacket else 0)
+    size = _SIZES.get(key)
+    if size is None:
+        size = _RECORD_BASE + sys.getsizeof(ev) + sys.getsizeof(ev.raw) + 8  # + the history list's slot
+        if t is ShortPacket or t is ReturnPacket:
+            size += sys.getsizeof(ev.data)
+        elif t is LongPacket:
+            recs = ev.records
+            size += sys.getsizeof(recs) + sum(sys.getsizeof(r) + sys.getsizeof(r.data) for r in recs)
+        if len(_SIZES) < 4096:
+            _SIZES[key] = size
     return size
 
 
@@ -121,14 +127,27 @@ class Stats:
     """Running counts since the last clear."""
 
     records: int = 0
-    packets: int = 0       # requests and returns (not ACK/NACK bytes or garbage)
-    replies: int = 0       # returns, ACKs and NACKs
-    garbage: int = 0
     missing: int = 0       # requests whose reply never came
     kinds: Counter = field(default_factory=Counter)
     severities: Counter = field(default_factory=Counter)
     first_t: float | None = None
     last_t: float | None = None
+
+    @property
+    def packets(self) -> int:
+        """Requests and returns (not ACK/NACK bytes or garbage)."""
+        k = self.kinds
+        return k["short"] + k["long"] + k["return"]
+
+    @property
+    def replies(self) -> int:
+        """Returns, ACKs and NACKs."""
+        k = self.kinds
+        return k["return"] + k["ack"] + k["nack"]
+
+    @property
+    def garbage(self) -> int:
+        return self.kinds["garbage"]
 
 
 class Store:
@@ -193,36 +212,36 @@ class Store:
         load = self._load
         load_bytes = 0
         plot_id, plot_reg, plot = self.plot_id, self.plot_register, self.plot
+        # This loop runs on the screen's thread for every record: keep it lean.
+        missing = 0
+        first_t = stats.first_t
+        last_t = None
         for rec in records:
             rows.append(rec)
-            kind = rec.event.kind
-            kinds[kind] += 1
+            ev = rec.event
+            kinds[ev.kind] += 1
             memory += record_size(rec)
-            if rec.is_reply:
-                stats.replies += 1
-                if kind == "return":
-                    stats.packets += 1
-            elif kind == "garbage":
-                stats.garbage += 1
-            else:
-                stats.packets += 1
-                if rec.status == "missing":
-                    stats.missing += 1
-            t = rec.event.t_start
+            if rec.status == "missing":
+                missing += 1
+            t = ev.t_start
             if t is not None:
-                if stats.first_t is None:
-                    stats.first_t = t
-                stats.last_t = t
-                n = len(rec.event.raw)
+                if first_t is None:
+                    first_t = t
+                last_t = t
+                n = len(ev.raw)
                 load.append((t, n))
                 load_bytes += n
-            if plot_id is not None:
+            if plot_id is not None and (getattr(ev, "id", None) == plot_id or type(ev) is LongPacket):
                 v = register_value(rec, plot_id, plot_reg)
                 if isinstance(v, (int, float)):
                     plot.append(float(v))
             if flt is not None and flt.matches(rec):
                 view.append(seq)
             seq += 1
+        stats.missing += missing
+        stats.first_t = first_t
+        if last_t is not None:
+            stats.last_t = last_t
         stats.records = seq
         self.memory += memory
         self._load_bytes += load_bytes
