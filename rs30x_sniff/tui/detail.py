@@ -82,22 +82,22 @@ class DetailPane(Vertical):
         self.rec: Record | None = None
 
     def compose(self) -> ComposeResult:
-        tree = self.tree = FieldTree(Text("no packet selected"), id="fields")
+        tree = self.field_tree = FieldTree(Text("no packet selected"), id="fields")
         tree.show_root = True
         tree.guide_depth = 2
-        self.hex = Static(Text(""), id="hex")
+        self.hex_view = Static(Text(""), id="hex")
         yield tree
         with HexScroll(id="hex-scroll"):
-            yield self.hex
+            yield self.hex_view
 
     def show(self, rec: Record | None) -> None:
         """Rebuild the tree for ``rec`` (None: clear the pane); showing the same record again is free."""
         if (rec is self.rec and rec is not None) or not self.is_attached:
             return
         self.rec = rec
-        tree = self.tree
+        tree = self.field_tree
         tree.clear()
-        hexw = self.hex
+        hexw = self.hex_view
         if rec is None:
             tree.root.set_label(Text("no packet selected"))
             hexw.update(Text(""))
@@ -206,7 +206,7 @@ class DetailPane(Vertical):
             return
         data = event.node.data
         span = data if isinstance(data, tuple) else None
-        self.hex.update(hex_dump(self.rec.event.raw, span))
+        self.hex_view.update(hex_dump(self.rec.event.raw, span))
 
     def on_tree_node_selected(self, event: Tree.NodeSelected) -> None:
         event.stop()
