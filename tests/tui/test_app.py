@@ -304,9 +304,15 @@ async def test_the_command_palette_runs_monitor_commands():
         await wait_done(pilot, app)
         await pilot.press("ctrl+p")
         await pilot.pause()
-        for ch in "Plot present_voltage":
-            await pilot.press(ch if ch != " " else "space")
-        await pilot.pause(0.3)
+        from textual.command import CommandPalette
+        from textual.widgets import Input
+        palette = app.screen
+        assert isinstance(palette, CommandPalette)
+        palette.query_one(Input).value = "Plot present_voltage"
+        for _ in range(20):  # the palette searches in the background
+            await pilot.pause(0.05)
+            if "present_voltage" in str(palette.query_one("CommandList").get_option_at_index(0).prompt):
+                break
         await pilot.press("enter")
         await pilot.pause()
         assert app.store.plot_register == "present_voltage"

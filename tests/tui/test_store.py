@@ -215,9 +215,9 @@ def test_plot_series_of_a_register():
 
 
 def test_a_large_capture_stays_within_the_history_and_its_memory():
-    """200,000 frames of hexapod traffic through a 20,000-record store: memory stays bounded."""
+    """200,000 frames of hexapod traffic through a 15,000-record store: memory stays bounded."""
     frames = hexapod_frames(200_000)
-    history = 20_000
+    history = 15_000
     store = Store(history=history)
     dec = Decoder(DecodeOptions())
 
@@ -229,14 +229,14 @@ def test_a_large_capture_stays_within_the_history_and_its_memory():
             store.add(batch, servos=servo_snapshot(dec.bus))
             assert len(store) <= history
 
-    feed(frames[:170_000])
-    # Trace only the last 30,000 frames (tracing is slow): every record the store holds by then was
+    feed(frames[:180_000])
+    # Trace only the last 20,000 frames (tracing is slow): every record the store holds by then was
     # allocated while tracing, so the traced total covers the whole held history.
     gc.collect()
     tracemalloc.start()
     try:
         base = tracemalloc.get_traced_memory()[0]
-        feed(frames[170_000:])
+        feed(frames[180_000:])
         store.add(dec.close())
         gc.collect()
         held = tracemalloc.get_traced_memory()[0] - base
