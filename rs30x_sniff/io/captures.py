@@ -31,15 +31,8 @@ def detect_format(path: str) -> str:
     ext = p.suffix.lower()
     if ext in _EXTENSIONS:
         return _EXTENSIONS[ext]
-    try:
-        with open(p, "rb") as f:
-            head = f.read(4096)
-    except FileNotFoundError:
-        raise CaptureError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise CaptureError(f"{path}: is a directory, not a capture") from None
-    except OSError as e:
-        raise CaptureError(f"{path}: cannot read: {e.strerror}") from None
+    with open_capture(path) as f:
+        head = f.read(4096)
     if head.startswith(MCAP_MAGIC):
         return MCAP
     text_kind = _sniff_text(head)
@@ -92,9 +85,8 @@ def read_capture(path: str, fmt: str | None = None) -> Iterator[Chunk]:
     raise CaptureError(f"{path}: unknown input format {fmt!r} (use one of {', '.join(FORMATS)})")
 
 
-def _open(path: str) -> BinaryIO:
-    if path == "-":
-        return sys.stdin.buffer
+def open_capture(path: str) -> BinaryIO:
+    """Open a capture for binary reading; failure is a one-line CaptureError naming the file."""
     try:
         return open(path, "rb")
     except FileNotFoundError:
@@ -103,6 +95,10 @@ def _open(path: str) -> BinaryIO:
         raise CaptureError(f"{path}: is a directory, not a capture") from None
     except OSError as e:
         raise CaptureError(f"{path}: cannot read: {e.strerror}") from None
+
+
+def _open(path: str) -> BinaryIO:
+    return sys.stdin.buffer if path == "-" else open_capture(path)
 
 
 def _read_binary(path: str) -> Iterator[Chunk]:

@@ -17,7 +17,7 @@ from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, Header, Message, Metadata
 from mcap.stream_reader import breakup_chunk
 
-from .captures import MCAP_MAGIC, CaptureError
+from .captures import MCAP_MAGIC, CaptureError, open_capture
 from .mcap_sink import METADATA_NAME, MODELS_METADATA_NAME, RAW_TOPIC
 
 _RECORD_HEAD = struct.Struct("<BQ")
@@ -47,15 +47,7 @@ class McapRawReader:
 
     def __iter__(self) -> Iterator[tuple[bytes, float | None, int]]:
         path = self.path
-        try:
-            f = open(path, "rb")
-        except FileNotFoundError:
-            raise CaptureError(f"{path}: no such file") from None
-        except IsADirectoryError:
-            raise CaptureError(f"{path}: is a directory, not a capture") from None
-        except OSError as e:
-            raise CaptureError(f"{path}: cannot read: {e.strerror}") from None
-        with f:
+        with open_capture(path) as f:
             size = os.fstat(f.fileno()).st_size
             if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
                 raise CaptureError(f"{path}: not an MCAP file (bad magic)")

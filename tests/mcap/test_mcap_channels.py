@@ -4,31 +4,18 @@ from __future__ import annotations
 
 import json
 from collections import Counter, defaultdict
-from dataclasses import dataclass
 
 import jsonschema
 import pytest
 from mcap.reader import make_reader
 
 from rs30x_sniff.io.mcap_sink import McapSink, transaction_json
+from rs30x_sniff.lint import Finding
 from rs30x_sniff.pipeline import Decoder
 from rs30x_sniff.schemas import SCHEMA_FILES, schema
 from rs30x_sniff.wire import encode_return, encode_short
 
 from .conftest import chunks_of, hexapod_frames, to_mcap
-
-
-@dataclass(frozen=True)
-class FakeFinding:
-    """Stands in for rs30x_sniff.lint.Finding (same attributes) to drive sink.findings directly."""
-
-    code: str
-    name: str
-    severity: str
-    message: str
-    offset: int
-    t: float | None
-    id: int | None
 
 
 def read_all(path):
@@ -54,9 +41,9 @@ def test_every_message_validates_against_its_channel_schema(sample_capture, tmp_
                 sink.record(rec)
         for rec in dec.close():
             sink.record(rec)
-        sink.findings([FakeFinding("F001", "checksum-mismatch", "error", "bad sum", 12, None, 3),
-                       FakeFinding("W002", "something", "warning", "odd", 40, 1.25, None),
-                       FakeFinding("I003", "note", "info", "fyi", 50, 2.5, 1)])
+        sink.findings([Finding("F001", "checksum-mismatch", "error", "bad sum", 12, None, 3),
+                       Finding("W002", "something", "warning", "odd", 40, 1.25, None),
+                       Finding("I003", "note", "info", "fyi", 50, 2.5, 1)])
     validators = {}
     seen = Counter()
     for sch, ch, msg in read_all(out):
@@ -136,8 +123,8 @@ def test_findings_are_foxglove_logs(tmp_path):
     out = tmp_path / "f.mcap"
     with McapSink(str(out), source="cap.hex", baud=115200, time_base="synthetic") as sink:
         sink.raw(bytes(100), None)
-        sink.findings([FakeFinding("F001", "checksum-mismatch", "error", "sum is 1C, expected 1D", 25, None, 3),
-                       FakeFinding("W101", "slow-reply", "warning", "late", 50, 1.5, None)])
+        sink.findings([Finding("F001", "checksum-mismatch", "error", "sum is 1C, expected 1D", 25, None, 3),
+                       Finding("W101", "slow-reply", "warning", "late", 50, 1.5, None)])
     logs = [(m.log_time, json.loads(m.data)) for _, c, m in read_all(out) if c.topic == "/rs30x/diagnostics"]
     (t0, a), (t1, b) = logs
     assert a["level"] == 4 and b["level"] == 3
