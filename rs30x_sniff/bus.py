@@ -152,7 +152,7 @@ class ServoState:
         self.known = 0  # bit a set once address a of image holds a value seen on the bus
         self.requests = 0
         self.returns = 0
-        self.latencies: deque[float] = deque(maxlen=4096)  # recent reply latencies (bounded for live use)
+        self.latencies: deque[float] = deque(maxlen=1024)  # recent reply latencies (bounded for live use)
         self.last_t: float | None = None
 
     def store(self, address: int, data: bytes, t: float | None = None) -> None:
