@@ -1,0 +1,71 @@
+"""Benchmark: how long the monitor takes to open a large capture, against decoding and linting it.
+
+Run: python bench/monitor.py [--frames N]
+Target (issue 6): a 1,000,000-frame capture opens in about the time it takes to decode it.
+The monitor runs headless (Textual's test driver) at 160x48; "open" ends when every record is in
+the store and on the timeline.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from traffic import hexapod_frames  # noqa: E402
+
+from rs30x_sniff.io.captures import read_capture, write_capture  # noqa: E402
+from rs30x_sniff.lint import Linter  # noqa: E402
+from rs30x_sniff.pipeline import DecodeOptions, Decoder  # noqa: E402
+from rs30x_sniff.tui.app import make_app  # noqa: E402
+from rs30x_sniff.tui.sources import FileSource  # noqa: E402
+
+
+def decode_and_lint(path: str) -> int:
+    dec = Decoder(None, Linter())
+    n = 0
+    for data, t in read_capture(path):
+        n += len(dec.feed(data, t))
+    return n + len(dec.close())
+
+
+async def open_in_monitor(path: str, limit: float) -> tuple[float, int, int]:
+    app = make_app(FileSource(path), DecodeOptions())
+    t0 = time.perf_counter()
+    async with app.run_test(size=(160, 48)) as pilot:
+        while not app.done and time.perf_counter() - t0 < limit:
+            await pilot.pause(0.05)
+        await pilot.pause()
+        elapsed = time.perf_counter() - t0
+        return elapsed, app.store.stats.records, app.store.memory_estimate()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=1_000_000)
+    ap.add_argument("--limit", type=float, default=600.0, help="give up after this many seconds")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / "big.thex")
+        write_capture(path, hexapod_frames(args.frames), "timestamped")
+        size = Path(path).stat().st_size
+        t0 = time.perf_counter()
+        n = decode_and_lint(path)
+        t_decode = time.perf_counter() - t0
+        t_open, records, memory = asyncio.run(open_in_monitor(path, args.limit))
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"capture: {args.frames} frames, {size / 1e6:.1f} MB timestamped hex")
+    print(f"decode + lint:        {t_decode:7.1f} s  ({n} records)")
+    print(f"monitor open (all):   {t_open:7.1f} s  ({records} records)   ratio {t_open / t_decode:.2f}")
+    print(f"store memory estimate: {memory / 1e6:.0f} MB; peak RSS of this process {rss:.0f} MB")
+    print("target: ratio about 1")
+
+
+if __name__ == "__main__":
+    main()
