@@ -5,12 +5,14 @@ from .events import Ack, Event, Garbage, LongPacket, LongRecord, Nack, ReturnPac
 from .framing import FrameDecoder, decode_all
 from .memmap import Field, Model, ModelError, ModelRegistry, Register, default_registry, load_model
 from .pipeline import DecodeOptions, Decoder, decode_records
+from .lint import RULES, Finding, LintConfig, Linter
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Ack", "BusTracker", "DecodeOptions", "Decoder", "Event", "Field", "FrameDecoder", "Garbage",
-    "LongPacket", "LongRecord", "Model", "ModelError", "ModelRegistry", "Nack", "Record", "Register",
+    "Ack", "BusTracker", "DecodeOptions", "Decoder", "Event", "Field", "Finding", "FrameDecoder", "Garbage",
+    "LintConfig", "Linter", "LongPacket", "LongRecord", "Model", "ModelError", "ModelRegistry", "Nack", "RULES",
+    "Record", "Register",
     "ReturnPacket", "ServoState", "ShortPacket", "decode_all", "decode_records", "default_registry",
     "load_model", "__version__",
 ]
