@@ -71,15 +71,17 @@ def summary(rec: Record, short_names: bool = False) -> str:
     """A one-line description of the record without time, offset or direction."""
     ev = rec.event
     word = kind_word(rec)
-    if not ev.checksum_ok:
-        word += "(BAD-SUM)"
     t = type(ev)
+    if not ev.checksum_ok and t is not Garbage:
+        word += "(BAD-SUM)"
     if t is Garbage:
         shown = ev.raw[:16].hex(" ").upper() + (" ..." if len(ev.raw) > 16 else "")
         return f"{word} {len(ev.raw)}B {ev.reason}: {shown}"
     parts = [word]
     if t is ShortPacket or t is ReturnPacket:
         parts.append(f"id={ev.id}")
+    elif rec.is_reply and rec.id is not None:  # ACK/NACK: the ID of the request they answer
+        parts.append(f"id={rec.id}")
     if t is LongPacket:
         by_id: dict[int, list[str]] = {}
         for f in rec.fields:
@@ -116,7 +118,7 @@ def text_line(rec: Record) -> str:
     ts = f"{t:12.6f}" if t is not None else f"{'-':>12}"
     line = f"{ts} @{rec.offset:<8} {direction(rec):<5} {summary(rec)}"
     if rec.findings:
-        line += "  [" + " ".join(f"{d.code}" for d in rec.findings) + "]"
+        line += "  [" + ", ".join(f"{d.code} {d.name}" for d in rec.findings) + "]"
     return line
 
 

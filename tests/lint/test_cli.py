@@ -275,7 +275,7 @@ def test_docs_rules_md_is_up_to_date():
 def test_decode_shows_findings(capsys):
     assert main(["decode", EXAMPLES]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert any(line.startswith("           - @86 ") and line.endswith("[P008 P009]") for line in out)
+    assert any(line.startswith("           - @86 ") and line.endswith("[P008 command-packet-format, P009 combined-flash-reboot]") for line in out)
     assert out[-1].startswith("           - @59       lint  Q002 id-change-not-persisted")
     assert main(["decode", EXAMPLES, "--format", "jsonl", "--select", "P009"]) == 0
     objs = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
