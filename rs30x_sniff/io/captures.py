@@ -118,22 +118,25 @@ def _read_text(path: str, timestamped: bool) -> Iterator[Chunk]:
     f = _open(path)
     pending = bytearray()  # untimed hex lines are merged into larger chunks
     try:
+        time_ok = _TIME_TOKEN.match
         for lineno, line in enumerate(f, 1):
-            tokens = line.split(b"#", 1)[0].split()
-            if not tokens:
-                continue
+            body = line.partition(b"#")[0]
             t = None
             if timestamped:
-                head = tokens.pop(0)
-                if not _TIME_TOKEN.match(head) and not head.isdigit():
+                parts = body.split(None, 1)
+                if not parts:
+                    continue
+                head = parts[0]
+                body = parts[1] if len(parts) > 1 else b""
+                if not time_ok(head) and not head.isdigit():
                     raise CaptureError(f"{path}:{lineno}: expected a time in seconds, got {_show(head)}")
                 t = float(head)
             try:
-                data = bytes.fromhex(b"".join(tokens).decode("ascii"))
-                if any(len(tok) % 2 for tok in tokens):
-                    raise ValueError
+                # fromhex skips the whitespace between bytes: one C call per line.
+                data = bytes.fromhex(body.decode("ascii"))
             except (ValueError, UnicodeDecodeError):
-                bad = next((tok for tok in tokens if not _HEX_TOKEN.match(tok)), tokens[0])
+                tokens = body.split()
+                bad = next((tok for tok in tokens if not _HEX_TOKEN.match(tok)), tokens[0] if tokens else body)
                 raise CaptureError(f"{path}:{lineno}: not a hex byte: {_show(bad)}") from None
             if timestamped:
                 if data:
