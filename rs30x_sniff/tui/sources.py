@@ -15,6 +15,14 @@ POLL_SECONDS = 0.1       # a live source yields at least this often, so commands
 SIMULATE_SECONDS = 3600.0  # a simulated session runs for an hour of bus time unless the user quits
 
 
+def _rest(src) -> Iterator[Chunk]:
+    """The chunk a source read ahead (to fail before the screen starts), then the rest of its iterator."""
+    if src._first is not None:
+        first, src._first = src._first, None
+        yield first
+    yield from src._it
+
+
 class Source(Protocol):
     name: str        # what the header shows
     kind: str        # "file", "replay", "port", "simulator"
@@ -65,10 +73,7 @@ class FileSource:
         self._first = next(self._it, None)  # reads the head now, so a bad file fails before the screen starts
 
     def _all(self) -> Iterator[Chunk]:
-        if self._first is not None:
-            first, self._first = self._first, None
-            yield first
-        yield from self._it
+        return _rest(self)
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
         for data, t in self._all():
@@ -166,10 +171,7 @@ class SimulatorSource:
             raise CaptureError(f"--simulate {scenario}: {e}") from None
 
     def _all(self) -> Iterator[Chunk]:
-        if self._first is not None:
-            first, self._first = self._first, None
-            yield first
-        yield from self._it
+        return _rest(self)
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
         # The simulator computes far faster than real time: pacing makes it look like a live bus.

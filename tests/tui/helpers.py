@@ -43,6 +43,26 @@ class FakeFinding:
     id: int | None = None
 
 
+class GatedSource:
+    """A live-looking source that pauses before the chunks at ``stops`` until ``gate`` is set."""
+
+    name, kind, time_base = "gated", "port", "monotonic"
+
+    def __init__(self, chunks, gate, stops=(), rearm: bool = False):
+        self._chunks, self.gate, self.stops, self.rearm = chunks, gate, set(stops), rearm
+
+    def chunks(self, stop):
+        for i, c in enumerate(self._chunks):
+            if i in self.stops:
+                self.gate.wait(5)
+                if self.rearm:
+                    self.gate.clear()
+            yield c
+
+    def close(self):
+        pass
+
+
 class FrozenClock:
     """A clock the test moves by hand (the header's elapsed time and value flashes read it)."""
 

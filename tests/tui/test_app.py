@@ -17,7 +17,7 @@ from rs30x_sniff.tui.sources import FileSource
 from rs30x_sniff.tui.timeline import Timeline
 from rs30x_sniff.wire import encode_return, encode_short
 
-from .helpers import MANUAL, SIZE, FrozenClock, wait_done
+from .helpers import MANUAL, SIZE, FrozenClock, GatedSource, wait_done
 
 
 def manual_app(**kw):
@@ -106,19 +106,7 @@ async def test_space_pauses_the_timeline_but_not_the_capture():
     gate = threading.Event()
     chunks = [(encode_short(1, 0, 30, bytes((i, 0))), i * 0.01) for i in range(40)]
 
-    class Gated:
-        name, kind, time_base = "gated", "port", "monotonic"
-
-        def chunks(self, stop):
-            for i, c in enumerate(chunks):
-                if i == 10:
-                    gate.wait(5)
-                yield c
-
-        def close(self):
-            pass
-
-    app = make_app(Gated(), DecodeOptions(), clock=FrozenClock(), post_interval=0)
+    app = make_app(GatedSource(chunks, gate, (10,)), DecodeOptions(), clock=FrozenClock(), post_interval=0)
     async with app.run_test(size=SIZE) as pilot:
         for _ in range(100):
             await pilot.pause(0.02)
@@ -250,20 +238,8 @@ async def test_r_records_to_mcap_and_stops(tmp_path):
     gate = threading.Event()
     chunks = [(encode_short(1, 0, 30, bytes((i, 0))), i * 0.01) for i in range(30)]
 
-    class Gated:
-        name, kind, time_base = "gated", "port", "monotonic"
-
-        def chunks(self, stop):
-            for i, c in enumerate(chunks):
-                if i in (10, 20):
-                    gate.wait(5)
-                    gate.clear()
-                yield c
-
-        def close(self):
-            pass
-
-    app = make_app(Gated(), DecodeOptions(), clock=FrozenClock(), wall=lambda: 0.0, record_dir=str(tmp_path),
+    app = make_app(GatedSource(chunks, gate, (10, 20), rearm=True), DecodeOptions(), clock=FrozenClock(),
+                   wall=lambda: 0.0, record_dir=str(tmp_path),
                    post_interval=0)
     async with app.run_test(size=SIZE) as pilot:
         for _ in range(100):
@@ -419,19 +395,7 @@ async def test_changed_servo_values_flash_briefly():
         chunks.append((encode_return(3, 42, pos.to_bytes(2, "little") + bytes(16)), k * 1.0 + 0.001))
     gate = threading.Event()
 
-    class Gated:
-        name, kind, time_base = "gated", "port", "monotonic"
-
-        def chunks(self, stop):
-            for i, c in enumerate(chunks):
-                if i == 2:
-                    gate.wait(5)
-                yield c
-
-        def close(self):
-            pass
-
-    app = make_app(Gated(), DecodeOptions(), clock=clock, post_interval=0, tick_interval=60)
+    app = make_app(GatedSource(chunks, gate, (2,)), DecodeOptions(), clock=clock, post_interval=0, tick_interval=60)
     async with app.run_test(size=SIZE) as pilot:
         for _ in range(100):
             await pilot.pause(0.02)
@@ -476,19 +440,7 @@ async def test_batches_arriving_under_the_help_screen_are_not_lost():
     gate = threading.Event()
     chunks = [(encode_short(1, 0, 30, bytes((i, 0))), i * 0.01) for i in range(20)]
 
-    class Gated:
-        name, kind, time_base = "gated", "port", "monotonic"
-
-        def chunks(self, stop):
-            for i, c in enumerate(chunks):
-                if i == 5:
-                    gate.wait(5)
-                yield c
-
-        def close(self):
-            pass
-
-    app = make_app(Gated(), DecodeOptions(), clock=FrozenClock(), post_interval=0)
+    app = make_app(GatedSource(chunks, gate, (5,)), DecodeOptions(), clock=FrozenClock(), post_interval=0)
     async with app.run_test(size=SIZE) as pilot:
         await pilot.press("question_mark")
         assert isinstance(app.screen, HelpScreen)

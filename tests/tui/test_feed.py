@@ -13,7 +13,7 @@ from rs30x_sniff.tui.feed import Feeder, default_linter
 from rs30x_sniff.tui.sources import FileSource, ReplaySource, SimulatorSource, paced
 from rs30x_sniff.wire import encode_short
 
-from .helpers import MANUAL
+from .helpers import GatedSource, MANUAL
 
 
 def run_feeder(source, **kw):
@@ -78,21 +78,10 @@ def test_recording_writes_an_mcap_of_what_follows(tmp_path):
     chunks = [(encode_short(1, 0, 30, bytes((i, 0))), i * 0.01) for i in range(50)]
     go = threading.Event()
 
-    class Gated:
-        name, kind, time_base = "gated", "port", "monotonic"
-
-        def chunks(self, stop):
-            for i, c in enumerate(chunks):
-                if i == 10:
-                    go.wait(5)  # the recording starts before chunk 10 is read
-                yield c
-
-        def close(self):
-            pass
-
     out = tmp_path / "rec.mcap"
     batches = []
-    feeder = Feeder(Gated(), DecodeOptions(), batches.append, interval=0)
+    # The recording starts before chunk 10 is read.
+    feeder = Feeder(GatedSource(chunks, go, (10,)), DecodeOptions(), batches.append, interval=0)
     th = threading.Thread(target=feeder.run)
     th.start()
     feeder.start_recording(str(out))
