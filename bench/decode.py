@@ -16,7 +16,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from traffic import hexapod_frames  # noqa: E402
+from traffic import bench_inputs  # noqa: E402
 
 from rs30x_sniff.pipeline import Decoder  # noqa: E402
 
@@ -76,11 +76,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=300_000)
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    chunks = hexapod_frames(args.frames)
-    data = b"".join(d for d, _ in chunks)
-    # The decoder is fed in 4 KiB blocks, as a file or serial reader would; the times are then
-    # per block (first byte), so this run measures the untimed path; --timed measures per-frame chunks.
-    blocks = [(data[i:i + 4096], None) for i in range(0, len(data), 4096)]
+    chunks, data, blocks = bench_inputs(args.frames)
+    # Untimed 4 KiB blocks (as a file reader delivers them) and timestamped per-frame chunks.
     t_bare, n_bare = best_of(bare_loop, data, args.repeat)
     t_full, (n_full, n_fields) = best_of(full_decode, blocks, args.repeat)
     t_timed, (n_timed, _) = best_of(full_decode, chunks, args.repeat)

@@ -13,7 +13,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from decode import bare_loop, best_of  # noqa: E402
-from traffic import hexapod_frames  # noqa: E402
+from traffic import bench_inputs  # noqa: E402
 
 from rs30x_sniff.lint import LintConfig, Linter  # noqa: E402
 from rs30x_sniff.pipeline import Decoder  # noqa: E402
@@ -42,9 +42,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=300_000)
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    chunks = hexapod_frames(args.frames)
-    data = b"".join(d for d, _ in chunks)
-    blocks = [(data[i:i + 4096], None) for i in range(0, len(data), 4096)]
+    chunks, data, blocks = bench_inputs(args.frames)
     t_bare, n_bare = best_of(bare_loop, data, args.repeat)
     rows = []
     for label, feed in (("4 KiB blocks, no timestamps", blocks), ("one chunk per frame, timestamped", chunks)):

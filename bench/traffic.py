@@ -54,3 +54,11 @@ def hexapod_frames(frames: int, baud: int = 115200, seed: int = 0) -> list[tuple
 def hexapod_bytes(frames: int, baud: int = 115200, seed: int = 0) -> bytes:
     """The same traffic as one byte string (no timestamps)."""
     return b"".join(d for d, _ in hexapod_frames(frames, baud, seed))
+
+
+def bench_inputs(frames: int) -> tuple[list[tuple[bytes, float]], bytes, list[tuple[bytes, None]]]:
+    """The benchmarks' three views of one capture: timestamped per-frame chunks, all the bytes, and
+    the bytes in untimed 4 KiB blocks (as a file or serial reader delivers them)."""
+    chunks = hexapod_frames(frames)
+    data = b"".join(d for d, _ in chunks)
+    return chunks, data, [(data[i:i + 4096], None) for i in range(0, len(data), 4096)]
