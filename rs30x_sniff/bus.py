@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from collections import deque
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
+from weakref import ref
 
 from .events import Ack, AnyEvent, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
 from .memmap import Field, Model, ModelRegistry, default_registry
@@ -24,7 +25,8 @@ DEFAULT_REPLY_TIMEOUT = 0.050
 class Record:
     """An event as the rest of the program sees it: decoded fields, its pair, its servo's model."""
 
-    __slots__ = ("event", "index", "model", "request", "reply", "latency", "status", "findings", "_fields",
+    __slots__ = ("event", "index", "model", "request", "_reply", "latency", "status", "findings", "_fields",
+                 "__weakref__",
                  "_values", "_models", "resolved_by")
 
     def __init__(self, event: AnyEvent, index: int, model: Model | None, models: Any = None) -> None:
@@ -32,7 +34,7 @@ class Record:
         self.index = index
         self.model = model
         self.request: Record | None = None
-        self.reply: Record | None = None
+        self._reply: Callable[[], Record | None] | None = None
         self.latency: float | None = None
         self.status: str | None = None
         self.findings: list = []
@@ -42,6 +44,22 @@ class Record:
         # For a MISSING request: the record whose arrival settled that no reply would come (None at end
         # of input). The linter tells a missing reply from a host that did not wait by it.
         self.resolved_by: Record | None = None
+
+    @property
+    def reply(self) -> Record | None:
+        """For a request: the reply that answered it.
+
+        Held by a weak reference: with a strong link both ways every transaction would be a reference
+        cycle, and the cyclic garbage collector would cost a third of the decoding time. The reply
+        always leaves the tracker in the same batch as its request, so whoever keeps the request and
+        its batch keeps both.
+        """
+        r = self._reply
+        return None if r is None else r()
+
+    @reply.setter
+    def reply(self, rec: Record | None) -> None:
+        self._reply = None if rec is None else ref(rec)
 
     # Convenience views of the event.
     @property
