@@ -66,6 +66,7 @@ class Feeder:
         self.finished = False
         self.recording: str | None = None
         self._commands: SimpleQueue = SimpleQueue()
+        self._commands_waiting = False  # a plain flag, so the per-chunk check takes no lock
         self._sink: Any = None
         self._seen_findings = 0
         self._note: str | None = None
@@ -76,9 +77,11 @@ class Feeder:
 
     def start_recording(self, path: str) -> None:
         self._commands.put(("record", path))
+        self._commands_waiting = True
 
     def stop_recording(self) -> None:
         self._commands.put(("stop-record", None))
+        self._commands_waiting = True
 
     # ---- the thread --------------------------------------------------------------------------------
     def run(self) -> None:
@@ -145,6 +148,9 @@ class Feeder:
 
     # ---- recording ---------------------------------------------------------------------------------
     def _apply_commands(self) -> None:
+        if not self._commands_waiting:
+            return
+        self._commands_waiting = False  # cleared before draining: a command put meanwhile sets it again
         while True:
             try:
                 cmd, arg = self._commands.get_nowait()
