@@ -90,6 +90,8 @@ def open_capture(path: str) -> BinaryIO:
     try:
         return open(path, "rb")
     except FileNotFoundError:
+        if str(path).startswith("/dev/"):
+            raise CaptureError(f"{path}: no such port (is the adapter plugged in?)") from None
         raise CaptureError(f"{path}: no such file") from None
     except IsADirectoryError:
         raise CaptureError(f"{path}: is a directory, not a capture") from None
