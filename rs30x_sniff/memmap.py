@@ -192,11 +192,12 @@ class Layout:
 
     ``values(data)`` turns the bytes into engineering values with one ``struct.unpack`` and one
     generated expression, which is what lets annotation keep up with a saturated bus; ``fields``
-    builds the Field objects from those values only when somebody looks at them.
+    builds the Field objects from those values only when somebody looks at them. ``unpack_raw(data)``
+    gives the raw integers instead (one per part, VIDs included), for checks on raw values.
     With ``records`` > 0 it is a long packet's data: that many repeats of VID + ``length`` bytes.
     """
 
-    __slots__ = ("parts", "size", "records", "values", "_struct")
+    __slots__ = ("parts", "size", "records", "values", "unpack_raw")
 
     def __init__(self, model: Model, address: int, length: int, records: int = 0) -> None:
         parts = []
@@ -225,8 +226,7 @@ class Layout:
                     codes.append("h" if reg.signed else "H")
                 exprs.append(_conversion(reg, partial, f"r[{k}]", env, j))
                 k += 1
-        self._struct = struct.Struct("<" + "".join(codes))
-        unpack = self._struct.unpack
+        unpack = self.unpack_raw = struct.Struct("<" + "".join(codes)).unpack
         if all(e == f"r[{i}]" for i, e in enumerate(exprs)):
             self.values = unpack
         else:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import struct
-
 from ..memmap import Model
 
 # Registers the sequence rules follow, and the Shadow attribute each one lands in.
@@ -47,25 +45,15 @@ class Plan:
     """
 
     __slots__ = ("model", "address", "n", "parts", "index", "read_only", "reserved", "partial", "ranged",
-                 "tracked", "sets_torque", "codes", "unpack", "_long", "target_checks", "apply")
+                 "tracked", "sets_torque", "unpack", "target_checks", "apply")
 
     def __init__(self, model: Model, address: int, n: int) -> None:
         self.model, self.address, self.n = model, address, n
-        parts, codes = [], []
-        a, end = address, address + n
-        while a < end:
-            reg = model.register_at(a)
-            if a == reg.address and a + reg.size <= end:
-                parts.append((reg, None))
-                codes.append(("h" if reg.signed else "H") if reg.size == 2 else ("b" if reg.signed else "B"))
-                a += reg.size
-            else:
-                parts.append((reg, "low" if a == reg.address else "high"))
-                codes.append("B")
-                a += 1
+        # The memory map's own layout of these bytes (whole registers, or one byte of a 2-byte one).
+        layout = model.layout(address, n)
+        parts = [(reg, partial) for _, _, reg, partial in layout.parts]
         self.parts = tuple(parts)
-        self.codes = "".join(codes)
-        self.unpack = struct.Struct("<" + self.codes).unpack
+        self.unpack = layout.unpack_raw
         self.index = {reg.name: j for j, (reg, p) in enumerate(parts) if reg.name and not p}
         seen = set()
         ro, res, part, ranged = [], [], [], []
@@ -97,12 +85,8 @@ class Plan:
         env: dict = {}
         exec(src, env)  # noqa: S102 - generated from register names of the validated memory map
         self.apply = env["apply"]
-        self._long: dict[int, object] = {}
         self.target_checks: tuple | None = None  # filled by the linter: the target rules this write wakes
 
     def unpack_long(self, count: int):
         """An unpacker for ``count`` records of VID + these bytes (one call for a whole long packet)."""
-        fn = self._long.get(count)
-        if fn is None:
-            fn = self._long[count] = struct.Struct("<" + ("B" + self.codes) * count).unpack
-        return fn
+        return self.model.long_layout(self.address, self.n + 1, count).unpack_raw
