@@ -189,20 +189,13 @@ class ServoState:
     def get(self, name: str) -> Any:
         """Latest known engineering value of a register, or None if never seen."""
         reg = self.model.register(name)
-        a = reg.address
-        if not self.is_known(a, reg.size):
-            return None
-        return reg.convert(int.from_bytes(self.image[a:a + reg.size], "little", signed=reg.signed))
+        return reg.value_in(0, self.image) if self.is_known(reg.address, reg.size) else None
 
     def values(self) -> dict[str, Any]:
         """Every named register whose value is known."""
-        out = {}
         image = self.image
-        for reg in self.model.registers:
-            if reg.name and self.is_known(reg.address, reg.size):
-                a = reg.address
-                out[reg.name] = reg.convert(int.from_bytes(image[a:a + reg.size], "little", signed=reg.signed))
-        return out
+        return {reg.name: reg.value_in(0, image) for reg in self.model.registers
+                if reg.name and self.is_known(reg.address, reg.size)}
 
 
 class BusTracker:

@@ -79,6 +79,14 @@ class Register:
             value = raw_value * scale
         return value + self.offset if self.offset else value
 
+    def value_in(self, address: int, data: bytes | bytearray) -> Any:
+        """Engineering value of this register in ``data`` that starts at memory ``address``;
+        None unless ``data`` holds all of the register."""
+        start = self.address - address
+        if start < 0 or start + self.size > len(data):
+            return None
+        return self.convert(int.from_bytes(data[start:start + self.size], "little", signed=self.signed))
+
     def to_raw(self, value: float) -> int:
         """Inverse of :meth:`convert` for scaled numbers (used by encoders and the simulator)."""
         if self.table is not None:

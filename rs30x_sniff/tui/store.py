@@ -113,13 +113,9 @@ def register_value(rec: Record, servo_id: int, name: str) -> Any:
     else:
         return None
     try:
-        reg = model.register(name)
+        return model.register(name).value_in(address, data)
     except KeyError:
         return None
-    start = reg.address - address
-    if start < 0 or start + reg.size > len(data):
-        return None
-    return reg.convert(int.from_bytes(data[start:start + reg.size], "little", signed=reg.signed))
 
 
 @dataclass
