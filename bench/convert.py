@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import gc
 import io
-import os
 import subprocess
 import sys
 import tempfile

@@ -6,7 +6,7 @@ from collections import deque
 from typing import Any, Callable, Iterable
 from weakref import ref
 
-from .events import Ack, AnyEvent, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
+from .events import Ack, AnyEvent, LongPacket, Nack, ReturnPacket, ShortPacket
 from .memmap import Field, Model, ModelRegistry, default_registry
 from .wire import BROADCAST_ID, RETURN_ACK, RETURN_MODE_RANGES, RETURN_SPECIFIED
 
@@ -108,14 +108,26 @@ class Record:
 
     @property
     def fields(self) -> list[Field]:
-        """Named, scaled fields the packet carries, with their raw bytes (built on first use)."""
+        """Named, scaled fields the packet carries, with their raw bytes (built on first use, then kept)."""
         f = self._fields
         if f is None:
-            lay, data = self._layout()
-            f = self._fields = [] if lay is None else (
-                lay.fields(data, self.values, self.event.id) if not isinstance(lay, list) else
-                [x for (sub, d, vid) in lay for x in sub.fields(d, sub.values(d), vid)])
+            f = self._fields = self._build_fields(self.values)
         return f
+
+    def peek_fields(self) -> list[Field]:
+        """The fields, without keeping them (or their values) on the record: for views that glance at
+        many records once, such as a timeline or a search through a long history."""
+        if self._fields is not None:
+            return self._fields
+        return self._build_fields(self._values)
+
+    def _build_fields(self, values: tuple | None) -> list[Field]:
+        lay, data = self._layout()
+        if lay is None:
+            return []
+        if isinstance(lay, list):
+            return [x for (sub, d, vid) in lay for x in sub.fields(d, sub.values(d), vid)]
+        return lay.fields(data, lay.values(data) if values is None else values, self.event.id)
 
     def _layout(self):
         """(layout, data) for the packet's data; for a long packet to servos of mixed models, a list."""

@@ -67,30 +67,41 @@ def field_text(f: Field) -> str:
     return f"{f.label}={format_value(f)}"
 
 
-def summary(rec: Record, short_names: bool = False) -> str:
-    """A one-line description of the record without time, offset or direction."""
+def bad_sum(rec: Record) -> bool:
+    """A packet whose Sum does not match (garbage has no Sum to match)."""
+    return not rec.event.checksum_ok and type(rec.event) is not Garbage
+
+
+def summary(rec: Record, *, bare: bool = False, keep: bool = True) -> str:
+    """A one-line description of the record without time, offset or direction.
+
+    ``bare`` leaves out what a table shows in columns of its own (the kind word, the ID, the
+    latency); ``keep=False`` decodes the fields without keeping them on the record.
+    """
     ev = rec.event
-    word = kind_word(rec)
     t = type(ev)
-    if not ev.checksum_ok and t is not Garbage:
-        word += "(BAD-SUM)"
+    fields = rec.fields if keep else rec.peek_fields()
+    parts = []
+    if not bare:
+        parts.append(kind_word(rec) + ("(BAD-SUM)" if bad_sum(rec) else ""))
     if t is Garbage:
         shown = ev.raw[:16].hex(" ").upper() + (" ..." if len(ev.raw) > 16 else "")
-        return f"{word} {len(ev.raw)}B {ev.reason}: {shown}"
-    parts = [word]
-    if t is ShortPacket or t is ReturnPacket:
+        return " ".join(parts + [f"{len(ev.raw)}B {ev.reason}: {shown}"])
+    if bare:
+        pass
+    elif t is ShortPacket or t is ReturnPacket:
         parts.append(f"id={ev.id}")
     elif rec.is_reply and rec.id is not None:  # ACK/NACK: the ID of the request they answer
         parts.append(f"id={rec.id}")
     if t is LongPacket:
         by_id: dict[int, list[str]] = {}
-        for f in rec.fields:
+        for f in fields:
             if not _shown(f):
                 continue
             by_id.setdefault(f.id, []).append(field_text(f))
         parts += [f"{vid}:{','.join(items)}" for vid, items in by_id.items()]
     else:
-        parts += [field_text(f) for f in rec.fields if _shown(f)]
+        parts += [field_text(f) for f in fields if _shown(f)]
     if t is ShortPacket:
         names = rec.read_names
         if names and ev.read_range:
@@ -103,7 +114,7 @@ def summary(rec: Record, short_names: bool = False) -> str:
     if rec.is_reply:
         if rec.request is not None:
             parts.append(f"reply_to=@{rec.request.offset}")
-        if rec.latency is not None:
+        if rec.latency is not None and not bare:
             parts.append(f"latency={rec.latency * 1e3:.3f}ms")
         if rec.status and rec.status != "paired":
             parts.append(rec.status.upper())

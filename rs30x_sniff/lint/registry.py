@@ -6,6 +6,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
+from ..wire import REQUEST_HEADER, checksum
+
 SEVERITIES = ("info", "warning", "error")
 SEVERITY_RANK = {"info": 1, "warning": 2, "error": 3}
 FAMILIES = {"F": "Framing", "P": "Packet structure", "M": "Memory map", "B": "Bus", "S": "Servo status",
@@ -140,20 +142,9 @@ class Registry:
 RULES = Registry()
 
 
-def frame(*body: int, header: bytes = b"\xfa\xaf") -> bytes:
+def frame(*body: int, header: bytes = REQUEST_HEADER) -> bytes:
     """A frame from its ID..data bytes with the right Sum (for doc examples of malformed packets)."""
-    x = 0
-    for b in body:
-        x ^= b
-    return header + bytes(body) + bytes((x,))
-
-
-def frame(*body: int, header: bytes = b"\xfa\xaf") -> bytes:
-    """A frame from its ID..data bytes with the right Sum (for doc examples of malformed packets)."""
-    x = 0
-    for b in body:
-        x ^= b
-    return header + bytes(body) + bytes((x,))
+    return header + bytes(body) + bytes((checksum(bytes(body)),))
 
 
 def example(*frames: bytes | tuple[float, bytes], note: str = "") -> str:

@@ -6,7 +6,6 @@ from ..wire import (
     BROADCAST_ID,
     RETURN_MODES,
     RETURN_SPECIFIED,
-    encode_command,
     encode_long,
     encode_read,
     encode_return,

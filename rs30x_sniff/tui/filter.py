@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from contextlib import contextmanager
-from typing import Callable, Iterator
+from typing import Callable
 
 from ..bus import Record
 from ..events import LongPacket, ReturnPacket, ShortPacket
@@ -212,26 +211,10 @@ def _severity(op: str, value: str) -> Predicate:
 
 
 # ---- free text --------------------------------------------------------------------------------
-_LAZY_SLOTS = ("_fields", "_values")  # what Record decodes on first use and keeps
-
-
-@contextmanager
-def transient_fields(rec: Record) -> Iterator[None]:
-    """Let ``rec`` decode its fields inside the block without keeping them afterwards (unless it had)."""
-    kept = [name for name in _LAZY_SLOTS if getattr(rec, name, None) is None]
-    try:
-        yield
-    finally:
-        for name in kept:
-            setattr(rec, name, None)
-
-
 def record_text(rec: Record) -> str:
     """What free text is matched against: direction, summary and finding codes and names."""
-    # Decode the fields for this one look without keeping them on the record, so a search through
-    # a long history does not leave every record's fields in memory (Record caches them lazily).
-    with transient_fields(rec):
-        text = f"{direction(rec)} {summary(rec)} @{rec.offset}"
+    # keep=False: a search through a long history must not leave every record's fields in memory.
+    text = f"{direction(rec)} {summary(rec, keep=False)} @{rec.offset}"
     if rec.findings:
         text += " " + " ".join(f"{f.code} {f.name}" for f in rec.findings)
     return text.lower()

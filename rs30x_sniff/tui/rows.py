@@ -7,8 +7,8 @@ import re
 from rich.text import Text
 
 from ..bus import Record
-from ..render import direction, kind_word, summary
-from .filter import SEVERITY_RANK, transient_fields
+from ..render import bad_sum, direction, kind_word, summary
+from .filter import SEVERITY_RANK
 
 # Control characters (C0, DEL, C1) shown as \xNN, so nothing from a file name or the wire can move
 # the cursor or change the terminal's state.
@@ -29,7 +29,6 @@ SEVERITY_STYLES = {"error": "bold red", "warning": "yellow", "info": "dodger_blu
 SEVERITY_MARKS = {"error": "E", "warning": "W", "info": "i"}
 ARROWS = {"host": "→", "servo": "←", "?": "?"}
 
-_LATENCY = re.compile(r" latency=[0-9.]+ms")
 COLUMNS = f"  {'time(s)':>11} {'delta(ms)':>10} {'dir':^3} {'ID':>3} {'kind':<12} {'latency':>9} summary"
 
 
@@ -48,13 +47,8 @@ def kind_style(word: str) -> str:
 
 def short_summary(rec: Record) -> str:
     """The summary without what the timeline has columns for (kind word, ID, latency)."""
-    with transient_fields(rec):  # rows are rendered on sight; keeping every row's fields would grow without bound
-        s = summary(rec)
-    word, _, rest = s.partition(" ")
-    sid = getattr(rec.event, "id", None)
-    if sid is not None and rest.startswith(f"id={sid}"):
-        rest = rest[len(f"id={sid}"):].lstrip()
-    return clean(_LATENCY.sub("", rest))
+    # keep=False: rows are rendered on sight; keeping every row's fields would grow without bound.
+    return clean(summary(rec, bare=True, keep=False))
 
 
 def row_text(rec: Record, prev_t: float | None) -> Text:
@@ -75,9 +69,10 @@ def row_text(rec: Record, prev_t: float | None) -> Text:
     sid = rec.id
     text.append(f" {sid if sid is not None else '-':>3}", "bold")
     word = kind_word(rec)
-    if not ev.checksum_ok:
+    bad = bad_sum(rec)
+    if bad:
         word += "!SUM"
-    text.append(f" {word:<12}", "bold red" if not ev.checksum_ok else kind_style(word))
+    text.append(f" {word:<12}", "bold red" if bad else kind_style(word))
     if rec.latency is not None:
         text.append(f" {rec.latency * 1e3:7.3f}ms", "grey70")
     elif rec.status == "missing":

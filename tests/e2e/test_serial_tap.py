@@ -21,7 +21,7 @@ def test_first_byte_time_is_back_computed_and_chunks_never_overlap():
     tap.start_ns = 0
     tap._stamp(b"\x00" * 10, 1_000_000_000)          # 10 bytes that finished arriving at 1 s
     tap._stamp(b"\x00" * 4, 1_000_000_000 + 100_000)  # 4 more, 100 us later: they cannot start earlier
-    (d1, t1), (d2, t2) = tap.queue.get(), tap.queue.get()
+    (_, t1), (_, t2) = tap.queue.get(), tap.queue.get()
     assert t1 == pytest.approx(1.0 - 10 * bt)
     assert t2 == pytest.approx(t1 + 10 * bt)  # clamped to the end of the first chunk
     assert tap.bytes_read == 14
