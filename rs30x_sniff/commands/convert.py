@@ -11,6 +11,7 @@ from typing import Any, Iterator
 from ..io.captures import MCAP, Chunk, detect_format
 from ..pipeline import DecodeOptions, Decoder
 from .common import CliError, add_decode_options, decode_options, open_input
+from .lint import add_lint_selection, build_config, settings_from
 
 
 # A file is converted in chunks of up to 1 MiB (still cut at 1 s of log time): the summary lists every
@@ -32,21 +33,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 # ---- shared with `info` --------------------------------------------------------------------------
 def add_lint_options(p: argparse.ArgumentParser) -> None:
-    """The linter's rule selection, as `lint` takes it."""
-    p.add_argument("--select", action="append", default=[], metavar="CODES",
-                   help="only these rules (codes or names, comma-separated; repeatable)")
-    p.add_argument("--ignore", action="append", default=[], metavar="CODES",
-                   help="skip these rules (codes or names, comma-separated; repeatable)")
-    p.add_argument("--config", metavar="FILE", help="lint configuration file (TOML)")
+    """The linter's rule selection, as `lint` takes it, and --no-lint."""
+    add_lint_selection(p)
     p.add_argument("--no-lint", action="store_true", help="do not run the linter")
 
 
-def _split(values: list[str]) -> list[str]:
-    return [v.strip() for item in values for v in item.split(",") if v.strip()]
-
-
 def prepare(args: argparse.Namespace) -> tuple[DecodeOptions, Any]:
-    """Decode options and a Linter (None with --no-lint) from the command line, the lint config file
+    """Decode options and a Linter (None with --no-lint) from the command line, the settings file
     (--config, else the nearest one) and, for an MCAP input, the baud and models it was recorded with;
     in that order of precedence."""
     config: dict[str, Any] = {}
@@ -59,27 +52,16 @@ def prepare(args: argparse.Namespace) -> tuple[DecodeOptions, Any]:
             config["baud"] = reader.baud
         if reader.models:
             config["models"] = reader.models
-    if getattr(args, "no_lint", False):
-        return decode_options(args, config), None
-    from ..lint import LintConfig, Linter  # imported here: only linting commands pay for the rules
-    from ..lint.config import ConfigError, find_config, lint_config, load_config
-    try:
-        path = args.config or find_config()
-        settings = load_config(path) if path else {}
-        config.update({k: v for k, v in settings.items() if k in ("model", "models", "baud", "gap_bytes",
-                                                                  "reply_timeout")})
-        opts = decode_options(args, config)
-        if _split(args.select):
-            settings["select"] = _split(args.select)
-        if _split(args.ignore):
-            settings["ignore"] = [*settings.get("ignore", []), *_split(args.ignore)]
-        lint: LintConfig = lint_config(settings)
-        lint.baud, lint.reply_timeout = opts.baud, opts.reply_timeout
-        if opts.gap_bytes is not None:
-            lint.gap_bytes = opts.gap_bytes
-        return opts, Linter(lint)
-    except ConfigError as e:
-        raise CliError(str(e)) from None
+    settings = settings_from(args)
+    models = {**config.get("models", {}), **settings.get("models", {})}
+    config.update(settings)
+    if models:
+        config["models"] = models
+    opts = decode_options(args, config)
+    if args.no_lint:
+        return opts, None
+    from ..lint import Linter  # imported here: only linting commands pay for the rules
+    return opts, Linter(build_config(args, settings, opts))
 
 
 def peek(chunks: Iterator[Chunk]) -> tuple[bool, Iterator[Chunk]]:
