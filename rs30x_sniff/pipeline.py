@@ -28,7 +28,8 @@ class Decoder:
 
     Still sans-IO. A linter, if given, sees every record before it is returned, so the record's
     ``findings`` already hold what the linter could tell at that point; findings that only the end
-    of input reveals are in the list :meth:`close` leaves in ``late_findings``.
+    of input reveals are in the list :meth:`close` leaves in ``late_findings`` (and, like every
+    finding, at the end of ``linter.findings``).
     """
 
     def __init__(self, options: DecodeOptions | None = None, linter: Any = None) -> None:

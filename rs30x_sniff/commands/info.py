@@ -36,9 +36,7 @@ def gather(chunks, decoder: Decoder, baud: int) -> CaptureStats:
         add(rec)
     stats.set_bytes(decoder.bytes_in)
     if decoder.linter is not None:
-        stats.add_findings(decoder.linter.findings)
-        known = {id(f) for f in decoder.linter.findings}
-        stats.add_findings(f for f in decoder.late_findings if id(f) not in known)
+        stats.add_findings(decoder.linter.findings)  # end-of-input findings included
     return stats
 
 

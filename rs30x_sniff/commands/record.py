@@ -183,11 +183,7 @@ def run(args: argparse.Namespace) -> int:
         src.close()
         status.stop()
         try:
-            write_records(dec.close())
-            if linter is not None:
-                # Findings only the end of input reveals, unless the linter already listed them.
-                known = {id(f) for f in linter.findings}
-                files.sink.findings(f for f in dec.late_findings if id(f) not in known)
+            write_records(dec.close())  # also writes the findings only the end of input reveals
             if args.print_lines:
                 out.flush()
         finally:

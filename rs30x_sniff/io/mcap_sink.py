@@ -291,8 +291,5 @@ def convert(chunks: Iterable[tuple[bytes, float | None]], sink: McapSink, decode
         record(rec)
         written += 1
     if linter is not None:
-        new = linter.findings[seen:]
-        sink.findings(new)
-        known = {id(f) for f in new}
-        sink.findings(f for f in decoder.late_findings if id(f) not in known)
+        sink.findings(linter.findings[seen:])  # end-of-input findings are in linter.findings too
     return written

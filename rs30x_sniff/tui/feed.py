@@ -120,9 +120,7 @@ class Feeder:
                 error = error or f"closing the source: {type(e).__name__}: {e}"
         tail = dec.close()
         records += tail
-        late = self._new_findings()
-        seen = {id(f) for f in late}
-        late += [f for f in dec.late_findings if id(f) not in seen]
+        late = self._new_findings()  # end-of-input findings are in linter.findings too
         findings += late
         if self._sink is not None:
             self._record(b"", None, tail, late)
