@@ -8,7 +8,7 @@ from weakref import ref
 
 from .events import Ack, AnyEvent, LongPacket, Nack, ReturnPacket, ShortPacket
 from .memmap import Field, Model, ModelRegistry, default_registry
-from .wire import BROADCAST_ID, RETURN_ACK, RETURN_MODE_RANGES, RETURN_SPECIFIED
+from .wire import BROADCAST_ID, FLAG_WANTS_REPLY
 
 # Reply status of a record.
 ANSWERED = "answered"        # a request whose reply came
@@ -92,10 +92,9 @@ class Record:
         """What reply a request asks for: "ack", "return", or None."""
         ev = self.event
         if type(ev) is ShortPacket:
-            if ev.read_range is not None:
-                return "return"
-            if ev.wants_ack:
-                return "ack"
+            kind = ev.expects.kind
+            if kind != "none":
+                return kind
         return None
 
     @property
@@ -346,8 +345,7 @@ class BusTracker:
                 st.store(ev.address, ev.data, ev.t_start)
         if sid != BROADCAST_ID:
             self.servo(sid).requests += 1
-        mode = ev.flag & 0x0F
-        if mode == RETURN_ACK or mode == RETURN_SPECIFIED or mode in RETURN_MODE_RANGES:
+        if FLAG_WANTS_REPLY[ev.flag]:  # an ACK/NACK or a return (table 4.3)
             self._pending = rec
 
     def _on_reply(self, rec: Record, pending: Record | None) -> None:

@@ -10,16 +10,7 @@ from __future__ import annotations
 from operator import itemgetter
 from typing import Any
 
-from .wire import (
-    FLAG_INITIALIZE,
-    FLAG_REBOOT,
-    FLAG_WRITE_FLASH,
-    RETURN_ACK,
-    RETURN_MODE_MASK,
-    RETURN_MODE_RANGES,
-    RETURN_SPECIFIED,
-    return_flag_names,
-)
+from .wire import FLAG_WANTS_ACK, Expect, command_names, expects, read_range, return_flag_names, return_mode
 
 # Why a run of bytes was skipped (Garbage.reason).
 NOISE = "noise"            # no frame header anywhere in the run
@@ -86,30 +77,27 @@ class ShortPacket(Event):
 
     @property
     def return_mode(self) -> int:
-        return self[5] & RETURN_MODE_MASK
+        """Flag bits 3-0 (table 4.3)."""
+        return return_mode(self[5])
 
     @property
     def commands(self) -> tuple[str, ...]:
         """The flash / reboot / initialize bits set in the flag (table 4.2)."""
-        f = self[5]
-        if not f & 0x70:
-            return ()
-        return tuple(
-            name for bit, name in ((FLAG_WRITE_FLASH, "flash"), (FLAG_REBOOT, "reboot"), (FLAG_INITIALIZE, "initialize"))
-            if f & bit
-        )
+        return command_names(self[5])
+
+    @property
+    def expects(self) -> Expect:
+        """What the request expects back: nothing, an ACK/NACK byte, or a return of a range (table 4.3)."""
+        return expects(self[5], self[6], self[7])
 
     @property
     def read_range(self) -> tuple[int, int] | None:
         """(address, length) of the memory this request asks to be returned, if any."""
-        mode = self[5] & RETURN_MODE_MASK
-        if mode == RETURN_SPECIFIED:
-            return (self[6], self[7])
-        return RETURN_MODE_RANGES.get(mode)
+        return read_range(self[5], self[6], self[7])
 
     @property
     def wants_ack(self) -> bool:
-        return self[5] & RETURN_MODE_MASK == RETURN_ACK
+        return FLAG_WANTS_ACK[self[5]]
 
     @property
     def op(self) -> str:

@@ -19,7 +19,7 @@ from .events import (
     ReturnPacket,
     ShortPacket,
 )
-from .wire import ACK, DEFAULT_BAUD, NACK, RETURN_ACK, byte_time
+from .wire import ACK, DEFAULT_BAUD, FLAG_WANTS_ACK, NACK, byte_time
 
 _FA, _AF, _FD, _DF = 0xFA, 0xAF, 0xFD, 0xDF
 
@@ -326,7 +326,7 @@ class FrameDecoder:
             out.append(tuple.__new__(LongPacket, (off, raw, t0, t1, flag, address, length, count, records, ok)))
         else:
             out.append(tuple.__new__(ShortPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok)))
-            self._ack_pending = flag & 0x0F == RETURN_ACK
+            self._ack_pending = FLAG_WANTS_ACK[flag]  # return mode 0001 (table 4.3)
 
 
 def decode_all(chunks, baud: int = DEFAULT_BAUD, **kw) -> list[AnyEvent]:

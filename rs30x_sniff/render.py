@@ -7,6 +7,7 @@ from typing import Any
 from .bus import Record
 from .events import Garbage, LongPacket, ReturnPacket, ShortPacket
 from .memmap import Field, Register
+from .wire import COMMAND_ADDRESS, FLAG_RESERVED, request_flag_names as _short_flag_names
 
 _KIND_WORD = {"ack": "ACK", "nack": "NACK", "long": "LONG", "return": "RETURN", "garbage": "GARBAGE"}
 _OP_WORD = {"write": "WRITE", "read": "READ", "write+read": "WRITE+READ", "write+ack": "WRITE+ACK",
@@ -107,7 +108,7 @@ def summary(rec: Record, *, bare: bool = False, keep: bool = True) -> str:
         if names and ev.read_range:
             a, n = ev.read_range
             parts.append(f"read[{a}+{n}]" if len(names) > 3 else f"read[{','.join(names)}]")
-        if ev.commands and not ev.data and (ev.address, ev.length, ev.count) != (0xFF, 0, 0):
+        if ev.commands and not ev.data and (ev.address, ev.length, ev.count) != (COMMAND_ADDRESS, 0, 0):
             parts.append(f"addr={ev.address} len={ev.length} count={ev.count}")
     if t is ReturnPacket and ev.flags:
         parts.append("flags=" + ",".join(ev.flag_names or (f"0x{ev.flags:02X}",)))
@@ -166,19 +167,10 @@ def field_json(f: Field) -> dict[str, Any]:
 
 
 def request_flag_names(ev: ShortPacket | LongPacket) -> list[str]:
-    names = list(ev.commands) if isinstance(ev, ShortPacket) else []
-    if ev.flag & 0x80:
-        names.append("reserved_bit7")
+    """The request flag's meanings by name (table 4.2-4.3); a long packet's flag has only bit 7 to name."""
     if isinstance(ev, ShortPacket):
-        mode = ev.return_mode
-        if mode == 1:
-            names.append("return_ack")
-        elif ev.read_range is not None:
-            a, n = ev.read_range
-            names.append("return_specified" if mode == 0xF else f"return_{a}_{a + n - 1}")
-        elif mode:
-            names.append(f"return_mode_{mode:04b}")
-    return names
+        return _short_flag_names(ev.flag)
+    return ["reserved_bit7"] if ev.flag & FLAG_RESERVED else []
 
 
 def record_json(rec: Record) -> dict[str, Any]:
