@@ -5,13 +5,12 @@ from __future__ import annotations
 from typing import Any
 
 from ..bus import ANSWERED, MISSING, PAIRED, Record
-from ..wire import BROADCAST_ID, byte_time
+from ..wire import BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, byte_time
 from .config import LintConfig
 from .registry import KINDS, RULES, Finding
 from .state import Plan, Shadow
 
 _AUTO = object()
-_COMMAND_BITS = 0x70
 
 
 class Linter:
@@ -177,17 +176,17 @@ class Linter:
                 for fn in plan.target_checks:
                     fn(self, rec, plan, targets)
                 plan.apply(sh, raws)
-        if ev.flag & _COMMAND_BITS:
+        if ev.flag & COMMAND_BITS:
             for fn in self._on["command"]:
                 fn(self, rec, ev)
             self._command_state(ev)
 
     def _command_state(self, ev: Any) -> None:
         flag, sid = ev.flag, ev.id
-        if flag & 0x20:
+        if flag & FLAG_REBOOT:
             for s in (self.servos.values() if sid == BROADCAST_ID else (self.shadow(sid),)):
                 s.reboot()
-        if flag & 0x10:
+        if flag & FLAG_INITIALIZE:
             for s in (self.servos.values() if sid == BROADCAST_ID else (self.shadow(sid),)):
                 s.cw = s.ccw = s.reverse = None
                 s.return_delay = 0
@@ -244,5 +243,5 @@ class Linter:
                 for attr, j in plan.tracked:
                     setattr(sh, attr, raws[j])
         sh.flags = flags
-        if flags & 0x80:
+        if flags & RETURN_TEMPERATURE_LIMIT:  # table 4.4 bit 7: locked until a reboot (Q009)
             sh.temp_limit = True

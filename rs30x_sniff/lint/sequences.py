@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
-from ..wire import BROADCAST_ID, encode_command, encode_long, encode_return, encode_short
+from ..wire import (
+    BROADCAST_ID,
+    FLAG_REBOOT as _REBOOT,
+    FLAG_WRITE_FLASH as _FLASH,
+    RETURN_TEMPERATURE_LIMIT,
+    encode_command,
+    encode_long,
+    encode_return,
+    encode_short,
+)
 from .registry import example, rule
-
-_FLASH, _REBOOT = 0x40, 0x20
 
 
 def _deg(raw: int) -> str:
@@ -249,7 +256,7 @@ The manual says a servo that reached its temperature limit refuses torque on unt
 power-cycled: the command does nothing and the joint stays limp, while the host assumes it holds.
 
 ## Example
-{example(encode_return(1, 0x2A, bytes.fromhex("8403"), flags=0x80), encode_short(1, 0, 0x24, bytes((1,))))}
+{example(encode_return(1, 0x2A, bytes.fromhex("8403"), flags=RETURN_TEMPERATURE_LIMIT), encode_short(1, 0, 0x24, bytes((1,))))}
 """, kinds=("target",), fields=("torque_enable",))
 def torque_on_after_temperature_limit(lint, rec, plan, targets):
     j = plan.index["torque_enable"]

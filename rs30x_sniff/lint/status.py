@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from ..wire import encode_return
+from ..wire import (
+    RETURN_FLASH_WRITE_ERROR,
+    RETURN_RECEIVED_ERROR,
+    RETURN_TEMPERATURE_ALARM,
+    RETURN_TEMPERATURE_LIMIT,
+    encode_return,
+)
 from .registry import example, rule
 
 _NOTE = """
@@ -32,10 +38,10 @@ The joint goes limp or stiff under load, mid-motion. The servo will not accept t
 it cools down and is rebooted (see Q009); the motor is then at 120-140 degC.
 
 ## Example
-{_ret(0x80)}
+{_ret(RETURN_TEMPERATURE_LIMIT)}
 """, kinds=("return",), when="flagged")
 def temperature_limit(lint, rec, ev):
-    if _turned_on(lint, ev, 0x80):
+    if _turned_on(lint, ev, RETURN_TEMPERATURE_LIMIT):
         lint.emit("S001", rec, f"ID {ev.id} passed its temperature limit and cut torque")
 
 
@@ -47,10 +53,10 @@ Flags a return with status bit 5 set: the servo is within 10 degC of its tempera
 It is the last warning before the servo cuts its torque (S001). Reduce the load or duty cycle now.
 
 ## Example
-{_ret(0x20)}
+{_ret(RETURN_TEMPERATURE_ALARM)}
 """, kinds=("return",), when="flagged")
 def temperature_alarm(lint, rec, ev):
-    if _turned_on(lint, ev, 0x20):
+    if _turned_on(lint, ev, RETURN_TEMPERATURE_ALARM):
         lint.emit("S002", rec, f"ID {ev.id} is within 10 degC of its temperature limit")
 
 
@@ -63,10 +69,10 @@ Settings the host believes saved (ID, baud rate, limits) are not; after the next
 comes back with old values, maybe on another ID or baud rate.
 
 ## Example
-{_ret(0x08)}
+{_ret(RETURN_FLASH_WRITE_ERROR)}
 """, kinds=("return",), when="flagged")
 def flash_write_error(lint, rec, ev):
-    if _turned_on(lint, ev, 0x08):
+    if _turned_on(lint, ev, RETURN_FLASH_WRITE_ERROR):
         lint.emit("S003", rec, f"ID {ev.id} failed to write its flash ROM")
 
 
@@ -80,8 +86,8 @@ Some command to this servo was lost, maybe one the sniffer saw intact: the servo
 differs from the tap's (noise near the servo, a marginal baud rate).
 
 ## Example
-{_ret(0x02)}
+{_ret(RETURN_RECEIVED_ERROR)}
 """, kinds=("return",), when="flagged")
 def received_packet_error(lint, rec, ev):
-    if _turned_on(lint, ev, 0x02):
+    if _turned_on(lint, ev, RETURN_RECEIVED_ERROR):
         lint.emit("S004", rec, f"ID {ev.id} received a packet it could not accept")

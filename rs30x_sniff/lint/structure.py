@@ -4,6 +4,14 @@ from __future__ import annotations
 
 from ..wire import (
     BROADCAST_ID,
+    COMMAND_ADDRESS,
+    COMMAND_BITS,
+    FLAG_INITIALIZE,
+    FLAG_REBOOT,
+    FLAG_RESERVED,
+    FLAG_WRITE_FLASH,
+    MAX_READ_ADDRESS,
+    RETURN_FLAGS_RESERVED,
     RETURN_MODES,
     RETURN_SPECIFIED,
     encode_long,
@@ -15,6 +23,7 @@ from .registry import example, frame, rule
 
 _G90, _P10, _P50 = bytes.fromhex("8403"), bytes.fromhex("6400"), bytes.fromhex("F401")  # 90.0 deg, 10.0 deg, 50.0 deg
 _RET = bytes.fromhex("FDDF")
+_FLASH_REBOOT = FLAG_WRITE_FLASH | FLAG_REBOOT  # table 4.2: the manual wants these in separate packets
 
 
 def _cmds(ev) -> str:
@@ -34,7 +43,7 @@ wrong variable.
 {example(encode_short(1, 0x80, 0x1E, _G90))}
 """, kinds=("short",))
 def reserved_flag_bit(lint, rec, ev):
-    if ev.flag & 0x80:
+    if ev.flag & FLAG_RESERVED:
         lint.emit("P001", rec, f"flag 0x{ev.flag:02X} sets reserved bit 7")
 
 
@@ -129,9 +138,9 @@ it either takes the next packet's bytes as data or writes garbage past the inten
 {example(frame(1, 0, 0x1E, 1, 2, 0x84, 0x03), frame(1, 0x0F, 0x2A, 2, 1, 0, 0), note="a 1-byte write with Count 2, and a read with Count 1:")}
 """, kinds=("short",))
 def bad_count(lint, rec, ev):
-    if ev.flag & 0x70:
+    if ev.flag & COMMAND_BITS:
         return
-    if ev.flag & 0x0F == RETURN_SPECIFIED:
+    if ev.return_mode == RETURN_SPECIFIED:
         if ev.count != 0:
             lint.emit("P006", rec, f"flag-0F read with Count {ev.count} (must be 0)")
     elif ev.length and ev.count != 1:
@@ -151,7 +160,7 @@ request with a reply either, so a stray return may follow and collide with the n
 {example(encode_short(1, 0x02, 0x1E, _G90))}
 """, kinds=("short",))
 def undefined_return_mode(lint, rec, ev):
-    mode = ev.flag & 0x0F
+    mode = ev.return_mode
     if mode not in RETURN_MODES:
         lint.emit("P007", rec, f"return mode {mode:04b} is not in table 4.3")
 
@@ -172,11 +181,11 @@ the flash or the reboot, or at all.
 """, kinds=("command",))
 def command_packet_format(lint, rec, ev):
     problems = []
-    if ev.address != 0xFF:
+    if ev.address != COMMAND_ADDRESS:
         problems.append(f"Address {ev.address:02X}")
     if ev.count != 0:
         problems.append(f"Count {ev.count}")
-    if ev.length != 0 and not (ev.flag & 0x10 and ev.length == 0xFF):
+    if ev.length != 0 and not (ev.flag & FLAG_INITIALIZE and ev.length == 0xFF):
         problems.append(f"Length {ev.length}")
     if ev.data:
         problems.append(f"{len(ev.data)} data byte(s)")
@@ -197,7 +206,7 @@ configuration (the manual warns not to cut power during a flash write).
 {example(bytes.fromhex("FAAF01600701011274"), note="the manual's own return-delay example:")}
 """, kinds=("command",))
 def combined_flash_reboot(lint, rec, ev):
-    if ev.flag & 0x60 == 0x60:
+    if ev.flag & _FLASH_REBOOT == _FLASH_REBOOT:
         lint.emit("P009", rec, "flash write and reboot in one packet; send the reboot separately, after the flash write")
 
 
@@ -230,9 +239,9 @@ return, or not at all, and the host waits for a reply that never fits.
 {example(encode_read(1, 0x80, 16))}
 """, kinds=("short",))
 def read_out_of_range(lint, rec, ev):
-    if ev.flag & 0x0F != RETURN_SPECIFIED:
+    if ev.return_mode != RETURN_SPECIFIED:
         return
-    top = rec.model.readable_to if rec.model is not None else 139
+    top = rec.model.readable_to if rec.model is not None else MAX_READ_ADDRESS
     if ev.length == 0:
         lint.emit("P011", rec, "read of length 0")
     elif ev.address + ev.length - 1 > top:
@@ -267,5 +276,6 @@ does not know; its other status bits are then not to be trusted either.
 {example(encode_return(1, 0x2A, _G90, flags=0x40))}
 """, kinds=("return",), when="flagged")
 def return_reserved_flag(lint, rec, ev):
-    if ev.flags & 0x55:
-        lint.emit("P013", rec, f"return flags 0x{ev.flags:02X} set reserved bit(s) 0x{ev.flags & 0x55:02X}")
+    if ev.flags & RETURN_FLAGS_RESERVED:
+        lint.emit("P013", rec, f"return flags 0x{ev.flags:02X} set reserved bit(s) "
+                               f"0x{ev.flags & RETURN_FLAGS_RESERVED:02X}")

@@ -12,6 +12,7 @@ from ..wire import (
     FLAG_REBOOT,
     FLAG_WRITE_FLASH,
     RETURN_ACK,
+    RETURN_MODE_RANGES,
     encode_command,
     encode_long,
     encode_read,
@@ -22,7 +23,7 @@ from .servo import RETURN_DELAY_STEP, Physics, Servo
 
 CYCLE = 0.020          # 50 Hz goal updates (longer where the baud rate cannot carry them)
 POLL_MODE = 0x09       # return of addresses 42-59 (table 4.3)
-POLL_REPLY_BYTES = 8 + 18
+POLL_REPLY_BYTES = 8 + RETURN_MODE_RANGES[POLL_MODE][1]
 HOST_TIMEOUT = 0.060   # a careful host waits longer than the sniffer's 50 ms reply timeout
 
 

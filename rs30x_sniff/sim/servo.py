@@ -8,7 +8,18 @@ from dataclasses import dataclass
 
 from ..events import LongPacket, ShortPacket
 from ..memmap import Model, default_registry
-from ..wire import ACK, BAUD_RATES, BROADCAST_ID, NACK, RETURN_ACK, encode_return
+from ..wire import (
+    ACK,
+    BAUD_RATES,
+    BROADCAST_ID,
+    COMMAND_ADDRESS,
+    NACK,
+    RETURN_FLASH_WRITE_ERROR,
+    RETURN_RECEIVED_ERROR,
+    RETURN_TEMPERATURE_ALARM,
+    RETURN_TEMPERATURE_LIMIT,
+    encode_return,
+)
 
 MEMORY_SIZE = 140            # flag-0F reads reach address 139 (manual, "Direct specified address")
 ROM_START, ROM_END = 4, 30   # the variable ROM area a flash write saves (table 4.6, flag bit 6)
@@ -22,10 +33,10 @@ FLASH_WRITE_TIME = 0.030
 BOOT_TIME = 0.100
 
 # Status flags of a return packet (table 4.4).
-FLAG_TEMPERATURE_LIMIT = 0x80
-FLAG_TEMPERATURE_ALARM = 0x20
-FLAG_FLASH_ERROR = 0x08
-FLAG_RECEIVED_ERROR = 0x02
+FLAG_TEMPERATURE_LIMIT = RETURN_TEMPERATURE_LIMIT
+FLAG_TEMPERATURE_ALARM = RETURN_TEMPERATURE_ALARM
+FLAG_FLASH_ERROR = RETURN_FLASH_WRITE_ERROR
+FLAG_RECEIVED_ERROR = RETURN_RECEIVED_ERROR
 ALARM_MARGIN = 10.0  # the alarm bit rises 10 degC below the limit (No. 50/51)
 
 TORQUE_OFF, TORQUE_ON, TORQUE_BRAKE = 0, 1, 2
@@ -144,7 +155,7 @@ class Servo:
         if ev.id != self.id and ev.id != BROADCAST_ID:
             return None
         broadcast = ev.id == BROADCAST_ID
-        asks_ack = ev.return_mode == RETURN_ACK and not broadcast
+        asks_ack = ev.wants_ack and not broadcast
         if not ev.checksum_ok:
             # Counted in the next return's flags (table 4.4 bit 1); a NACK if one was asked for.
             self.received_error = True
@@ -152,7 +163,7 @@ class Servo:
         cmds = ev.commands
         if cmds:
             # Flash, reboot and initialize need address FF, count 0 and no data, one per packet (table 4.2).
-            if ev.address != 0xFF or ev.count != 0 or ev.data or len(cmds) > 1:
+            if ev.address != COMMAND_ADDRESS or ev.count != 0 or ev.data or len(cmds) > 1:
                 self.received_error = True
                 return self._reply(bytes((NACK,))) if asks_ack else None
             cmd = cmds[0]
