@@ -25,14 +25,16 @@ DEFAULT_REPLY_TIMEOUT = 0.050
 class Record:
     """An event as the rest of the program sees it: decoded fields, its pair, its servo's model."""
 
-    __slots__ = ("event", "index", "model", "request", "_reply", "latency", "status", "findings", "_fields",
-                 "__weakref__",
-                 "_values", "_models", "resolved_by")
+    __slots__ = ("event", "index", "model", "vid_models", "request", "_reply", "latency", "status", "findings",
+                 "_fields", "__weakref__", "_values", "resolved_by")
 
-    def __init__(self, event: AnyEvent, index: int, model: Model | None, models: Any = None) -> None:
+    def __init__(self, event: AnyEvent, index: int, model: Model | None) -> None:
         self.event = event
         self.index = index
         self.model = model
+        # For a long packet: each record's servo model, parallel to ``event.records``, settled when the
+        # tracker built this record; None while every servo on the bus has ``model`` (the common case).
+        self.vid_models: tuple[Model, ...] | None = None
         self.request: Record | None = None
         self._reply: Callable[[], Record | None] | None = None
         self.latency: float | None = None
@@ -40,7 +42,6 @@ class Record:
         self.findings: list = []
         self._fields: list[Field] | None = None
         self._values: tuple | None = None
-        self._models = models  # the BusTracker, for the models of a long packet's servos
         # For a MISSING request: the record whose arrival settled that no reply would come (None at end
         # of input). The linter tells a missing reply from a host that did not wait by it.
         self.resolved_by: Record | None = None
@@ -138,13 +139,12 @@ class Record:
             return self.model.layout(ev.address, len(ev.data)), ev.data
         if t is LongPacket and ev.length and ev.records:
             data = ev.raw[7:-1]
-            tracker = self._models
-            models = tracker.model_of
-            first = models(ev.records[0].vid)
-            if len(data) == ev.length * ev.count and (
-                    tracker.uniform or all(models(r.vid) is first for r in ev.records)):
+            vm = self.vid_models
+            first = self.model if vm is None else vm[0]
+            if len(data) == ev.length * ev.count and (vm is None or all(m is first for m in vm)):
                 return first.long_layout(ev.address, ev.length, ev.count), data
-            return [(models(r.vid).layout(ev.address, len(r.data)), r.data, r.vid) for r in ev.records], data
+            return [(m.layout(ev.address, len(r.data)), r.data, r.vid)
+                    for m, r in zip(vm or (first,) * len(ev.records), ev.records)], data
         return None, b""
 
     def _decode_values(self) -> tuple:
@@ -230,6 +230,7 @@ class BusTracker:
         self._last_request: Record | None = None  # latest request that got its reply (for EXTRA)
         self._held: list[Record] = []
         self._model_cache: dict[int, Model] = {}
+        self._uniform = self.uniform  # kept up to date by _learn, so a long packet costs no model lookups
 
     @property
     def uniform(self) -> bool:
@@ -275,7 +276,11 @@ class BusTracker:
             model = self._model_cache.get(ev[4]) or self.model_of(ev[4])
         else:
             model = self.default
-        rec = Record(ev, self._index, model, self)
+        rec = Record(ev, self._index, model)
+        if t is LongPacket and not self._uniform:
+            # Settle each VID's model now: what is learned later does not rewrite this packet.
+            model_of = self.model_of
+            rec.vid_models = tuple([model_of(r[0]) for r in ev.records])
         self._index += 1
         pending = self._pending
         if pending is not None:
@@ -386,3 +391,4 @@ class BusTracker:
                 self.learned[ev.id] = m
                 self._model_cache.pop(ev.id, None)
                 st.model = m
+                self._uniform = self.uniform

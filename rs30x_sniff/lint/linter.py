@@ -196,18 +196,15 @@ class Linter:
         n = ev.length - 1
         if n <= 0 or not records:
             return
-        models = getattr(rec, "_models", None)  # the BusTracker: each VID's own model
-        model_of = models.model_of if models is not None else (lambda _vid: rec.model)
-        first = model_of(records[0][0])
-        uniform = models is None or models.uniform
-        plan = self.plan(first, ev.address, n)
+        vid_models = rec.vid_models  # each VID's model, settled by the tracker; None: all rec.model
+        plan = self.plan(rec.model if vid_models is None else vid_models[0], ev.address, n)
         vids = tuple(r[0] for r in records)
         for fn in self._on["write"]:
             fn(self, rec, plan, vids)
         checks = plan.target_checks
         shadow = self.shadow
         data = ev.raw[7:-1]
-        if uniform and len(data) == ev.length * ev.count:
+        if vid_models is None and len(data) == ev.length * ev.count:
             flat = plan.unpack_long(ev.count)(data)
             stride = len(plan.parts) + 1
             get = self.servos.get
@@ -221,8 +218,8 @@ class Linter:
             for _, raws, sh in targets:
                 apply(sh, raws)
             return
-        for vid, d in records:
-            p = self.plan(model_of(vid), ev.address, len(d))
+        for (vid, d), model in zip(records, vid_models or (rec.model,) * len(records)):
+            p = self.plan(model, ev.address, len(d))
             if len(d) != p.n:
                 continue
             raws = p.unpack(d)
