@@ -202,14 +202,17 @@ def _detect(path: str, opened: _Opened) -> str:
         return _EXTENSIONS[ext]
     if head.startswith(MCAP_MAGIC):
         return MCAP
+    if not head and ext not in _TEXT_EXTENSIONS:
+        return BINARY  # nothing to read either way
     text_kind = _sniff_text(head, opened.complete)
     if text_kind:
         return text_kind
     if ext in _TEXT_EXTENSIONS or (not _NOT_TEXT.search(head) and _first_line_kind(head)):
         # A text capture with a bad token: read it as its first data line says, so the error names the line.
         return _first_line_kind(head) or HEX
-    if b"\xfa\xaf" in head or b"\xfd\xdf" in head or not head or path == "-":
-        return BINARY  # stdin was always raw bytes unless it reads as text
+    if b"\xfa\xaf" in head or b"\xfd\xdf" in head or not opened.seekable:
+        # stdin was always raw bytes, and a pipe's head may be one short read: not text is binary.
+        return BINARY
     raise CaptureError(f"{path}: unknown capture format (use --input-format {'|'.join(FORMATS)})")
 
 

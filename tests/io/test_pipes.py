@@ -1,0 +1,171 @@
+"""Pipes, FIFOs and stdin: opened once, sniffed from their head, read in every format."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import threading
+
+import pytest
+
+from rs30x_sniff.io.captures import (BINARY, HEX, MCAP, TIMESTAMPED, CaptureError, detect_format, read_capture,
+                                     write_capture)
+
+from .conftest import CAPTURES, ROOT, frames, make_mcap
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="pipes and FIFOs by path are POSIX")
+
+MANUAL = CAPTURES / "manual-examples.hex"
+SESSION = CAPTURES / "session-mixed.thex"
+
+
+def _pipe_path(content: bytes) -> str:
+    """A /dev/fd/N path of a pipe a thread fills with ``content`` (what ``<(cat file)`` gives a command)."""
+    r, w = os.pipe()
+
+    def writer() -> None:
+        try:
+            os.write(w, content) if len(content) < 60000 else _write_all(w, content)
+        finally:
+            os.close(w)
+
+    threading.Thread(target=writer, daemon=True).start()
+    return f"/dev/fd/{r}"
+
+
+def _write_all(fd: int, content: bytes) -> None:
+    view = memoryview(content)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+def _from_file(path) -> list:
+    return list(read_capture(str(path)))
+
+
+@pytest.fixture
+def samples(tmp_path):
+    """The same capture as a file in each text and binary format."""
+    chunks = list(read_capture(str(SESSION)))
+    out = {TIMESTAMPED: SESSION, HEX: MANUAL}
+    out[BINARY] = tmp_path / "s.bin"
+    write_capture(out[BINARY], chunks, BINARY)
+    return out
+
+
+@pytest.mark.parametrize("fmt", [BINARY, HEX, TIMESTAMPED])
+def test_a_pipe_is_read_once_in_every_format(samples, fmt):
+    path = _pipe_path(samples[fmt].read_bytes())
+    reader = read_capture(path)
+    assert reader.format == fmt
+    got = list(reader)
+    expected = _from_file(samples[fmt])
+    assert b"".join(d for d, _ in got) == b"".join(d for d, _ in expected)
+    assert [t for _, t in got if t is not None] == [t for _, t in expected if t is not None]
+    os.close(int(path.rsplit("/", 1)[1]))
+
+
+@pytest.mark.parametrize("fmt", [BINARY, HEX, TIMESTAMPED])
+def test_detect_then_read_uses_the_one_open_pipe(samples, fmt):
+    # convert and info ask for the format first, then read: the pipe must not be opened twice.
+    path = _pipe_path(samples[fmt].read_bytes())
+    assert detect_format(path) == fmt
+    assert detect_format(path) == fmt  # asked again: still the same open stream
+    got = b"".join(d for d, _ in read_capture(path))
+    assert got == b"".join(d for d, _ in _from_file(samples[fmt]))
+    os.close(int(path.rsplit("/", 1)[1]))
+
+
+def test_a_pipe_cannot_be_read_twice_at_once():
+    path = _pipe_path(MANUAL.read_bytes())
+    first = read_capture(path)
+    next(first)
+    with pytest.raises(CaptureError, match="read only once"):
+        list(read_capture(path))
+    first.close()
+    os.close(int(path.rsplit("/", 1)[1]))
+
+
+def test_a_large_binary_pipe_is_read_whole():
+    data = bytes(range(256)) * 4000 + b"\xfa\xaf"
+    path = _pipe_path(data)
+    assert b"".join(d for d, _ in read_capture(path)) == data
+    os.close(int(path.rsplit("/", 1)[1]))
+
+
+def test_mcap_from_a_pipe_is_a_clear_error(tmp_path):
+    m = make_mcap(tmp_path / "a.mcap", frames(5))
+    path = _pipe_path(m.read_bytes())
+    with pytest.raises(CaptureError, match="needs a seekable file"):
+        read_capture(path)
+    with pytest.raises(CaptureError, match="needs a seekable file"):
+        list(read_capture(_pipe_path(m.read_bytes()), MCAP))
+
+
+def _in_child(code: str, stdin: bytes, timeout: float = 30) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code], input=stdin, capture_output=True, timeout=timeout, cwd=ROOT)
+
+
+READ_STDIN = ("import sys; from rs30x_sniff.io.captures import read_capture\n"
+              "r = read_capture('-')\n"
+              "chunks = list(r)\n"
+              "print(r.format, b''.join(d for d, _ in chunks).hex(), [t for _, t in chunks if t is not None][:3])\n")
+
+
+@pytest.mark.parametrize("fmt", [BINARY, HEX, TIMESTAMPED])
+def test_stdin_is_sniffed_like_a_file(samples, fmt):
+    proc = _in_child(READ_STDIN, samples[fmt].read_bytes())
+    assert proc.returncode == 0, proc.stderr.decode()
+    got_fmt, got_hex, times = proc.stdout.decode().split(" ", 2)
+    expected = _from_file(samples[fmt])
+    assert got_fmt == fmt
+    assert bytes.fromhex(got_hex) == b"".join(d for d, _ in expected)
+    assert times.strip() == str([t for _, t in expected if t is not None][:3])
+
+
+def test_raw_binary_on_stdin_without_frame_headers_is_still_binary():
+    proc = _in_child(READ_STDIN, b"\x01\x02\x03")
+    assert proc.stdout.decode().split()[:2] == [BINARY, "010203"]
+    proc = _in_child(READ_STDIN, b"")
+    assert proc.stdout.decode().split()[0] == BINARY
+
+
+def test_mcap_on_stdin_is_a_clear_error(tmp_path):
+    m = make_mcap(tmp_path / "a.mcap", frames(5))
+    proc = _in_child(READ_STDIN, m.read_bytes())
+    assert proc.returncode == 1 and b"needs a seekable file" in proc.stderr
+
+
+def test_a_fifo_is_opened_once(tmp_path, samples):
+    # A second open of a FIFO would wait for a second writer forever: a timeout says it happened.
+    fifo = tmp_path / "f"
+    os.mkfifo(fifo)
+    code = ("import sys; from rs30x_sniff.io.captures import detect_format, read_capture\n"
+            f"p = {str(fifo)!r}\n"
+            "fmt = detect_format(p)\n"
+            "print(fmt, sum(len(d) for d, _ in read_capture(p)))\n")
+    for fmt in (BINARY, HEX, TIMESTAMPED):
+        proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, cwd=ROOT)
+        with open(fifo, "wb") as w:
+            w.write(samples[fmt].read_bytes())
+        out, _ = proc.communicate(timeout=30)
+        n = sum(len(d) for d, _ in _from_file(samples[fmt]))
+        assert out.decode().split() == [fmt, str(n)]
+
+
+@pytest.mark.skipif(shutil.which("bash") is None, reason="needs bash for <(...)")
+def test_cli_decode_and_info_of_a_process_substitution():
+    # The issue's reproduction: `decode <(cat captures/manual-examples.hex)` printed nothing.
+    cli = f"{sys.executable} -m rs30x_sniff"
+    direct = subprocess.run(f"{cli} decode {MANUAL}", shell=True, capture_output=True, text=True, cwd=ROOT,
+                            timeout=60)
+    piped = subprocess.run(["bash", "-c", f"{cli} decode <(cat {MANUAL})"], capture_output=True, text=True,
+                           cwd=ROOT, timeout=60)
+    assert direct.returncode == 0 and piped.returncode == 0, piped.stderr
+    assert piped.stdout == direct.stdout and piped.stdout.count("\n") > 10
+    info = subprocess.run(["bash", "-c", f"{cli} info --format json <(cat {SESSION})"], capture_output=True,
+                          text=True, cwd=ROOT, timeout=60)
+    assert info.returncode == 0, info.stderr
+    assert '"bytes": 7543' in info.stdout
