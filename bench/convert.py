@@ -26,7 +26,8 @@ from mcap.reader import make_reader  # noqa: E402
 from mcap.writer import CompressionType, Writer  # noqa: E402
 
 from rs30x_sniff.commands.convert import CHUNK_SIZE  # noqa: E402
-from rs30x_sniff.io.mcap_sink import McapSink, convert  # noqa: E402
+from rs30x_sniff.io.mcap_sink import McapSink  # noqa: E402
+from rs30x_sniff.pipeline import drive  # noqa: E402
 from rs30x_sniff.lint import Linter  # noqa: E402
 from rs30x_sniff.pipeline import Decoder  # noqa: E402
 
@@ -37,7 +38,7 @@ def run_convert(frames: list, lint: bool) -> tuple[float, int, bytes]:
     gc.collect()
     t0 = time.perf_counter()
     with McapSink(buf, source="bench", baud=115200, time_base="capture", chunk_size=CHUNK_SIZE) as sink:
-        convert(iter(frames), sink, Decoder(linter=Linter() if lint else None))
+        drive(iter(frames), Decoder(linter=Linter() if lint else None), sink)
     return time.perf_counter() - t0, sink.messages, buf.getvalue()
 
 

@@ -1,4 +1,4 @@
-"""The one-way flow of the core: (bytes, t) chunks -> frame events -> paired, annotated records."""
+"""The one drive loop of every command: (bytes, t) chunks -> Decoder (frames, pairs, lint) -> sinks."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from .wire import DEFAULT_BAUD
 
 @dataclass
 class DecodeOptions:
-    """Everything that changes how bytes are decoded (from the command line or a config file)."""
+    """Everything that changes how bytes are decoded (built by :class:`rs30x_sniff.settings.Settings`)."""
 
     baud: int = DEFAULT_BAUD
     default_model: str | None = None
@@ -23,13 +23,27 @@ class DecodeOptions:
     registry: ModelRegistry | None = None
 
 
+class Step(list):
+    """The records one :meth:`Decoder.feed` (or :meth:`Decoder.close`) decided, in wire order.
+
+    ``findings`` holds every lint finding new since the previous call (those on these records, and at
+    the close those only the end of input reveals); ``late`` is that last kind alone: findings about
+    records handed out earlier.
+    """
+
+    __slots__ = ("findings", "late")
+
+    def __init__(self, records: Iterable[Record] = (), findings: list | None = None, late: list | None = None) -> None:
+        super().__init__(records)
+        self.findings = findings if findings is not None else []
+        self.late = late if late is not None else []
+
+
 class Decoder:
     """Frame decoder, bus tracker and (optionally) linter in one object: feed chunks, get records.
 
     Still sans-IO. A linter, if given, sees every record before it is returned, so the record's
-    ``findings`` already hold what the linter could tell at that point; findings that only the end
-    of input reveals are in the list :meth:`close` leaves in ``late_findings`` (and, like every
-    finding, at the end of ``linter.findings``).
+    ``findings`` already hold what the linter could tell at that point.
     """
 
     def __init__(self, options: DecodeOptions | None = None, linter: Any = None) -> None:
@@ -38,30 +52,138 @@ class Decoder:
         self.bus = BusTracker(o.registry or default_registry(), o.models, o.reply_timeout, o.default_model)
         self.linter = linter
         self.bytes_in = 0
-        self.late_findings: list = []
+        self.late_findings: list = []  # after close(): findings only the end of input revealed
+        self._seen = 0  # findings of linter.findings already handed out
 
-    def feed(self, data: bytes, t: float | None = None) -> list[Record]:
+    def _new_findings(self) -> list:
+        found = self.linter.findings
+        if len(found) == self._seen:
+            return []
+        new = found[self._seen:]
+        self._seen = len(found)
+        return new
+
+    def feed(self, data: bytes, t: float | None = None) -> Step:
+        """Decode one chunk (its first byte at capture time ``t``); the records it completes."""
         self.bytes_in += len(data)
-        out = self.bus.feed_many(self.frames.feed(data, t), [])
-        if self.linter is not None and out:
-            lint = self.linter.feed
+        out = self.bus.feed_many(self.frames.feed(data, t), Step())
+        linter = self.linter
+        if linter is not None and out:
+            lint = linter.feed
             for rec in out:
                 lint(rec)
+            out.findings = self._new_findings()
         return out
 
-    def close(self) -> list[Record]:
-        out = self.bus.feed_many(self.frames.close(), [])
+    def close(self) -> Step:
+        """End of input: the records still pending, and the findings only the end reveals (``late``)."""
+        out = self.bus.feed_many(self.frames.close(), Step())
         out += self.bus.close()
         if self.linter is not None:
             for rec in out:
                 self.linter.feed(rec)
-            self.late_findings = self.linter.close()
+            out.late = self.late_findings = self.linter.close()
+            out.findings = self._new_findings()
         return out
+
+
+class Sink:
+    """Where decoded traffic goes (text, JSON lines, a lint report, MCAP, statistics, the monitor).
+
+    The drive loop calls ``chunk`` with the raw bytes before they are decoded (so nothing read is lost
+    to a decoding error), ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing
+    for a moment, and ``close`` once at the end. Every method is optional.
+    """
+
+    def chunk(self, data: bytes, t: float | None) -> None:
+        pass
+
+    def batch(self, step: Step) -> None:
+        pass
+
+    def idle(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+class Pipeline:
+    """A decoder and its sinks: the drive loop every command and the monitor share.
+
+    Sinks may be added and removed between chunks (the monitor's ``r`` starts and stops an MCAP sink).
+    """
+
+    def __init__(self, decoder: Decoder, sinks: Iterable[Sink] = ()) -> None:
+        self.decoder = decoder
+        self.sinks: tuple[Sink, ...] = tuple(sinks)  # replaced, never changed in place: safe to edit mid-loop
+        self.closed = False
+
+    def add(self, sink: Sink) -> None:
+        self.sinks = (*self.sinks, sink)
+
+    def remove(self, sink: Sink) -> None:
+        self.sinks = tuple(s for s in self.sinks if s is not sink)
+
+    def feed(self, data: bytes, t: float | None = None) -> Step:
+        """One chunk through the decoder into every sink; an empty chunk means the source is idle."""
+        sinks = self.sinks
+        if not data:
+            for s in sinks:
+                s.idle()
+            return Step()
+        for s in sinks:
+            s.chunk(data, t)
+        step = self.decoder.feed(data, t)
+        if step or step.findings:
+            for s in sinks:
+                s.batch(step)
+        return step
+
+    def close(self) -> Step:
+        """End of input: the decoder's last records and late findings, then every sink closes (once)."""
+        if self.closed:
+            return Step()
+        self.closed = True
+        step = self.decoder.close()
+        try:
+            for s in self.sinks:
+                s.batch(step)
+        finally:
+            errors = []
+            for s in self.sinks:
+                try:
+                    s.close()
+                except Exception as e:  # noqa: BLE001 - close them all; raise the first failure after
+                    errors.append(e)
+            if errors:
+                raise errors[0]
+        return step
+
+    def run(self, chunks: Iterable[tuple[bytes, float | None]]) -> Decoder:
+        """Feed every chunk, then close. The sinks are closed even when the source fails midway (a
+        corrupt file, a lost port), so what was read is written; the source's error is raised after."""
+        try:
+            for data, t in chunks:
+                self.feed(data, t)
+        except BaseException:
+            try:
+                self.close()
+            except Exception:  # noqa: BLE001 - the source's error is the one to report
+                pass
+            raise
+        self.close()
+        return self.decoder
+
+
+def drive(chunks: Iterable[tuple[bytes, float | None]], decoder: Decoder, *sinks: Sink) -> Decoder:
+    """Run ``chunks`` through ``decoder`` into ``sinks``; returns the decoder (its linter, its counts)."""
+    return Pipeline(decoder, sinks).run(chunks)
 
 
 def decode_records(chunks: Iterable[tuple[bytes, float | None]], options: DecodeOptions | None = None,
                    decoder: Decoder | None = None) -> Iterator[Record]:
-    """Stream records from chunks."""
+    """Stream records from chunks (a generator over the same decoder, for library use)."""
     dec = decoder or Decoder(options)
     for data, t in chunks:
         yield from dec.feed(data, t)

@@ -1,13 +1,18 @@
-"""Capture statistics (duration, traffic by type, per-servo polls and latencies, bus load); pure, no I/O."""
+"""Capture statistics (duration, traffic by type, per-servo polls and latencies, bus load); pure, no I/O.
+
+The one definition of these figures: ``info``, the MCAP metadata and the monitor all read them here.
+"""
 
 from __future__ import annotations
 
-from collections import Counter
+import itertools
+from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 from .events import LongPacket, ShortPacket
-from .wire import byte_time
+from .pipeline import Sink, Step
+from .wire import BITS_PER_BYTE, byte_time
 
 # Latencies are counted in 1 us bins: exact enough for percentiles of a bus whose return delay
 # steps by 50 us (table 4.6 No. 7), with memory bounded by the spread, not by the capture length.
@@ -65,8 +70,9 @@ class LatencyHistogram:
         return self.max
 
 
-class CaptureStats:
-    """Feed every record (and the findings), then read the figures or :meth:`as_dict`.
+class CaptureStats(Sink):
+    """Feed every record (and the findings), then read the figures or :meth:`as_dict`; as a sink of
+    the drive loop it counts the bytes, records and findings that pass through.
 
     Times come from the records; a capture without timestamps is measured in line time: its
     byte count at the configured baud rate, as if the bus had never been idle.
@@ -75,6 +81,7 @@ class CaptureStats:
     def __init__(self, baud: int) -> None:
         self.baud = baud
         self.bytes = 0
+        self.bytes_in = 0  # bytes fed through chunk()
         self.records = 0
         self.by_kind: Counter = Counter()
         self.by_op: Counter = Counter()
@@ -87,6 +94,20 @@ class CaptureStats:
         self.first_t: float | None = None
         self.last_t: float | None = None
         self.timed = False
+
+    # ---- as a sink ---------------------------------------------------------------------------------
+    def chunk(self, data: bytes, t: float | None) -> None:
+        self.bytes_in += len(data)
+
+    def batch(self, step: Step) -> None:
+        add = self.add
+        for rec in step:
+            add(rec)
+        if step.findings:
+            self.add_findings(step.findings)
+
+    def close(self) -> None:
+        self.set_bytes(self.bytes_in)
 
     def servo(self, sid: int) -> ServoStats:
         st = self.servos.get(sid)
@@ -202,3 +223,48 @@ class CaptureStats:
             "findings": {sev: self.findings.get(sev, 0) for sev in ("error", "warning", "info")},
             "findings_by_rule": dict(self.finding_codes.most_common()),
         }
+
+
+class RecentLoad:
+    """Bus load over the last ``window`` seconds of capture time: what a live display shows.
+
+    Fed ``(t, nbytes)`` per record or chunk start; the newest item's own bytes end after its start
+    time, so the busy time counts the items before it, over the window up to its start.
+    """
+
+    def __init__(self, baud: int, window: float = 1.0) -> None:
+        self.bits = BITS_PER_BYTE / baud
+        self.window = window
+        self._items: deque[tuple[float, int]] = deque()
+        self._bytes = 0
+        self._last_t: float | None = None
+
+    def add(self, t: float, nbytes: int) -> None:
+        self.extend(((t, nbytes),))
+
+    def extend(self, timed_sizes: Iterable[tuple[float, int]]) -> None:
+        """Add ``(t, nbytes)`` items in time order (one call per batch: the window is trimmed once)."""
+        items = self._items
+        n0 = len(items)
+        items.extend(timed_sizes)
+        if len(items) == n0:
+            return
+        self._bytes += sum(n for _, n in itertools.islice(items, n0, None))
+        last = items[-1][0]
+        if self._last_t is None or last > self._last_t:
+            self._last_t = last
+        horizon = self._last_t - self.window
+        while items and items[0][0] < horizon:
+            self._bytes -= items.popleft()[1]
+
+    @property
+    def value(self) -> float | None:
+        """Fraction of the window the wire was busy, 0..1 (None until there is a span to measure)."""
+        items = self._items
+        if not items or self._last_t is None:
+            return None
+        span = min(self.window, max(self._last_t - items[0][0], 0.0))
+        if span <= 0:
+            return None
+        busy = (self._bytes - items[-1][1]) * self.bits
+        return min(1.0, busy / span)

@@ -1,16 +1,16 @@
-"""Options and helpers shared by the subcommands: input selection, model options, output files."""
+"""Options and helpers shared by the subcommands: settings from every layer, inputs, output files."""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from contextlib import contextmanager
-from typing import IO, Iterator
+from typing import IO, Any, Iterator
 
-from ..io.captures import FORMATS, Chunk, read_capture
-from ..memmap import ModelError, default_registry
-from ..pipeline import DecodeOptions
-from ..wire import BAUD_RATES, DEFAULT_BAUD
+from ..io.captures import FORMATS, MCAP, MCAP_MAGIC, Chunk, read_capture
+from ..settings import Settings, SettingsError, find_config, load_config, resolve
+from ..wire import DEFAULT_BAUD
 
 
 class CliError(Exception):
@@ -22,62 +22,36 @@ def add_decode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", action="append", default=[], metavar="[ID=]MODEL",
                    help="servo model for every ID (RS303MR, RS304MD) or for one ID (3=RS304MD); repeatable")
     p.add_argument("--baud", type=int, default=None, metavar="BPS",
-                   help="bus baud rate, for byte times and gap detection (default 115200)")
+                   help="bus baud rate, one of table 4.7's (default 115200, or what an MCAP capture recorded)")
+    p.add_argument("--baud-any", action="store_true", default=None,
+                   help="accept a --baud that is not one of the manual's rates")
     p.add_argument("--input-format", choices=FORMATS, default=None,
                    help="capture format, when the extension and content do not tell")
     p.add_argument("--gap-bytes", type=float, default=None, metavar="N",
-                   help="idle byte times inside a frame that end it as truncated (default 20)")
+                   help="idle byte times inside a frame that end it as truncated (default 20; 0 turns it off)")
     p.add_argument("--reply-timeout", type=float, default=None, metavar="S",
                    help="seconds after a request before its reply counts as missing (default 0.05)")
 
 
-def parse_models(specs: list[str]) -> tuple[str | None, dict[int, str]]:
-    """``["RS304MD", "3=RS303MR"]`` -> (default model, {3: "RS303MR"}), checked against the registry."""
-    reg = default_registry()
-    default, per_id = None, {}
-    for spec in specs:
-        key, sep, name = spec.partition("=")
-        try:
-            if sep:
-                try:
-                    sid = int(key, 0)
-                except ValueError:
-                    raise CliError(f"--model {spec}: {key!r} is not a servo ID") from None
-                per_id[sid] = reg.get(name).name
-            else:
-                default = reg.get(spec).name
-        except ModelError as e:
-            raise CliError(f"--model {spec}: {e}") from None
-    return default, per_id
+def add_lint_selection(p: argparse.ArgumentParser) -> None:
+    """--select / --ignore and the settings file options (every command that lints)."""
+    p.add_argument("--select", action="append", default=None, metavar="RULES",
+                   help="only these rules: codes, prefixes (Q, B00) or names, comma-separated; repeatable")
+    p.add_argument("--ignore", action="append", default=None, metavar="RULES",
+                   help="skip these rules (same forms as --select); repeatable")
+    add_config_options(p)
 
 
-def decode_options(args: argparse.Namespace, config: dict | None = None) -> DecodeOptions:
-    """DecodeOptions from the shared options (config values fill what the command line leaves out)."""
-    config = config or {}
-    default, per_id = parse_models(getattr(args, "model", []))
-    opts = DecodeOptions()
-    if config.get("models"):
-        for k, v in config["models"].items():
-            opts.models[int(k)] = v
-    if config.get("model"):
-        opts.default_model = config["model"]
-    opts.models.update(per_id)
-    if default:
-        opts.default_model = default
-    baud = args.baud if getattr(args, "baud", None) is not None else config.get("baud")
-    if baud is not None:
-        if baud <= 0:
-            raise CliError(f"--baud {baud}: must be positive (the bus runs at one of {BAUD_RATES})")
-        opts.baud = baud
-    if getattr(args, "gap_bytes", None) is not None:
-        opts.gap_bytes = args.gap_bytes if args.gap_bytes > 0 else None
-    elif "gap_bytes" in config:
-        opts.gap_bytes = config["gap_bytes"]
-    if getattr(args, "reply_timeout", None) is not None:
-        opts.reply_timeout = args.reply_timeout
-    elif "reply_timeout" in config:
-        opts.reply_timeout = config["reply_timeout"]
-    return opts
+def add_config_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", metavar="FILE",
+                   help="settings file (default: the nearest rs30x-sniff.toml or pyproject.toml [tool.rs30x-sniff])")
+    p.add_argument("--isolated", action="store_true", help="ignore configuration files")
+
+
+def add_lint_options(p: argparse.ArgumentParser) -> None:
+    """The linter's rule selection, as `lint` takes it, and --no-lint."""
+    add_lint_selection(p)
+    p.add_argument("--no-lint", action="store_true", help="do not run the linter")
 
 
 def add_live_options(p: argparse.ArgumentParser) -> None:
@@ -86,9 +60,126 @@ def add_live_options(p: argparse.ArgumentParser) -> None:
                    help="when INPUT is a serial port: stop after S seconds (default: run until Ctrl-C)")
 
 
+# ---- settings: one precedence for every command ------------------------------------------------------
+def _split(values: list[str] | None) -> list[str] | None:
+    if values is None:
+        return None
+    return [v.strip() for item in values for v in item.split(",") if v.strip()]
+
+
+def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
+    """The settings the command line gives (raw values: :func:`rs30x_sniff.settings.check` checks them)."""
+    out: dict[str, Any] = {}
+    for spec in getattr(args, "model", None) or []:
+        key, sep, name = spec.partition("=")
+        if sep:
+            out.setdefault("models", {})[key.strip()] = name.strip()
+        else:
+            out["model"] = spec.strip()
+    for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on"):
+        v = getattr(args, key, None)
+        if v is not None:
+            out[key] = v
+    for key in ("select", "ignore"):
+        v = _split(getattr(args, key, None))
+        if v is not None and (key == "select" or v):
+            out[key] = v
+    sev = {}
+    for spec in getattr(args, "severity", None) or []:
+        key, eq, level = spec.partition("=")
+        if not eq:
+            raise CliError(f"--severity {spec}: expected RULE=LEVEL")
+        sev[key.strip()] = level.strip()
+    if sev:
+        out["severity"] = sev
+    return out
+
+
+def config_layer(args: argparse.Namespace) -> dict[str, Any]:
+    """The config file's settings (checked), or {} when there is none or --isolated."""
+    if getattr(args, "isolated", False):
+        return {}
+    path = getattr(args, "config", None) or find_config()
+    if path is None:
+        return {}
+    try:
+        return load_config(path)
+    except SettingsError as e:
+        raise CliError(str(e)) from None
+
+
+def capture_layer(path: str | None, fmt: str | None = None) -> dict[str, Any]:
+    """What a capture records about how it was made (an MCAP file of ours: baud, models); {} otherwise."""
+    if not path or path == "-" or not os.path.isfile(path):
+        return {}
+    if fmt is None:
+        try:
+            with open(path, "rb") as f:
+                if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+                    return {}
+        except OSError:
+            return {}
+    elif fmt != MCAP:
+        return {}
+    from ..io.mcap_source import McapRawReader  # only MCAP inputs need the mcap library
+    from ..memmap import ModelError, default_registry
+
+    reader = McapRawReader(path, warn=None)
+    try:
+        meta = reader.read_metadata()
+    except Exception:  # noqa: BLE001 - unreadable metadata: the reader says why when the data is read
+        return {}
+    out: dict[str, Any] = {}
+    if reader.baud:
+        out["baud"] = reader.baud
+    reg = default_registry()
+    try:
+        models = {sid: reg.get(name).name for sid, name in reader.models.items() if 1 <= sid <= 127}
+        default = meta.get("rs30x", {}).get("default_model")
+        if default:
+            out["model"] = reg.get(default).name
+    except ModelError:
+        models = {}  # a model this installation does not know: decode with the others' defaults
+    if models:
+        out["models"] = models
+    return out
+
+
+def settings_for(args: argparse.Namespace, path: str | None = None, *, config: dict | None = None) -> Settings:
+    """The settings for one input: command line > config file > what the capture records > defaults."""
+    try:
+        return resolve(command_line_layer(args), config_layer(args) if config is None else config,
+                       capture_layer(path, getattr(args, "input_format", None)))
+    except SettingsError as e:
+        raise CliError(str(e)) from None
+
+
+def lint_config(settings: Settings) -> Any:
+    try:
+        return settings.lint_config()
+    except SettingsError as e:
+        raise CliError(str(e)) from None
+
+
+def make_linter(args: argparse.Namespace, settings: Settings) -> Any:
+    """A Linter configured by ``settings``, or None with --no-lint."""
+    if getattr(args, "no_lint", False):
+        return None
+    from ..lint import Linter  # imported here: only linting commands pay for the rules
+
+    return Linter(lint_config(settings))
+
+
+def check_positive(option: str, value: float | None) -> None:
+    """A command-only number (--duration, --speed, ...): finite and positive, or a one-line error."""
+    if value is not None and not (value > 0 and value != float("inf")):
+        raise CliError(f"{option} {value:g}: must be a finite, positive number")
+
+
+# ---- inputs ----------------------------------------------------------------------------------------
 def open_input(path: str, fmt: str | None = None, *, baud: int | None = None,
                duration: float | None = None) -> Iterator[Chunk]:
-    """Chunks from a capture file (or '-' for raw bytes on stdin), or live from a serial port.
+    """Chunks from a capture file (or '-' for stdin), or live from a serial port.
 
     A port (a character device such as /dev/ttyUSB0, or a pyserial URL such as socket://host:port)
     is read passively at ``baud`` until Ctrl-C, SIGTERM or ``duration`` seconds; the returned
@@ -100,8 +191,7 @@ def open_input(path: str, fmt: str | None = None, *, baud: int | None = None,
         if is_port(path):
             from ..io.serial_tap import LiveSource
 
-            if duration is not None and duration <= 0:
-                raise CliError(f"--duration {duration:g}: must be positive")
+            check_positive("--duration", duration)
             return LiveSource(path, baud or DEFAULT_BAUD, duration=duration).start()
     return read_capture(path, fmt)
 
@@ -123,3 +213,4 @@ def output_stream(path: str | None) -> Iterator[IO[str]]:
         raise CliError(f"{path}: cannot write: {e.strerror}") from None
     with f:
         yield f
+

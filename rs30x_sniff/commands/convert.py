@@ -8,10 +8,11 @@ import os
 import sys
 from typing import Any, Iterator
 
-from ..io.captures import MCAP, Chunk, detect_format
-from ..pipeline import DecodeOptions, Decoder
-from .common import CliError, add_decode_options, decode_options, open_input
-from .lint import add_lint_selection, build_config, settings_from
+from ..io.captures import Chunk, detect_format
+from ..pipeline import Decoder, drive
+from ..settings import Settings
+from ..sinks import ProgressSink
+from .common import CliError, add_decode_options, add_lint_options, make_linter, open_input, settings_for
 
 
 # A file is converted in chunks of up to 1 MiB (still cut at 1 s of log time): the summary lists every
@@ -31,39 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-# ---- shared with `info` --------------------------------------------------------------------------
-def add_lint_options(p: argparse.ArgumentParser) -> None:
-    """The linter's rule selection, as `lint` takes it, and --no-lint."""
-    add_lint_selection(p)
-    p.add_argument("--no-lint", action="store_true", help="do not run the linter")
-
-
-def prepare(args: argparse.Namespace) -> tuple[DecodeOptions, Any]:
-    """Decode options and a Linter (None with --no-lint) from the command line, the settings file
-    (--config, else the nearest one) and, for an MCAP input, the baud and models it was recorded with;
-    in that order of precedence."""
-    config: dict[str, Any] = {}
-    fmt = args.input_format or (detect_format(args.input) if args.input != "-" else None)
-    if fmt == MCAP:
-        from ..io.mcap_source import McapRawReader
-        reader = McapRawReader(args.input)
-        reader.read_metadata()
-        if reader.baud:
-            config["baud"] = reader.baud
-        if reader.models:
-            config["models"] = reader.models
-    settings = settings_from(args)
-    models = {**config.get("models", {}), **settings.get("models", {})}
-    config.update(settings)
-    if models:
-        config["models"] = models
-    opts = decode_options(args, config)
-    if args.no_lint:
-        return opts, None
-    from ..lint import Linter  # imported here: only linting commands pay for the rules
-    return opts, Linter(build_config(args, settings, opts))
-
-
+# ---- shared with `simulate` -------------------------------------------------------------------
 def peek(chunks: Iterator[Chunk]) -> tuple[bool, Iterator[Chunk]]:
     """(whether the capture has timestamps, the same chunks)."""
     first = next(chunks, None)
@@ -94,31 +63,37 @@ def progress_bar(enabled: bool):
                     TimeElapsedColumn(), console=Console(stderr=True), transient=True)
 
 
+def open_mcap_sink(path: str, source: str, settings: Settings, *, timed: bool, **extra: str) -> Any:
+    """The MCAP sink of a converted (or simulated) capture, with its settings in the metadata."""
+    from ..io.mcap_sink import McapSink
+
+    try:
+        return McapSink(path, source=source, baud=settings.baud, time_base="capture" if timed else "synthetic",
+                        models=dict(settings.models),
+                        extra_metadata={"default_model": settings.default_model or "", **extra},
+                        chunk_size=CHUNK_SIZE)
+    except OSError as e:
+        raise CliError(f"{path}: cannot write: {e.strerror}") from None
+
+
 # ---- the command ---------------------------------------------------------------------------------
 def run(args: argparse.Namespace) -> int:
-    from ..io.mcap_sink import McapSink, convert
-
     check_output(args.output, args.force, (args.input,))
-    opts, linter = prepare(args)
+    settings = settings_for(args, args.input)
+    linter = make_linter(args, settings)
     timed, chunks = peek(open_input(args.input, args.input_format))
-    decoder = Decoder(opts, linter=linter)
+    decoder = Decoder(settings.decode_options(), linter=linter)
     source = "stdin" if args.input == "-" else args.input
     total = os.path.getsize(args.input) if args.input != "-" and (
         (args.input_format or detect_format(args.input)) == "bin") else None
     bar = progress_bar(sys.stderr.isatty())
-    try:
-        sink = McapSink(args.output, source=source, baud=opts.baud, time_base="capture" if timed else "synthetic",
-                        models=opts.models, extra_metadata={"default_model": opts.default_model or ""},
-                        chunk_size=CHUNK_SIZE)
-    except OSError as e:
-        raise CliError(f"{args.output}: cannot write: {e.strerror}") from None
-    with sink:
-        if bar is None:
-            convert(chunks, sink, decoder)
-        else:
-            with bar:
-                task = bar.add_task("converting", total=total)
-                convert(chunks, sink, decoder, progress=lambda n: bar.advance(task, n))
+    sink = open_mcap_sink(args.output, source, settings, timed=timed)
+    if bar is None:
+        drive(chunks, decoder, sink)
+    else:
+        with bar:
+            task = bar.add_task("converting", total=total)
+            drive(chunks, decoder, sink, ProgressSink(lambda n: bar.advance(task, n)))
     print(f"{args.output}: {decoder.bytes_in} bytes, {sink.messages} messages, {sink.bytes_written} bytes written",
           file=sys.stderr)
     return 0

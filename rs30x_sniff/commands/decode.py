@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 
-from ..lint.linter import Linter
-from ..pipeline import Decoder
-from ..render import record_json, text_line, verbose_lines
-from .common import add_decode_options, add_live_options, decode_options, is_live, open_input, output_stream
-from .lint import add_lint_selection, build_config, settings_from
+from ..pipeline import Decoder, drive
+from ..sinks import JsonlSink, TextSink
+from .common import (add_decode_options, add_lint_selection, add_live_options, is_live, make_linter, open_input,
+                     output_stream, settings_for)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -30,46 +28,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def involves(rec, ids: set[int]) -> bool:
-    """Whether a record is to or from one of ``ids`` (a long packet: any of its VIDs)."""
-    ev = rec.event
-    if ev.kind == "long":
-        return any(r.vid in ids for r in ev.records)
-    return rec.id in ids
-
-
 def run(args: argparse.Namespace) -> int:
-    settings = settings_from(args)
-    opts = decode_options(args, settings)
-    linter = None if args.no_lint else Linter(build_config(args, settings, opts))
+    settings = settings_for(args, args.input)
+    opts = settings.decode_options()
+    linter = make_linter(args, settings)
     chunks = open_input(args.input, args.input_format, baud=opts.baud, duration=args.duration)
-    live = is_live(chunks)
-    dec = Decoder(opts, linter)
     ids = set(args.id) if args.id else None
     with output_stream(args.output) as out:
-        def emit(records):
-            for rec in records:
-                if ids is not None and not involves(rec, ids):
-                    continue
-                if args.format == "jsonl":
-                    out.write(json.dumps(record_json(rec)) + "\n")
-                else:
-                    out.write(text_line(rec) + "\n")
-                    if args.verbose:
-                        out.write("\n".join(verbose_lines(rec)) + "\n")
-            if live:
-                out.flush()  # a person or a pipe is watching the bus: show each batch as it comes
-        for data, t in chunks:
-            emit(dec.feed(data, t))
-        emit(dec.close())
-        # Findings only the end of input reveals (e.g. a baud change never flashed): they belong to
-        # records already printed, so they come last, each naming its record's offset.
-        for f in dec.late_findings:
-            if ids is not None and f.id not in ids:
-                continue
-            if args.format == "jsonl":
-                out.write(json.dumps({"type": "diagnostic", **f.as_json()}) + "\n")
-            else:
-                ts = f"{f.t:12.6f}" if f.t is not None else f"{'-':>12}"
-                out.write(f"{ts} @{f.offset:<8} lint  {f.code} {f.name}: {f.message}\n")
+        if args.format == "jsonl":
+            sink = JsonlSink(out, ids=ids, flush=is_live(chunks))
+        else:
+            sink = TextSink(out, ids=ids, flush=is_live(chunks), verbose=args.verbose)
+        drive(chunks, Decoder(opts, linter), sink)
     return 1 if getattr(chunks, "lost", False) else 0  # a live port that failed (the source said why)

@@ -6,10 +6,10 @@ import argparse
 import json
 from typing import Any
 
-from ..pipeline import Decoder
+from ..pipeline import Decoder, drive
 from ..stats import CaptureStats
-from .common import add_decode_options, add_live_options, open_input, output_stream
-from .convert import add_lint_options, prepare
+from .common import (add_decode_options, add_lint_options, add_live_options, make_linter, open_input, output_stream,
+                     settings_for)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -25,32 +25,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def gather(chunks, decoder: Decoder, baud: int) -> CaptureStats:
-    """Decode everything and count it."""
-    stats = CaptureStats(baud)
-    add = stats.add
-    for data, t in chunks:
-        for rec in decoder.feed(data, t):
-            add(rec)
-    for rec in decoder.close():
-        add(rec)
-    stats.set_bytes(decoder.bytes_in)
-    if decoder.linter is not None:
-        stats.add_findings(decoder.linter.findings)  # end-of-input findings included
-    return stats
-
-
 def run(args: argparse.Namespace) -> int:
-    opts, linter = prepare(args)
-    decoder = Decoder(opts, linter=linter)
+    settings = settings_for(args, args.input)
+    opts = settings.decode_options()
+    linter = make_linter(args, settings)
     source = open_input(args.input, args.input_format, baud=opts.baud, duration=args.duration)
-    stats = gather(source, decoder, opts.baud)
+    stats = CaptureStats(opts.baud)
+    drive(source, Decoder(opts, linter), stats)
     with output_stream(args.output) as out:
         if args.format == "json":
-            out.write(json.dumps({"input": args.input, "linted": decoder.linter is not None, **stats.as_dict()},
-                                 indent=2) + "\n")
+            out.write(json.dumps({"input": args.input, "linted": linter is not None, "settings": settings.as_json(),
+                                  **stats.as_dict()}, indent=2) + "\n")
         else:
-            _print_text(out, args.input, stats, decoder.linter is not None)
+            _print_text(out, args.input, stats, linter is not None)
     return 0
 
 

@@ -10,25 +10,17 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..io.captures import CaptureError
-from ..lint.config import FAIL_ON, FORMATS, ConfigError, LintConfig, check_settings, find_config, load_config, lint_config
+from ..lint.config import FAIL_ON, FORMATS
 from ..lint.linter import Linter
 from ..lint.report import FileResult, fails, write_report
-from ..memmap import ModelError, default_registry
-from ..pipeline import DecodeOptions, Decoder
-from .common import CliError, add_decode_options, add_live_options, decode_options, open_input, output_stream
+from ..memmap import ModelError
+from ..pipeline import Decoder, drive
+from ..settings import Settings
+from ..sinks import FindingsSink, ProgressSink
+from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, config_layer, lint_config,
+                     open_input, output_stream, settings_for)
 
 PROGRESS_MIN_BYTES = 1 << 20  # a progress bar only for inputs worth waiting for
-
-
-def add_lint_selection(p: argparse.ArgumentParser) -> None:
-    """--select / --ignore (shared with decode) and --config."""
-    p.add_argument("--select", action="append", default=None, metavar="RULES",
-                   help="only these rules: codes, prefixes (Q, B00) or names, comma-separated; repeatable")
-    p.add_argument("--ignore", action="append", default=None, metavar="RULES",
-                   help="skip these rules (same forms as --select); repeatable")
-    p.add_argument("--config", metavar="FILE",
-                   help="settings file (default: the nearest rs30x-sniff.toml or pyproject.toml [tool.rs30x-sniff])")
-    p.add_argument("--isolated", action="store_true", help="ignore configuration files")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -50,92 +42,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def _split(values: list[str] | None) -> list[str] | None:
-    if values is None:
-        return None
-    return [v.strip() for item in values for v in item.split(",") if v.strip()]
-
-
-def settings_from(args: argparse.Namespace) -> dict[str, Any]:
-    """The config file's settings (checked), or {} when there is none or --isolated."""
-    if getattr(args, "isolated", False):
-        return {}
-    path = args.config or find_config()
-    if path is None:
-        return {}
-    try:
-        settings = load_config(path)
-    except ConfigError as e:
-        raise CliError(str(e)) from None
-    reg = default_registry()
-    where = settings["source"]
-    try:
-        if "model" in settings:
-            settings["model"] = reg.get(settings["model"]).name
-        for sid, name in settings.get("models", {}).items():
-            settings["models"][sid] = reg.get(name).name
-    except ModelError as e:
-        raise CliError(f"{where}: {e}") from None
-    return settings
-
-
-def build_config(args: argparse.Namespace, settings: dict[str, Any], opts: DecodeOptions) -> LintConfig:
-    """LintConfig from the file's settings with the command line on top (--select replaces, --ignore adds)."""
-    merged = dict(settings)
-    try:
-        cli: dict[str, Any] = {}
-        sel = _split(getattr(args, "select", None))
-        if sel is not None:
-            cli["select"] = sel
-        ign = _split(getattr(args, "ignore", None))
-        if ign:
-            cli["ignore"] = ign
-        sev = {}
-        for spec in getattr(args, "severity", None) or []:
-            key, eq, level = spec.partition("=")
-            if not eq:
-                raise ConfigError(f"--severity {spec}: expected RULE=LEVEL")
-            sev[key.strip()] = level.strip()
-        if sev:
-            cli["severity"] = sev
-        if getattr(args, "fail_on", None):
-            cli["fail_on"] = args.fail_on
-        cli = check_settings(cli, "command line")
-        cli.pop("source")
-        merged["ignore"] = list(settings.get("ignore", [])) + cli.pop("ignore", [])
-        merged["severity"] = {**settings.get("severity", {}), **cli.pop("severity", {})}
-        merged.update(cli)
-        cfg = lint_config(merged)
-        cfg.baud = opts.baud
-        cfg.reply_timeout = opts.reply_timeout
-        if opts.gap_bytes:
-            cfg.gap_bytes = opts.gap_bytes
-        cfg.enabled_codes()
-        cfg.severities()
-    except ConfigError as e:
-        raise CliError(str(e)) from None
-    return cfg
-
-
-def lint_file(path: str, fmt: str | None, opts: DecodeOptions, cfg: LintConfig,
+def lint_file(path: str, fmt: str | None, settings: Settings,
               progress: Callable[[int], None] | None = None, duration: float | None = None) -> FileResult:
     """Lint one capture (or a port, live); an unreadable input gives a result with ``error`` set
     (findings so far kept)."""
-    linter = Linter(cfg)
-    dec = Decoder(opts, linter)
+    opts = settings.decode_options()
+    linter = Linter(lint_config(settings))
+    found = FindingsSink()
+    sinks = [found] if progress is None else [found, ProgressSink(progress)]
     result = FileResult(path, rules=[r.code for r in linter.rules])
     try:
-        source = open_input(path, fmt, baud=opts.baud, duration=duration)
-        for data, t in source:
-            dec.feed(data, t)
-            if progress is not None:
-                progress(len(data))
-        dec.close()  # a lost port has already said so on stderr; its findings so far still count
+        drive(open_input(path, fmt, baud=opts.baud, duration=duration), Decoder(opts, linter), *sinks)
     except (CaptureError, ModelError) as e:
         result.error = str(e)
-    result.findings = list(linter.findings)
+    result.findings = found.findings
     result.skipped = list(linter.skipped)
-    result.records = linter.records
+    result.records = found.records
     return result
 
 
@@ -163,10 +85,10 @@ def _size(path: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    settings = settings_from(args)
-    opts = decode_options(args, settings)
-    cfg = build_config(args, settings, opts)
-    fmt = args.format or settings.get("format", "text")
+    config = config_layer(args)
+    per_file = [settings_for(args, p, config=config) for p in args.inputs]
+    cfg = lint_config(per_file[0])
+    fmt = args.format or per_file[0].report_format or "text"
     if args.jobs < 1:
         raise CliError(f"-j {args.jobs}: must be 1 or more")
     total = sum(_size(p) for p in args.inputs)
@@ -185,15 +107,15 @@ def run(args: argparse.Namespace) -> int:
         advance = None
     try:
         if args.jobs > 1 and len(args.inputs) > 1:
-            jobs = [(p, args.input_format, opts, cfg) for p in args.inputs]
+            jobs = [(p, args.input_format, st) for p, st in zip(args.inputs, per_file)]
             with ProcessPoolExecutor(max_workers=min(args.jobs, len(jobs))) as pool:
                 for path, res in zip(args.inputs, pool.map(_lint_job, jobs)):
                     results.append(res)
                     if advance:
                         advance(_size(path))
         else:
-            for p in args.inputs:
-                results.append(lint_file(p, args.input_format, opts, cfg, advance, args.duration))
+            for p, st in zip(args.inputs, per_file):
+                results.append(lint_file(p, args.input_format, st, advance, args.duration))
     finally:
         if progress_ctx is not None:
             progress_ctx.stop()

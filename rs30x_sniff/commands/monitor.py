@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from .common import CliError, add_decode_options, decode_options
+from .common import CliError, add_decode_options, add_lint_options, check_positive, lint_config, settings_for
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -22,6 +22,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--history", type=int, default=None, metavar="N",
                    help="records kept for scrolling back (default 1,000,000; older ones are dropped)")
     p.add_argument("--record-dir", default=".", metavar="DIR", help="where `r` writes MCAP recordings (default .)")
+    add_lint_options(p)
     p.set_defaults(run=run)
 
 
@@ -52,9 +53,10 @@ def make_source(args: argparse.Namespace, baud: int):
 
 
 def run(args: argparse.Namespace) -> int:
-    opts = decode_options(args)
-    if not args.speed > 0:
-        raise CliError(f"--speed {args.speed}: must be positive")
+    # The same settings as every other command: the monitor's linter, models and baud agree with `lint`.
+    settings = settings_for(args, None if args.simulate else args.input)
+    opts = settings.decode_options()
+    check_positive("--speed", args.speed)
     if args.history is not None and args.history < 1:
         raise CliError(f"--history {args.history}: must be at least 1")
     if not os.path.isdir(args.record_dir):
@@ -65,7 +67,14 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"{args.input}: {e.strerror or e}") from None
     from ..tui.app import make_app  # Textual is imported only when the screen is about to start
 
-    config = {"record_dir": args.record_dir}
+    config: dict = {"record_dir": args.record_dir}
+    if args.no_lint:
+        config["linter_factory"] = lambda: None
+    else:
+        from ..lint import Linter
+
+        cfg = lint_config(settings)
+        config["linter_factory"] = lambda: Linter(cfg)
     if args.history is not None:
         config["history"] = args.history
     app = make_app(source, opts, **config)

@@ -9,14 +9,14 @@ from pathlib import Path
 
 from ..io.mcap_sink import McapSink
 from ..io.serial_tap import LOST, STOPPED, LiveSource, SerialTap
-from ..pipeline import Decoder
-from ..render import text_line
-from ..wire import byte_time
-from .common import CliError, add_decode_options, decode_options
-from .lint import add_lint_selection, build_config, settings_from
+from ..pipeline import Decoder, Sink, Step, drive
+from ..sinks import TextSink
+from ..stats import RecentLoad
+from .common import CliError, add_decode_options, add_lint_selection, check_positive, make_linter, settings_for
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 FLUSH_INTERVAL = 1.0    # an idle bus still gets its open MCAP chunk written within about a second
+IDLE_INTERVAL = 0.1     # a quiet port still hands the loop an empty chunk this often
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -37,8 +37,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-class _Files:
-    """The output: one MCAP file, or numbered ones rotated at a size."""
+class _Files(Sink):
+    """The output: one MCAP file, or numbered ones rotated at a size; flushed about once a second."""
 
     def __init__(self, path: str, split_bytes: int | None, make) -> None:
         self.base = Path(path)
@@ -47,6 +47,8 @@ class _Files:
         self.index = 0
         self.paths: list[str] = []
         self.sink: McapSink = self._open()
+        self.dirty = False
+        self.last_flush = time.monotonic()
 
     def _open(self) -> McapSink:
         if self.split_bytes is None:
@@ -61,25 +63,37 @@ class _Files:
         self.paths.append(path)
         return sink
 
-    def maybe_rotate(self) -> None:
+    def chunk(self, data: bytes, t: float | None) -> None:
         if self.split_bytes is not None and self.sink.bytes_written >= self.split_bytes:
             self.sink.finish()
             self.sink = self._open()
+        # Raw bytes go to the file before decoding: nothing received is ever lost to a decoder error.
+        self.sink.chunk(data, t)
+        self.dirty = True
+        self.idle()
 
-    def finish(self) -> None:
+    def batch(self, step: Step) -> None:
+        self.sink.batch(step)
+
+    def idle(self) -> None:
+        now = time.monotonic()
+        if self.dirty and now - self.last_flush >= FLUSH_INTERVAL:
+            self.sink.flush()
+            self.last_flush, self.dirty = now, False
+
+    def close(self) -> None:
         self.sink.finish()
 
 
-class _Status:
-    """The status line on stderr (a terminal only): bytes, packets, findings, bus load."""
+class _Status(Sink):
+    """Counts what was recorded, and shows it in a status line on stderr (a terminal only)."""
 
     def __init__(self, enabled: bool, baud: int, out_name: str) -> None:
-        self.enabled = enabled
-        self.bt = byte_time(baud)
         self.out_name = out_name
+        self.load = RecentLoad(baud)
+        self.bytes = self.packets = self.findings = 0
         self.live = None
-        self.start = time.monotonic()
-        self.window: list[tuple[float, int]] = []  # (time, bytes) over the last second, for the load
+        self.start = self.last_show = time.monotonic()
         if enabled:
             from rich.console import Console
             from rich.live import Live
@@ -88,39 +102,38 @@ class _Status:
                              redirect_stdout=True, redirect_stderr=False)
             self.live.start()
 
-    def note(self, nbytes: int) -> None:
-        if self.enabled:
-            now = time.monotonic()
-            self.window.append((now, nbytes))
-            while self.window and self.window[0][0] < now - 1.0:
-                self.window.pop(0)
+    def chunk(self, data: bytes, t: float | None) -> None:
+        self.bytes += len(data)
+        if t is not None:
+            self.load.add(t, len(data))
+        self.idle()
 
-    def show(self, nbytes: int, packets: int, findings: int) -> None:
-        if self.live is None:
+    def batch(self, step: Step) -> None:
+        self.packets += len(step)
+        self.findings += len(step.findings)
+
+    def idle(self) -> None:
+        now = time.monotonic()
+        if self.live is None or now - self.last_show < STATUS_INTERVAL:
             return
-        load = sum(n for _, n in self.window) * self.bt  # seconds of line time in the last second
-        self.live.update(f"[bold red]REC[/] {time.monotonic() - self.start:7.1f} s  {nbytes:,} B  "
-                         f"{packets:,} packets  {findings:,} findings  load {load * 100:3.0f}%  -> {self.out_name}",
-                         refresh=True)
+        self.last_show = now
+        load = self.load.value
+        self.live.update(f"[bold red]REC[/] {now - self.start:7.1f} s  {self.bytes:,} B  {self.packets:,} packets  "
+                         f"{self.findings:,} findings  load {'-' if load is None else f'{load * 100:3.0f}%'}  "
+                         f"-> {self.out_name}", refresh=True)
 
-    def stop(self) -> None:
+    def close(self) -> None:
         if self.live is not None:
             self.live.stop()
             self.live = None
 
 
 def run(args: argparse.Namespace) -> int:
-    settings = settings_from(args)
-    opts = decode_options(args, settings)
-    linter = None
-    if not args.no_lint:
-        from ..lint import Linter
-
-        linter = Linter(build_config(args, settings, opts))
-    if args.duration is not None and args.duration <= 0:
-        raise CliError(f"--duration {args.duration:g}: must be positive")
-    if args.split_size is not None and args.split_size <= 0:
-        raise CliError(f"--split-size {args.split_size:g}: must be positive")
+    settings = settings_for(args)
+    opts = settings.decode_options()
+    linter = make_linter(args, settings)
+    check_positive("--duration", args.duration)
+    check_positive("--split-size", args.split_size)
     split = None if args.split_size is None else max(1, int(args.split_size * 1e6))
 
     src = LiveSource(args.port, opts.baud, duration=args.duration, announce=False,
@@ -139,62 +152,18 @@ def run(args: argparse.Namespace) -> int:
     except BaseException:
         src.close()
         raise
-    dec = Decoder(opts, linter)
     status = _Status(sys.stderr.isatty(), opts.baud, args.output)
-    out = sys.stdout  # after the status line starts: on a terminal it routes stdout above itself
-    nbytes = packets = seen = 0
-    last_status = last_flush = time.monotonic()
-    dirty = False
-
-    def write_records(records) -> None:
-        nonlocal packets, seen
-        sink = files.sink
-        for rec in records:
-            sink.record(rec)
-            if args.print_lines:
-                out.write(text_line(rec) + "\n")
-        packets += len(records)
-        if linter is not None and len(linter.findings) > seen:
-            sink.findings(linter.findings[seen:])
-            seen = len(linter.findings)
-
-    try:
-        while not src.ended:
-            batch = src.poll(0.1)
-            for data, t in batch:
-                # Raw bytes go to the file before decoding: nothing received is ever lost to a decoder error.
-                files.sink.raw(data, t)
-                nbytes += len(data)
-                status.note(len(data))
-                write_records(dec.feed(data, t))
-            if batch:
-                dirty = True
-                if args.print_lines:
-                    out.flush()
-                files.maybe_rotate()
-            now = time.monotonic()
-            if dirty and now - last_flush >= FLUSH_INTERVAL:
-                files.sink.flush()
-                last_flush, dirty = now, False
-            if now - last_status >= STATUS_INTERVAL:
-                status.show(nbytes, packets, seen)
-                last_status = now
-    finally:
-        src.close()
-        status.stop()
-        try:
-            write_records(dec.close())  # also writes the findings only the end of input reveals
-            if args.print_lines:
-                out.flush()
-        finally:
-            files.finish()
+    sinks: list[Sink] = [files, status]
+    if args.print_lines:
+        # After the status line starts: on a terminal it routes stdout above itself.
+        sinks.append(TextSink(sys.stdout, flush=True))
+    drive(src.chunks(IDLE_INTERVAL), Decoder(opts, linter), *sinks)
 
     where = ", ".join(files.paths)
-    summary = f"{nbytes:,} bytes, {packets:,} packets, {seen:,} findings in {where}"
+    summary = f"{status.bytes:,} bytes, {status.packets:,} packets, {status.findings:,} findings in {where}"
     if src.reason == LOST:
         print(f"rs30x-sniff: error: {args.port}: port lost ({src.message}); {summary}", file=sys.stderr)
         return 1
     why = src.message if src.reason == STOPPED else f"{args.duration:g} s recorded"
     print(f"rs30x-sniff: {why}: {summary}", file=sys.stderr)
     return 0
-

@@ -76,26 +76,19 @@ def run(args: argparse.Namespace) -> int:
 
 
 def write_file(path: str, chunks, fmt: str, baud: int) -> int:
-    """Write the simulated chunks as a capture of ``fmt``; an MCAP file is decoded and linted too."""
+    """Write the simulated chunks as a capture of ``fmt``; an MCAP file is decoded and linted too, by
+    the same settings and sink as `convert` (so both give the same file for the same bytes)."""
     try:
         if fmt == MCAP:
-            from ..io.mcap_sink import McapSink, convert
-            from ..pipeline import DecodeOptions, Decoder
+            from ..lint import Linter
+            from ..pipeline import Decoder, drive
+            from ..settings import resolve
+            from .convert import open_mcap_sink
 
-            from ..lint import LintConfig, Linter
-
-            linter = Linter(LintConfig(baud=baud))
-            total = 0
-
-            def counted():
-                nonlocal total
-                for data, t in chunks:
-                    total += len(data)
-                    yield data, t
-            opts = DecodeOptions(baud=baud)
-            with McapSink(path, source="rs30x-sniff simulate", baud=baud, time_base="capture") as sink:
-                convert(counted(), sink, Decoder(opts, linter))
-            return total
+            settings = resolve({"baud": baud})
+            sink = open_mcap_sink(path, "rs30x-sniff simulate", settings, timed=True)
+            dec = drive(chunks, Decoder(settings.decode_options(), Linter(settings.lint_config())), sink)
+            return dec.bytes_in
         return write_capture(path, chunks, fmt)
     except OSError as e:
         raise CliError(f"{path}: cannot write: {e.strerror}") from None

@@ -216,6 +216,23 @@ class McapSink:
                    "name": f"{f.code} {f.name}", "file": self.source, "line": f.offset}
             self._write(self._channel(DIAGNOSTICS_TOPIC, "foxglove.Log"), ns, _encode(msg).encode())
 
+    # ---- as a sink of the drive loop (rs30x_sniff.pipeline) ----------------------------------------
+    def chunk(self, data: bytes, t: float | None) -> None:
+        self.raw(data, t)
+
+    def batch(self, step: Any) -> None:
+        record = self.record
+        for rec in step:
+            record(rec)
+        if step.findings:
+            self.findings(step.findings)
+
+    def idle(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self.finish()
+
     def finish(self) -> None:
         """Write the last chunk, the models metadata, the summary and the footer; idempotent."""
         if self._finished:
@@ -264,32 +281,3 @@ def transaction_json(rec: Any) -> dict[str, Any]:
         "reply_checksum_ok": rev.checksum_ok if rev is not None else None,
         "latency_s": reply.latency if reply is not None else None,
     }
-
-
-def convert(chunks: Iterable[tuple[bytes, float | None]], sink: McapSink, decoder: Any,
-            progress: Callable[[int], None] | None = None) -> int:
-    """Drive ``decoder`` over ``chunks`` and write everything to ``sink``; returns the records written.
-
-    Raw bytes go to the sink before they are decoded, so an error later in the input never loses
-    what was already read. Findings go out as the linter (``decoder.linter``) reports them.
-    """
-    linter = getattr(decoder, "linter", None)
-    seen = 0  # findings of linter.findings already written
-    written = 0
-    raw, record, feed = sink.raw, sink.record, decoder.feed
-    for data, t in chunks:
-        raw(data, t)
-        for rec in feed(data, t):
-            record(rec)
-            written += 1
-        if linter is not None and len(linter.findings) > seen:
-            sink.findings(linter.findings[seen:])
-            seen = len(linter.findings)
-        if progress is not None:
-            progress(len(data))
-    for rec in decoder.close():
-        record(rec)
-        written += 1
-    if linter is not None:
-        sink.findings(linter.findings[seen:])  # end-of-input findings are in linter.findings too
-    return written

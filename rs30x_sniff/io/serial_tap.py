@@ -287,6 +287,19 @@ class LiveSource:
         finally:
             self.close()
 
+    def chunks(self, idle: float = 0.1) -> Iterator[Chunk]:
+        """Like iterating, but an empty chunk ``(b"", None)`` after each ``idle`` seconds without bytes,
+        so a drive loop can refresh a status line or flush a file while the bus is quiet."""
+        try:
+            while self.reason is None:
+                batch = self.poll(idle)
+                if batch:
+                    yield from batch
+                else:
+                    yield b"", None
+        finally:
+            self.close()
+
     @property
     def metadata(self) -> dict[str, str]:
         """What a capture file should say about this source."""

@@ -150,7 +150,7 @@ class MonitorApp(App):
             return  # shutting down: the widgets are gone
         b = message.batch
         store = self.store
-        store.add(b.records, b.findings, b.servos, b.bytes_in)
+        store.add(b.records, b.findings, b.servos, b.bytes_in, b.stats)
         self.batches += 1
         self.info.recording = b.recording
         if b.note:
@@ -282,6 +282,7 @@ class MonitorApp(App):
 
     def action_clear(self) -> None:
         self.store.clear()
+        self.feeder.clear_stats()
         self.servos.reset()
         self.detail.show(None)
         self.info.filter_text = ""

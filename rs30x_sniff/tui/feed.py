@@ -1,4 +1,4 @@
-"""The monitor's capture thread, with no Textual in it: read a source, decode, lint, record, hand batches up."""
+"""The monitor's capture thread, with no Textual in it: the shared drive loop, batches handed up to the screen."""
 
 from __future__ import annotations
 
@@ -6,11 +6,12 @@ import threading
 import time
 from dataclasses import dataclass, field
 from queue import Empty, SimpleQueue
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from ..bus import Record
 from ..io.captures import CaptureError
-from ..pipeline import DecodeOptions, Decoder
+from ..pipeline import DecodeOptions, Decoder, Pipeline, Sink, Step
+from ..stats import CaptureStats
 from .sources import Source
 from .store import ServoRow, servo_snapshot
 
@@ -26,6 +27,7 @@ class Batch:
     findings: list = field(default_factory=list)
     servos: dict[int, ServoRow] | None = None
     bytes_in: int = 0
+    stats: dict[str, Any] | None = None  # CaptureStats.as_dict() since the last clear: info's own figures
     done: bool = False           # the source has ended (a file read to its end, a port closed)
     error: str | None = None     # why it ended early, in one line
     recording: str | None = None  # the MCAP file being written, if any
@@ -41,10 +43,53 @@ def default_linter() -> Any:
     return Linter()
 
 
+class _Collect(Sink):
+    """Gathers the pipeline's records and findings between posts to the screen."""
+
+    def __init__(self) -> None:
+        self.records: list[Record] = []
+        self.findings: list = []
+
+    def batch(self, step: Step) -> None:
+        self.records += step
+        if step.findings:
+            self.findings += step.findings
+
+    def take(self) -> tuple[list[Record], list]:
+        out = self.records, self.findings
+        self.records, self.findings = [], []
+        return out
+
+
+class _Recording(Sink):
+    """The `r` recording: the MCAP sink, guarded so that a full disk stops the recording, never the capture."""
+
+    def __init__(self, feeder: Feeder, sink: Any, path: str) -> None:
+        self.feeder, self.sink, self.path = feeder, sink, path
+
+    def _guard(self, write: Callable[..., None], *args: Any) -> None:
+        try:
+            write(*args)
+        except OSError as e:
+            self.feeder._note = f"recording stopped: {e.strerror or e}"
+            self.feeder._close_sink(quiet=True)
+
+    def chunk(self, data: bytes, t: float | None) -> None:
+        self._guard(self.sink.chunk, data, t)
+
+    def batch(self, step: Step) -> None:
+        self._guard(self.sink.batch, step)
+
+    def close(self) -> None:
+        self.feeder._close_sink()  # the end of the source ends the recording: the file is finished and indexed
+
+
 class Feeder:
     """Runs in its own thread: never waits for the screen, so the capture loses nothing to it.
 
-    Commands (stop, start or stop recording) come down through a queue and are applied between chunks;
+    It drives the same pipeline as every command (source -> Decoder -> sinks): the screen's batches,
+    the capture statistics and, while `r` records, the MCAP sink. Commands (stop, start or stop
+    recording, clear the statistics) come down through a queue and are applied between chunks;
     batches go up through ``post``, at most every ``interval`` seconds (or ``max_batch`` records).
     """
 
@@ -57,6 +102,9 @@ class Feeder:
         self.post = post
         self.linter = linter
         self.decoder = Decoder(options, linter=linter)
+        self.stats = CaptureStats(options.baud)
+        self._collect = _Collect()
+        self.pipeline = Pipeline(self.decoder, [self._collect, self.stats])
         self.interval = interval
         self.max_batch = max_batch
         self.clock = clock
@@ -67,48 +115,48 @@ class Feeder:
         self.recording: str | None = None
         self._commands: SimpleQueue = SimpleQueue()
         self._commands_waiting = False  # a plain flag, so the per-chunk check takes no lock
-        self._sink: Any = None
-        self._seen_findings = 0
+        self._sink: _Recording | None = None
         self._note: str | None = None
+        self._last_post = 0.0
 
     # ---- commands from the screen (any thread) ---------------------------------------------------
     def stop(self) -> None:
         self.stop_event.set()
 
-    def start_recording(self, path: str) -> None:
-        self._commands.put(("record", path))
+    def _command(self, cmd: str, arg: Any = None) -> None:
+        self._commands.put((cmd, arg))
         self._commands_waiting = True
+
+    def start_recording(self, path: str) -> None:
+        self._command("record", path)
 
     def stop_recording(self) -> None:
-        self._commands.put(("stop-record", None))
-        self._commands_waiting = True
+        self._command("stop-record")
+
+    def clear_stats(self) -> None:
+        """Start the statistics afresh (the screen's `c`): a new window, the same arithmetic."""
+        self._command("clear-stats")
 
     # ---- the thread --------------------------------------------------------------------------------
+    def _chunks(self) -> Iterator[tuple[bytes, float | None]]:
+        """The source's chunks, with the screen's commands applied and batches posted between them."""
+        self._last_post = self.clock()
+        for chunk in self.source.chunks(self.stop_event):
+            self._apply_commands()
+            yield chunk
+            now = self.clock()
+            n = len(self._collect.records)
+            if n and (now - self._last_post >= self.interval or n >= self.max_batch) or self._note is not None:
+                self._post()
+                self._last_post = now
+            if self.stop_event.is_set():
+                return
+
     def run(self) -> None:
         self.running = True
-        records: list[Record] = []
-        findings: list = []
-        last_post = self.clock()
         error = None
-        dec = self.decoder
         try:
-            for data, t in self.source.chunks(self.stop_event):
-                self._apply_commands()
-                if data:
-                    new = dec.feed(data, t)
-                    found = self._new_findings()
-                    if self._sink is not None:
-                        self._record(data, t, new, found)
-                    records += new
-                    findings += found
-                now = self.clock()
-                if records and (now - last_post >= self.interval or len(records) >= self.max_batch) \
-                        or self._note is not None:
-                    self._post(records, findings)
-                    records, findings = [], []
-                    last_post = now
-                if self.stop_event.is_set():
-                    break
+            self.pipeline.run(self._chunks())
         except (CaptureError, OSError) as e:
             error = str(e)
         except Exception as e:  # noqa: BLE001 - a bug must not cost the records decoded so far
@@ -118,31 +166,17 @@ class Feeder:
                 self.source.close()
             except Exception as e:  # noqa: BLE001 - closing must not cost the last batch
                 error = error or f"closing the source: {type(e).__name__}: {e}"
-        tail = dec.close()
-        records += tail
-        late = self._new_findings()  # end-of-input findings are in linter.findings too
-        findings += late
-        if self._sink is not None:
-            self._record(b"", None, tail, late)
         self._apply_commands()
-        self._close_sink()  # the end of the source ends the recording: the file is finished and indexed
+        self._close_sink()
         self.finished = True
         self.running = False
-        self._post(records, findings, done=True, error=error)
+        self._post(done=True, error=error)
 
-    def _new_findings(self) -> list:
-        lin = self.linter
-        if lin is None:
-            return []
-        all_ = lin.findings
-        new = all_[self._seen_findings:]
-        self._seen_findings = len(all_)
-        return list(new)
-
-    def _post(self, records: list[Record], findings: list, done: bool = False, error: str | None = None) -> None:
+    def _post(self, done: bool = False, error: str | None = None) -> None:
         note, self._note = self._note, None
-        self.post(Batch(records, findings, servo_snapshot(self.decoder.bus), self.decoder.bytes_in, done=done,
-                        error=error, recording=self.recording, note=note))
+        records, findings = self._collect.take()
+        self.post(Batch(records, findings, servo_snapshot(self.decoder.bus), self.decoder.bytes_in,
+                        stats=self.stats.as_dict(), done=done, error=error, recording=self.recording, note=note))
 
     # ---- recording ---------------------------------------------------------------------------------
     def _apply_commands(self) -> None:
@@ -158,9 +192,13 @@ class Feeder:
                 self._open_sink(arg)
             elif cmd == "stop-record":
                 self._close_sink()
+            elif cmd == "clear-stats":
+                self.pipeline.remove(self.stats)
+                self.stats = CaptureStats(self.options.baud)
+                self.pipeline.add(self.stats)
 
     def _open_sink(self, path: str) -> None:
-        if self._sink is not None:
+        if self._sink is not None or self.pipeline.closed:
             return
         factory = self.sink_factory
         if factory is None:
@@ -168,36 +206,26 @@ class Feeder:
             factory = McapSink
         models = {i: m for i, m in self.options.models.items()}
         try:
-            self._sink = factory(path, source=self.source.name, baud=self.options.baud,
-                                 time_base=self.source.time_base, models=models)
+            sink = factory(path, source=self.source.name, baud=self.options.baud,
+                           time_base=self.source.time_base, models=models)
         except OSError as e:
             self._note = f"cannot record to {path}: {e.strerror or e}"
             return
+        self._sink = _Recording(self, sink, path)
+        self.pipeline.add(self._sink)
         self.recording = path
         self._note = f"recording to {path}"
 
-    def _record(self, data: bytes, t: float | None, records: list[Record], findings: list | None = None) -> None:
-        sink = self._sink
-        try:
-            if data:
-                sink.raw(data, t)
-            for rec in records:
-                sink.record(rec)
-            if findings:
-                sink.findings(findings)
-        except OSError as e:
-            # A full disk stops the recording, never the capture.
-            self._note = f"recording stopped: {e.strerror or e}"
-            self._close_sink(quiet=True)
-
     def _close_sink(self, quiet: bool = False) -> None:
-        sink, path = self._sink, self.recording
-        if sink is None:
+        rec, path = self._sink, self.recording
+        if rec is None:
             return
         self._sink = None
         self.recording = None
+        if rec in self.pipeline.sinks:
+            self.pipeline.remove(rec)
         try:
-            sink.finish()
+            rec.sink.finish()
         except OSError as e:
             self._note = f"recording to {path} failed: {e.strerror or e}"
             return

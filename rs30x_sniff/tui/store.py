@@ -11,6 +11,7 @@ from typing import Any, Iterable
 
 from ..bus import BusTracker, Record
 from ..events import LongPacket, ReturnPacket, ShortPacket
+from ..stats import RecentLoad
 from .filter import SEVERITY_RANK, Filter
 
 DEFAULT_HISTORY = 1_000_000
@@ -174,8 +175,8 @@ class Store:
         self.memory = 0
         self.bytes_base = self.bytes_in  # bytes counted from here on
         self.servos = {}
-        self._load: deque[tuple[float, int]] = deque()
-        self._load_bytes = 0
+        self.capture_stats: dict[str, Any] = {}  # the feeder's CaptureStats.as_dict(): info's figures
+        self.recent_load = RecentLoad(self.baud, LOAD_WINDOW)
         self.plot: deque[float] = deque(maxlen=self.plot_points)
         self.filter: Filter | None = None
         self.view: array | None = None  # seqs that pass the filter; None when there is no filter
@@ -196,7 +197,7 @@ class Store:
         return None
 
     def add(self, records: Iterable[Record], findings: Iterable = (), servos: dict[int, ServoRow] | None = None,
-            bytes_in: int | None = None) -> None:
+            bytes_in: int | None = None, capture_stats: dict[str, Any] | None = None) -> None:
         """Take a batch from the decoding thread: records in wire order, new findings, servo rows."""
         rows = self.rows
         stats = self.stats
@@ -205,8 +206,8 @@ class Store:
         view = self.view
         seq = self.end_seq
         memory = 0
-        load = self._load
-        load_bytes = 0
+        loads: list[tuple[float, int]] = []
+        load = loads.append
         plot_id, plot_reg, plot = self.plot_id, self.plot_register, self.plot
         # This loop runs on the screen's thread for every record: keep it lean.
         missing = 0
@@ -224,9 +225,7 @@ class Store:
                 if first_t is None:
                     first_t = t
                 last_t = t
-                n = len(ev.raw)
-                load.append((t, n))
-                load_bytes += n
+                load((t, len(ev.raw)))
             if plot_id is not None and (getattr(ev, "id", None) == plot_id or type(ev) is LongPacket):
                 v = register_value(rec, plot_id, plot_reg)
                 if isinstance(v, (int, float)):
@@ -240,11 +239,7 @@ class Store:
             stats.last_t = last_t
         stats.records = seq
         self.memory += memory
-        self._load_bytes += load_bytes
-        if stats.last_t is not None:
-            horizon = stats.last_t - LOAD_WINDOW
-            while load and load[0][0] < horizon:
-                self._load_bytes -= load.popleft()[1]
+        self.recent_load.extend(loads)
         for f in findings:
             self.findings.append(f)
             self.findings_total += 1
@@ -253,6 +248,8 @@ class Store:
                 self.findings_by_id[f.id] += 1
         if servos is not None:
             self.servos = servos
+        if capture_stats is not None:
+            self.capture_stats = capture_stats
         if bytes_in is not None:
             self.bytes_in = bytes_in
         self._evict()
@@ -286,26 +283,21 @@ class Store:
     @property
     def bus_load(self) -> float | None:
         """Fraction of the last second of capture time the wire was busy (8N1: 10 bits a byte)."""
-        load = self._load
-        if not load:
-            return None
-        window = min(LOAD_WINDOW, max(self.stats.last_t - load[0][0], 0.0))
-        if window <= 0:
-            return None
-        # The last record's own bytes end after last_t; count the window up to its start.
-        busy = (self._load_bytes - load[-1][1]) * 10 / self.baud
-        return min(1.0, busy / window)
+        return self.recent_load.value
+
+    @property
+    def average_load(self) -> float | None:
+        """Bus load since the start (or the last clear), as `info` computes it."""
+        return self.capture_stats.get("bus_load")
 
     def memory_estimate(self) -> int:
         """Bytes the held history costs, roughly (records, events, byte strings, the list itself)."""
         return self.memory + sys.getsizeof(self.rows) + (self.view.itemsize * len(self.view) if self.view else 0)
 
     def poll_rate(self, row: ServoRow) -> float | None:
-        """Requests per second of capture time to one servo."""
-        span = self.span
-        if not span:
-            return None
-        return row.requests / span
+        """Reads per second to one servo since the start (or the last clear), as `info` computes it."""
+        servo = self.capture_stats.get("servos", {}).get(str(row.id))
+        return None if servo is None else servo["poll_rate_hz"]
 
     # ---- the filtered view -----------------------------------------------------------------------
     def set_filter(self, flt: Filter | None) -> None:

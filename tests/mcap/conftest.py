@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from rs30x_sniff.io.captures import read_capture
-from rs30x_sniff.io.mcap_sink import McapSink, convert
+from rs30x_sniff.io.mcap_sink import McapSink
+from rs30x_sniff.pipeline import drive
 from rs30x_sniff.pipeline import DecodeOptions, Decoder
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -25,7 +26,7 @@ def to_mcap(chunks, path, *, baud=115200, linter=None, time_base=None, **sink_kw
         time_base = "capture" if chunks and chunks[0][1] is not None else "synthetic"
     dec = Decoder(DecodeOptions(baud=baud, models=dict(sink_kw.get("models") or {})), linter=linter)
     with McapSink(str(path), source="test", baud=baud, time_base=time_base, **sink_kw) as sink:
-        convert(iter(chunks), sink, dec)
+        drive(iter(chunks), dec, sink)
     return sink
 
 

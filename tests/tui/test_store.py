@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from rs30x_sniff.stats import CaptureStats
 from rs30x_sniff.pipeline import DecodeOptions, Decoder
 from rs30x_sniff.tui.filter import parse_filter
 from rs30x_sniff.tui.store import Store, register_value, servo_snapshot
@@ -180,7 +181,10 @@ def test_servo_rows_and_poll_rate():
         recs += dec.feed(data, t)
     recs += dec.close()
     store = Store()
-    store.add(recs, servos=servo_snapshot(dec.bus))
+    stats = CaptureStats(115200)
+    for rec in recs:
+        stats.add(rec)
+    store.add(recs, servos=servo_snapshot(dec.bus), capture_stats=stats.as_dict())
     assert sorted(store.servos) == list(range(1, 19))
     row = store.servos[1]
     assert row.values["present_position"] is not None and row.units["present_position"] == "deg"

@@ -1,0 +1,309 @@
+"""One settings object for every command: command line > config file > what the capture records > defaults."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from .bus import DEFAULT_REPLY_TIMEOUT
+from .framing import DEFAULT_GAP_BYTES
+from .lint.config import FAIL_ON, FORMATS, ConfigError, LintConfig
+from .lint.config import resolve as resolve_rules
+from .lint.registry import SEVERITIES
+from .memmap import ModelError, ModelRegistry, default_registry
+from .pipeline import DecodeOptions
+from .wire import BAUD_RATES, DEFAULT_BAUD
+
+CONFIG_NAME = "rs30x-sniff.toml"
+TABLE = "tool.rs30x-sniff"
+MAX_SERVO_ID = 127  # table 4.6 No. 4: IDs 1 to 127 (7FH); 0 is the long packet, 255 the broadcast
+
+# Layers, lowest precedence first; Settings.origin names one of these (or a config file's path).
+DEFAULTS, CAPTURE, CONFIG, COMMAND_LINE = "defaults", "capture", "config", "command line"
+
+SettingsError = ConfigError  # one error type for a bad option or config value (exit code 2)
+
+
+# ---- what a value may be: one check per key, the same for the command line and a config file ----
+def _finite(v: Any) -> str | None:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return "must be a number"
+    if not math.isfinite(v):
+        return "must be a finite number"
+    return None
+
+
+def _positive(v: Any) -> str | None:
+    return _finite(v) or (None if v > 0 else "must be positive")
+
+
+def _not_negative(v: Any) -> str | None:
+    return _finite(v) or (None if v >= 0 else "must be 0 or more")
+
+
+def _count(v: Any) -> str | None:
+    if isinstance(v, bool) or not isinstance(v, int):
+        return "must be a whole number"
+    return None if v > 0 else "must be positive"
+
+
+def _baud(v: Any) -> str | None:
+    return _count(v)  # the manual's rates are checked against baud-any once every layer is merged
+
+
+def _one_of(choices: tuple[str, ...]) -> Callable[[Any], str | None]:
+    def check(v: Any) -> str | None:
+        return None if v in choices else f"must be one of {', '.join(choices)}"
+    return check
+
+
+def _rules(v: Any) -> str | None:
+    if not isinstance(v, list) or not all(isinstance(s, str) for s in v):
+        return "expected a list of rule codes or names"
+    return None
+
+
+def _flag(v: Any) -> str | None:
+    return None if isinstance(v, bool) else "must be true or false"
+
+
+def _severity(v: Any) -> str | None:
+    return None if isinstance(v, dict) else "expected a table of RULE = LEVEL"
+
+
+def _model_name(v: Any) -> str | None:
+    return None if isinstance(v, str) else "expected a model name"
+
+
+def _models(v: Any) -> str | None:
+    return None if isinstance(v, dict) else "expected a table of ID = MODEL"
+
+
+@dataclass(frozen=True)
+class Key:
+    """One setting: how to check a value, and its name on the command line."""
+
+    check: Callable[[Any], str | None]
+    option: str          # the command-line spelling, for messages
+    doc: str
+
+
+KEYS: dict[str, Key] = {
+    "baud": Key(_baud, "--baud", "bus baud rate (table 4.7)"),
+    "baud_any": Key(_flag, "--baud-any", "accept a baud rate outside table 4.7"),
+    "model": Key(_model_name, "--model", "model of every servo"),
+    "models": Key(_models, "--model ID=", "model per servo ID"),
+    "gap_bytes": Key(_not_negative, "--gap-bytes", "idle byte times that end a frame (0: off)"),
+    "reply_timeout": Key(_positive, "--reply-timeout", "seconds before a reply counts as missing"),
+    "select": Key(_rules, "--select", "rules to run"),
+    "ignore": Key(_rules, "--ignore", "rules to skip"),
+    "severity": Key(_severity, "--severity", "severity per rule"),
+    "fail_on": Key(_one_of(FAIL_ON), "--fail-on", "lowest severity that fails lint"),
+    "format": Key(_one_of(FORMATS), "--format", "lint report format"),
+    "latency_margin": Key(_positive, "latency-margin", "seconds a reply may stray from its return delay (B006)"),
+    "inter_byte_gap": Key(_positive, "inter-byte-gap", "idle byte times allowed inside a frame (F004)"),
+    "flash_write_time": Key(_positive, "flash-write-time", "seconds a flash write takes (Q003)"),
+    "max_servos": Key(_count, "max-servos", "servos one bus may carry (Q008)"),
+}
+LINT_THRESHOLDS = ("latency_margin", "inter_byte_gap", "flash_write_time", "max_servos")
+
+
+def _label(key: str, value: Any, where: str) -> str:
+    """How a message names the value: ``--baud 12345`` or ``rs30x-sniff.toml: baud = 12345``."""
+    if where == COMMAND_LINE:
+        opt = KEYS[key].option
+        return f"{opt} {value}" if opt.startswith("--") else f"{opt} {value!r}"
+    return f"{where}: {key.replace('_', '-')} = {value!r}"
+
+
+def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None = None) -> dict[str, Any]:
+    """Checked settings with snake_case keys (kebab-case accepted); ``where`` names the layer in messages."""
+    reg = registry or default_registry()
+    out: dict[str, Any] = {}
+    for raw_key, value in table.items():
+        key = raw_key.replace("-", "_")
+        spec = KEYS.get(key)
+        if spec is None:
+            known = ", ".join(sorted(k.replace("_", "-") for k in KEYS))
+            raise SettingsError(f"{where}: unknown key {raw_key!r} (known: {known})")
+        problem = spec.check(value)
+        if problem:
+            raise SettingsError(f"{_label(key, value, where)}: {problem}")
+        out[key] = value
+    for key in ("select", "ignore"):
+        if key in out:
+            resolve_rules(out[key], key, where)
+    for k, level in out.get("severity", {}).items():
+        if level not in SEVERITIES:
+            name = f"--severity {k}={level}" if where == COMMAND_LINE else f"{where}: severity.{k}"
+            raise SettingsError(f"{name}: level must be one of {', '.join(SEVERITIES)}")
+        resolve_rules([k], "severity", where)
+    try:
+        if "model" in out:
+            out["model"] = reg.get(out["model"]).name
+        if "models" in out:
+            models: dict[int, str] = {}
+            for k, name in out["models"].items():
+                sid = _servo_id(k, where)
+                if not isinstance(name, str):
+                    raise SettingsError(f"{_label('models', f'{k}={name}', where)}: expected a model name")
+                models[sid] = reg.get(name).name
+            out["models"] = models
+    except ModelError as e:
+        raise SettingsError(f"{where}: {e}") from None
+    return out
+
+
+def _servo_id(key: Any, where: str) -> int:
+    try:
+        sid = key if isinstance(key, int) else int(str(key), 0)
+    except ValueError:
+        raise SettingsError(f"{_label('models', key, where)}: {key!r} is not a servo ID") from None
+    if not 1 <= sid <= MAX_SERVO_ID:
+        raise SettingsError(f"{_label('models', key, where)}: servo IDs run from 1 to {MAX_SERVO_ID} "
+                            f"(table 4.6 No. 4)")
+    return sid
+
+
+# ---- config files ----------------------------------------------------------------------------------
+def find_config(start: Path | None = None) -> Path | None:
+    """The nearest rs30x-sniff.toml, or pyproject.toml with a [tool.rs30x-sniff] table, from ``start`` up."""
+    d = (start or Path.cwd()).resolve()
+    for folder in (d, *d.parents):
+        own = folder / CONFIG_NAME
+        if own.is_file():
+            return own
+        py = folder / "pyproject.toml"
+        if py.is_file():
+            try:
+                doc = tomllib.loads(py.read_text(encoding="utf-8"))
+            except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+                return py  # broken: let load_config say so rather than silently skip the project's settings
+            if "rs30x-sniff" in doc.get("tool", {}):
+                return py
+    return None
+
+
+def load_config(path: Path | str) -> dict[str, Any]:
+    """The checked settings of a config file (snake_case keys), with ``source`` naming the file."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise SettingsError(f"{path}: no such config file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise SettingsError(f"{path}: cannot read: {getattr(e, 'strerror', None) or e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise SettingsError(f"{path}: not valid TOML: {e}") from None
+    if path.name == "pyproject.toml" or "tool" in doc:
+        table = doc.get("tool", {}).get("rs30x-sniff")
+        if table is None:
+            raise SettingsError(f"{path}: no [{TABLE}] table")
+        where = f"{path}: [{TABLE}]"
+    else:
+        table, where = doc, str(path)
+    out = check(table, where)
+    out["source"] = where
+    return out
+
+
+# ---- the settings ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Settings:
+    """Every option that changes how a capture is decoded and linted, merged from its layers.
+
+    Build it with :func:`resolve`; ``origin`` says which layer each decode value came from.
+    """
+
+    baud: int = DEFAULT_BAUD
+    default_model: str | None = None
+    models: Mapping[int, str] = field(default_factory=dict)
+    gap_bytes: float | None = DEFAULT_GAP_BYTES   # None: gap detection off
+    reply_timeout: float = DEFAULT_REPLY_TIMEOUT
+    lint: Mapping[str, Any] = field(default_factory=dict)  # select, ignore, severity, fail_on, thresholds
+    report_format: str | None = None
+    origin: Mapping[str, str] = field(default_factory=dict)
+    config_path: str | None = None
+
+    def decode_options(self, registry: ModelRegistry | None = None) -> DecodeOptions:
+        return DecodeOptions(baud=self.baud, default_model=self.default_model, models=dict(self.models),
+                             gap_bytes=self.gap_bytes, reply_timeout=self.reply_timeout, registry=registry)
+
+    def lint_config(self) -> LintConfig:
+        """The linter's configuration; its timing thresholds follow the decode options."""
+        cfg = LintConfig()
+        for key, value in self.lint.items():
+            setattr(cfg, key, value)
+        cfg.baud = self.baud
+        cfg.reply_timeout = self.reply_timeout
+        if self.gap_bytes:
+            cfg.gap_bytes = self.gap_bytes
+        cfg.source = self.config_path or "options"
+        try:
+            cfg.enabled_codes()
+            cfg.severities()
+        except ConfigError as e:
+            raise SettingsError(str(e)) from None
+        return cfg
+
+    def as_json(self) -> dict[str, Any]:
+        """The decode settings with where each came from (``info --format json``, MCAP metadata)."""
+        return {"baud": self.baud, "default_model": self.default_model,
+                "models": {str(k): v for k, v in sorted(self.models.items())}, "gap_bytes": self.gap_bytes,
+                "reply_timeout": self.reply_timeout, "origin": dict(self.origin), "config": self.config_path}
+
+
+def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, Any] | None = None,
+            capture: Mapping[str, Any] | None = None) -> Settings:
+    """Merge the layers: command line > config file > capture > defaults.
+
+    ``command_line`` holds raw values (checked here, named by their options in messages); ``config``
+    comes from :func:`load_config` (already checked); ``capture`` is what a capture file records
+    (``baud``, ``model``, ``models``). Per-ID models merge ID by ID; ``select`` replaces, ``ignore``
+    adds up and ``severity`` merges rule by rule.
+    """
+    cli = check(command_line or {}, COMMAND_LINE)
+    conf = dict(config or {})
+    where_conf = conf.pop("source", CONFIG)
+    cap = dict(capture or {})
+    layers = [(CAPTURE, cap), (where_conf, conf), (COMMAND_LINE, cli)]
+    values: dict[str, Any] = {"baud": DEFAULT_BAUD, "model": None, "gap_bytes": DEFAULT_GAP_BYTES,
+                              "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False}
+    origin = {k: DEFAULTS for k in ("baud", "model", "gap_bytes", "reply_timeout")}
+    models: dict[int, str] = {}
+    lint: dict[str, Any] = {}
+    ignore: list[str] = []
+    severity: dict[str, str] = {}
+    for where, layer in layers:
+        for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any"):
+            if key in layer:
+                values[key] = layer[key]
+                origin[key] = where
+        for sid, name in layer.get("models", {}).items():
+            models[sid] = name
+            origin[f"models.{sid}"] = where
+        if "select" in layer:
+            lint["select"] = list(layer["select"])
+        ignore += layer.get("ignore", [])
+        severity.update(layer.get("severity", {}))
+        for key in ("fail_on", *LINT_THRESHOLDS):
+            if key in layer:
+                lint[key] = layer[key]
+    if ignore:
+        lint["ignore"] = ignore
+    if severity:
+        lint["severity"] = severity
+    baud = values["baud"]
+    if baud not in BAUD_RATES and not values["baud_any"] and origin["baud"] != CAPTURE:
+        # A capture records the rate it was made at; only a rate someone typed is held to table 4.7.
+        rates = ", ".join(map(str, BAUD_RATES))
+        raise SettingsError(f"{_label('baud', baud, origin['baud'])}: not a rate of table 4.7 ({rates}); "
+                            f"add --baud-any (baud-any = true) to use it anyway")
+    fmt = cli.get("format", conf.get("format"))
+    return Settings(baud=baud, default_model=values["model"], models=models,
+                    gap_bytes=values["gap_bytes"] or None, reply_timeout=values["reply_timeout"], lint=lint,
+                    report_format=fmt, origin=origin,
+                    config_path=where_conf if config else None)

@@ -1,0 +1,100 @@
+"""Small sinks of the drive loop: decode's text and JSON lines, lint's findings, a progress bar."""
+
+from __future__ import annotations
+
+import json
+from typing import IO, Any, Callable
+
+from .bus import Record
+from .pipeline import Sink, Step
+from .render import record_json, text_line, verbose_lines
+
+
+def involves(rec: Record, ids: set[int]) -> bool:
+    """Whether a record is to or from one of ``ids`` (a long packet: any of its VIDs)."""
+    ev = rec.event
+    if ev.kind == "long":
+        return any(r.vid in ids for r in ev.records)
+    return rec.id in ids
+
+
+class _LineSink(Sink):
+    """One line per record (and one per finding only the end of input reveals), optionally one servo's."""
+
+    def __init__(self, out: IO[str], *, ids: set[int] | None = None, flush: bool = False) -> None:
+        self.out = out
+        self.ids = ids
+        self.flush = flush  # a person or a pipe watches a live bus: show each batch as it comes
+        self.records = 0
+
+    def batch(self, step: Step) -> None:
+        ids = self.ids
+        write = self.out.write
+        line = self.line
+        for rec in step:
+            if ids is None or involves(rec, ids):
+                write(line(rec))
+                self.records += 1
+        # Findings only the end of input reveals belong to records already written: they come last,
+        # each naming its record's offset.
+        for f in step.late:
+            if ids is None or f.id in ids:
+                write(self.finding_line(f))
+        if self.flush:
+            self.out.flush()
+
+    def line(self, rec: Record) -> str:
+        raise NotImplementedError
+
+    def finding_line(self, f: Any) -> str:
+        raise NotImplementedError
+
+
+class TextSink(_LineSink):
+    """``decode``'s text: one line per event with its findings, ``verbose`` adds the field tree."""
+
+    def __init__(self, out: IO[str], *, verbose: bool = False, **kw: Any) -> None:
+        super().__init__(out, **kw)
+        self.verbose = verbose
+
+    def line(self, rec: Record) -> str:
+        if self.verbose:
+            return text_line(rec) + "\n" + "\n".join(verbose_lines(rec)) + "\n"
+        return text_line(rec) + "\n"
+
+    def finding_line(self, f: Any) -> str:
+        ts = f"{f.t:12.6f}" if f.t is not None else f"{'-':>12}"
+        return f"{ts} @{f.offset:<8} lint  {f.code} {f.name}: {f.message}\n"
+
+
+class JsonlSink(_LineSink):
+    """``decode --format jsonl``: one JSON object per event, end-of-input findings as diagnostics."""
+
+    def line(self, rec: Record) -> str:
+        return json.dumps(record_json(rec)) + "\n"
+
+    def finding_line(self, f: Any) -> str:
+        return json.dumps({"type": "diagnostic", **f.as_json()}) + "\n"
+
+
+class FindingsSink(Sink):
+    """Every lint finding and the record count: what a lint report needs of one capture."""
+
+    def __init__(self) -> None:
+        self.findings: list = []
+        self.records = 0
+
+    def batch(self, step: Step) -> None:
+        self.records += len(step)
+        if step.findings:
+            self.findings += step.findings
+
+
+class ProgressSink(Sink):
+    """Advances a progress bar by the bytes read."""
+
+    def __init__(self, advance: Callable[[int], None]) -> None:
+        self.advance = advance
+
+    def chunk(self, data: bytes, t: float | None) -> None:
+        self.advance(len(data))
