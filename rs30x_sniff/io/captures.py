@@ -351,42 +351,27 @@ class CaptureReader:
 
 
 class _LineIndex:
-    """Where each line's bytes start in the stream, and how to find a byte's column in the line."""
+    """Where each line's bytes start in the stream, and how to find a byte's column in the line.
+
+    Two integers per line with data: the stream offset of its first byte, and its line number,
+    first column and spacing packed in one (the text reader appends them itself, inline).
+    """
 
     def __init__(self) -> None:
         self.starts = array("q")   # stream offset of the line's first byte (increasing)
-        self.lines = array("q")    # its line number
-        self.cols = array("q")     # column of its first byte
-        self.steps = array("b")    # columns from one byte to the next: 3 ("FA AF"), 2 ("FAAF"), 0 (uneven)
+        self.where = array("q")    # line << 32 | first column << 2 | spacing (3 "FA AF", 2 "FAAF", 0 uneven)
         self.uneven: dict[int, array] = {}  # index -> the column of every byte, for uneven lines
         self.end = 0               # stream offset after the last byte indexed
-
-    def add(self, lineno: int, body: bytes, base: int, n: int) -> None:
-        """Index line ``lineno``: ``body`` holds its ``n`` bytes as hex and starts at 0-based column ``base``."""
-        stripped = body.lstrip()
-        first = base + len(body) - len(stripped) + 1
-        stripped = stripped.rstrip()
-        if len(stripped) == 3 * n - 1 and stripped[2::3] == b" " * (n - 1):
-            step = 3
-        elif len(stripped) == 2 * n:
-            step = 2
-        else:
-            step = 0
-            self.uneven[len(self.starts)] = array("q", (base + m.start() + 1 for m in _HEX_PAIR.finditer(body)))
-        self.starts.append(self.end)
-        self.lines.append(lineno)
-        self.cols.append(first)
-        self.steps.append(step)
-        self.end += n
 
     def locate(self, offset: int) -> tuple[int, int] | None:
         if offset < 0 or offset >= self.end:
             return None
         i = bisect_right(self.starts, offset) - 1
         k = offset - self.starts[i]
-        step = self.steps[i]
-        col = self.cols[i] + step * k if step else self.uneven[i][k]
-        return self.lines[i], col
+        w = self.where[i]
+        step = w & 3
+        col = ((w >> 2) & 0x3FFFFFFF) + step * k if step else self.uneven[i][k]
+        return w >> 32, col
 
 
 def open_capture(path: str) -> BinaryIO:
@@ -418,7 +403,8 @@ def _read_binary(f: BinaryIO) -> Iterator[Chunk]:
 def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex) -> Iterator[Chunk]:
     pending = bytearray()  # untimed hex lines are merged into larger chunks
     readline = f.readline
-    add = index.add
+    starts, where = index.starts.append, index.where.append
+    offset = 0
     lineno = 0
     try:
         while True:
@@ -440,14 +426,13 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex) -> 
                     continue
                 head = parts[0]
                 rest = parts[1] if len(parts) > 1 else b""
-                col = len(body) - len(body.lstrip()) + 1
                 if not _NUMBER.match(head):
                     raise CaptureError(f"{path}:{lineno}: expected a time in seconds, got {_show(head)}",
-                                       line=lineno, column=col)
+                                       line=lineno, column=len(body) - len(body.lstrip()) + 1)
                 t = float(head)
                 if not (t >= 0 and math.isfinite(t)):
                     raise CaptureError(f"{path}:{lineno}: time {_show(head)} is not a finite, non-negative number",
-                                       line=lineno, column=col)
+                                       line=lineno, column=len(body) - len(body.lstrip()) + 1)
                 base = len(body) - len(rest)
                 body = rest
             try:
@@ -457,9 +442,25 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex) -> 
                 bad, col = _bad_token(body)
                 raise CaptureError(f"{path}:{lineno}: not a hex byte: {_show(bad)}",
                                    line=lineno, column=base + col) from None
-            if not data:
+            n = len(data)
+            if not n:
                 continue
-            add(lineno, body, base, len(data))
+            # Index the line for locate(): its bytes are evenly spaced unless the text says otherwise.
+            stripped = body.lstrip()
+            first = base + len(body) - len(stripped) + 1
+            width = len(stripped.rstrip())
+            if width == 3 * n - 1 and stripped[2:width:3] == b" " * (n - 1):
+                step = 3
+            elif width == 2 * n:
+                step = 2
+            else:
+                step = 0
+                index.uneven[len(index.starts)] = array(
+                    "q", (base + m.start() + 1 for m in _HEX_PAIR.finditer(body)))
+            starts(offset)
+            where(lineno << 32 | first << 2 | step)
+            offset += n
+            index.end = offset
             if timestamped:
                 yield data, t
             else:

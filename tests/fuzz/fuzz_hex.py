@@ -3,9 +3,16 @@
 import sys
 from pathlib import Path
 
+import atheris
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from targets import run_atheris  # noqa: E402
+# Everything the target runs is imported here, inside the hook, so that it is instrumented for coverage.
+with atheris.instrument_imports(include=["rs30x_sniff", "targets"]):
+    import rs30x_sniff.io.mcap_source  # noqa: F401
+    import rs30x_sniff.pipeline  # noqa: F401
+    import targets
 
 if __name__ == "__main__":
-    run_atheris("hex")
+    atheris.Setup(sys.argv, targets.TARGETS["hex"])
+    atheris.Fuzz()

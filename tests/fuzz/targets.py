@@ -194,19 +194,6 @@ def check_decoder(data: bytes) -> None:
     assert out == fed, f"fed {fed} bytes, records hold {out}"
 
 
-def run_atheris(target: str) -> None:
-    """The body of ``fuzz_<target>.py``: instrument the package, then hand libFuzzer the target."""
-    import atheris
-
-    with atheris.instrument_imports(include=["rs30x_sniff"]):
-        import rs30x_sniff.framing  # noqa: F401  (imported here so that they are instrumented)
-        import rs30x_sniff.io.captures  # noqa: F401
-        import rs30x_sniff.io.mcap_source  # noqa: F401
-        import rs30x_sniff.pipeline  # noqa: F401
-    atheris.Setup(sys.argv, TARGETS[target])
-    atheris.Fuzz()
-
-
 TARGETS = {"bin": check_bin, "hex": check_hex, "timestamped": check_timestamped, "mcap": check_mcap,
            "decoder": check_decoder}
 
