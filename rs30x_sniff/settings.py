@@ -144,28 +144,26 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
     try:
         if "model" in out:
             out["model"] = reg.get(out["model"]).name
-        if "models" in out:
-            models: dict[int, str] = {}
-            for k, name in out["models"].items():
-                sid = _servo_id(k, where)
-                if not isinstance(name, str):
-                    raise SettingsError(f"{_label('models', f'{k}={name}', where)}: expected a model name")
-                models[sid] = reg.get(name).name
-            out["models"] = models
     except ModelError as e:
-        raise SettingsError(f"{where}: {e}") from None
+        raise SettingsError(f"{_label('model', out['model'], where)}: {e}") from None
+    if "models" in out:
+        models: dict[int, str] = {}
+        for k, name in out["models"].items():
+            label = f"--model {k}={name}" if where == COMMAND_LINE else f"{where}: models.{k} = {name!r}"
+            try:
+                sid = k if isinstance(k, int) else int(str(k), 0)
+            except ValueError:
+                raise SettingsError(f"{label}: {k!r} is not a servo ID") from None
+            if not 1 <= sid <= MAX_SERVO_ID:
+                raise SettingsError(f"{label}: servo IDs run from 1 to {MAX_SERVO_ID} (table 4.6 No. 4)")
+            if not isinstance(name, str):
+                raise SettingsError(f"{label}: expected a model name")
+            try:
+                models[sid] = reg.get(name).name
+            except ModelError as e:
+                raise SettingsError(f"{label}: {e}") from None
+        out["models"] = models
     return out
-
-
-def _servo_id(key: Any, where: str) -> int:
-    try:
-        sid = key if isinstance(key, int) else int(str(key), 0)
-    except ValueError:
-        raise SettingsError(f"{_label('models', key, where)}: {key!r} is not a servo ID") from None
-    if not 1 <= sid <= MAX_SERVO_ID:
-        raise SettingsError(f"{_label('models', key, where)}: servo IDs run from 1 to {MAX_SERVO_ID} "
-                            f"(table 4.6 No. 4)")
-    return sid
 
 
 # ---- config files ----------------------------------------------------------------------------------

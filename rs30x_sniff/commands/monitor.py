@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import os
+from typing import Any
 
+from ..pipeline import DecodeOptions
 from .common import CliError, add_decode_options, add_lint_options, check_positive, lint_config, settings_for
 
 
@@ -52,8 +54,12 @@ def make_source(args: argparse.Namespace, baud: int):
     return FileSource(args.input, args.input_format)
 
 
-def run(args: argparse.Namespace) -> int:
-    # The same settings as every other command: the monitor's linter, models and baud agree with `lint`.
+def prepare(args: argparse.Namespace) -> tuple[Any, DecodeOptions, dict[str, Any]]:
+    """The source (opened), decode options and app configuration the command line asks for.
+
+    The settings come the way every command takes them, so the monitor's linter, models and baud
+    agree with `lint`, `info` and `decode` on the same capture.
+    """
     settings = settings_for(args, None if args.simulate else args.input)
     opts = settings.decode_options()
     check_positive("--speed", args.speed)
@@ -61,13 +67,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"--history {args.history}: must be at least 1")
     if not os.path.isdir(args.record_dir):
         raise CliError(f"--record-dir {args.record_dir}: no such directory")
-    try:
-        source = make_source(args, opts.baud)
-    except OSError as e:
-        raise CliError(f"{args.input}: {e.strerror or e}") from None
-    from ..tui.app import make_app  # Textual is imported only when the screen is about to start
-
-    config: dict = {"record_dir": args.record_dir}
+    config: dict[str, Any] = {"record_dir": args.record_dir}
     if args.no_lint:
         config["linter_factory"] = lambda: None
     else:
@@ -77,6 +77,17 @@ def run(args: argparse.Namespace) -> int:
         config["linter_factory"] = lambda: Linter(cfg)
     if args.history is not None:
         config["history"] = args.history
+    try:
+        source = make_source(args, opts.baud)
+    except OSError as e:
+        raise CliError(f"{args.input}: {e.strerror or e}") from None
+    return source, opts, config
+
+
+def run(args: argparse.Namespace) -> int:
+    source, opts, config = prepare(args)
+    from ..tui.app import make_app  # Textual is imported only when the screen is about to start
+
     app = make_app(source, opts, **config)
     app.run()
     return app.return_code or 0
