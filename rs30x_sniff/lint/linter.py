@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Any
+from types import MethodType
+from typing import Any, Callable
 
-from ..bus import ANSWERED, MISSING, PAIRED, Record
+from ..bus import MISSING, Record
 from ..wire import BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, byte_time
 from .config import LintConfig
-from .registry import KINDS, RULES, Finding
+from .registry import KINDS, RULES, WHEN, Finding, Rule
 from .state import Plan, Shadow
 
 _AUTO = object()
@@ -33,15 +34,12 @@ class Linter:
         self._new: list[Finding] = []
         self._on: dict[str, tuple] = {}
         self._plans: dict[tuple, Plan] = {}
-        # State the rules share or keep (wire order, so no lookahead is needed).
+        # State the rules share (wire order, so no lookahead is needed); a rule's own memory is its state.
         self.servos: dict[int, Shadow] = {}
         self.prev: Record | None = None        # the record before this one (B007)
         self.missing: Record | None = None     # the latest request whose reply never came (B001)
         self.ids: set[int] = set()             # servo IDs seen on the bus (Q008)
-        self.q001: dict[int, list] = {}        # servo -> [baud write record, "flash" | "reboot"]
-        self.q002: dict[int, Record] = {}      # new servo ID -> the write that set it
-        self.q003: dict[int, float] = {}       # servo -> time its last flash write was done
-        self.q008 = False                      # Q008 said already
+        self._states = {r.code: r.state() for r in self.rules if r.state is not None}
         self._counting = True
         self._vid_sets: set[bytes] = set()
 
@@ -50,15 +48,25 @@ class Linter:
         self.timed = timed
         run = [r for r in self.rules if timed or not r.needs_time]
         self.skipped = tuple(r.code for r in self.rules if r.needs_time and not timed)
-        self._target_rules = [r for r in run if "target" in r.kinds]
-        self._on = {k: tuple(r.check for r in run if k in r.kinds and r.when is None) for k in KINDS}
+        self._target_rules = [(r, self._bound(r, "target")) for r in run if "target" in r.kinds]
+        self._on = {k: tuple(self._bound(r, k) for r in run if k in r.kinds and r.when is None) for k in KINDS}
+        # Per kind: (precondition, the checks waiting on it), preconditions in the order rules declare them.
         self._when = {}
         for k in KINDS:
             conds: dict[str, list] = {}
             for r in run:
                 if k in r.kinds and r.when is not None:
-                    conds.setdefault(r.when, []).append(r.check)
-            self._when[k] = tuple((c, tuple(fns)) for c, fns in conds.items())
+                    conds.setdefault(r.when, []).append(self._bound(r, k))
+            self._when[k] = tuple((WHEN[c][1], tuple(fns)) for c, fns in conds.items())
+
+    def _bound(self, r: Rule, kind: str) -> Callable[..., Any]:
+        """The check for ``kind``, with the rule's own state bound as its first argument if it has one."""
+        fn = r.check_for(kind)
+        return fn if r.state is None else MethodType(fn, self._states[r.code])
+
+    def state_of(self, code: str) -> Any:
+        """The state object of rule ``code`` in this run (None for a rule without state or not enabled)."""
+        return self._states.get(code)
 
     def shadow(self, sid: int) -> Shadow:
         sh = self.servos.get(sid)
@@ -72,7 +80,7 @@ class Linter:
         if p is None:
             p = self._plans[key] = Plan(model, address, n)
             names = set(p.index)
-            p.target_checks = tuple(r.check for r in self._target_rules if r.fields is None or r.fields & names)
+            p.target_checks = tuple(fn for r, fn in self._target_rules if r.fields is None or r.fields & names)
         return p
 
     # ---- findings ----------------------------------------------------------------------------
@@ -108,21 +116,8 @@ class Linter:
                 self._count_ids(kind, ev)
             for fn in on[kind]:
                 fn(self, rec, ev)
-        for cond, fns in self._when[kind]:
-            if cond == "unpaired":
-                st = rec.status
-                ok = st is not None and st != PAIRED and st != ANSWERED
-            elif cond == "flagged":
-                ok = ev[5] != 0
-            elif cond == "after-cut":
-                prev = self.prev
-                ok = prev is not None and prev.event.kind == "garbage" and prev.event[4] == "truncated" \
-                    and prev.event.end_offset == ev[0]
-            elif cond == "settles":
-                ok = self.missing is not None and self.missing.resolved_by is rec
-            else:  # crowded
-                ok = len(self.ids) > self.config.max_servos
-            if ok:
+        for holds, fns in self._when[kind]:
+            if holds(self, rec, ev):
                 for fn in fns:
                     fn(self, rec, ev)
         if kind == "short" or kind == "long" or kind == "return":

@@ -6,6 +6,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
+from ..bus import ANSWERED, PAIRED
 from ..wire import REQUEST_HEADER, checksum
 
 SEVERITIES = ("info", "warning", "error")
@@ -22,15 +23,47 @@ FAMILIES = {"F": "Framing", "P": "Packet structure", "M": "Memory map", "B": "Bu
 #   target                                    check(lint, rec, plan, targets) once per write, with targets a
 #                                             list of (servo id, raw values per plan part, Shadow)
 #   close                                     check(lint) at end of input
+# A rule declared with state= keeps its own memory: the linter makes one state object per run by calling
+# that factory, and passes it first to every call of the rule's checks: check(state, lint, rec, ev).
+# One function serves every kind of a rule; ``@the_check.on(kind)`` gives a kind a function of its own.
 KINDS = ("short", "long", "return", "ack", "nack", "garbage", "corrupt", "command", "write", "target", "close")
-# Preconditions a rule may declare with when=: the linter tests each once per record and calls the
-# rule only when it holds, so the common healthy record costs few calls.
-WHEN = {
-    "after-cut": "the record starts where a cut-short frame (truncated garbage) ended",
-    "unpaired": "the record's reply status is missing, unsolicited or extra",
-    "flagged": "a return packet with any status flag set",
-    "crowded": "more distinct servo IDs seen than max-servos",
-    "settles": "the record settled that the latest unanswered request got no reply",
+
+
+# Preconditions a rule may declare with when=: the linter tests each once per record (for the kinds that
+# have rules waiting on it) and calls the rule only when it holds, so the common healthy record costs few
+# calls. Each takes (lint, rec, ev) like a check.
+def _after_cut(lint, rec, ev) -> bool:
+    prev = lint.prev
+    if prev is None:
+        return False
+    pe = prev.event
+    return pe.kind == "garbage" and pe[4] == "truncated" and pe.end_offset == ev[0]
+
+
+def _unpaired(lint, rec, ev) -> bool:
+    st = rec.status
+    return st is not None and st != PAIRED and st != ANSWERED
+
+
+def _flagged(lint, rec, ev) -> bool:
+    return ev[5] != 0
+
+
+def _crowded(lint, rec, ev) -> bool:
+    return len(lint.ids) > lint.config.max_servos
+
+
+def _settles(lint, rec, ev) -> bool:
+    missing = lint.missing
+    return missing is not None and missing.resolved_by is rec
+
+
+WHEN: dict[str, tuple[str, Callable[..., bool]]] = {
+    "after-cut": ("the record starts where a cut-short frame (truncated garbage) ended", _after_cut),
+    "unpaired": ("the record's reply status is missing, unsolicited or extra", _unpaired),
+    "flagged": ("a return packet with any status flag set", _flagged),
+    "crowded": ("more distinct servo IDs seen than max-servos", _crowded),
+    "settles": ("the record settled that the latest unanswered request got no reply", _settles),
 }
 _ALIASES = {"request": ("short", "long"), "reply": ("return", "ack", "nack"), "packet": ("short", "long", "return")}
 
@@ -67,6 +100,12 @@ class Rule:
     needs_time: bool = False
     fields: frozenset[str] | None = None  # for "target" rules: run only when the write carries one of these
     when: str | None = None  # a cheap precondition the linter tests once for all rules sharing it (WHEN)
+    state: Callable[[], Any] | None = None  # makes the rule's own memory, once per linter run
+    handlers: dict[str, Callable[..., Any]] = field(default_factory=dict)  # kind -> check, where not ``check``
+
+    def check_for(self, kind: str) -> Callable[..., Any]:
+        """The function that checks records of ``kind`` (unbound: a stateful rule's take the state first)."""
+        return self.handlers.get(kind, self.check)
 
     @property
     def family(self) -> str:
@@ -159,22 +198,47 @@ def example(*frames: bytes | tuple[float, bytes], note: str = "") -> str:
     return text
 
 
-def rule(code: str, name: str, severity: str, summary: str, doc: str, *, kinds: tuple[str, ...],
-         needs_time: bool = False, fields: tuple[str, ...] | None = None, when: str | None = None) -> Callable:
-    """Declare a rule; the decorated function is its check (see KINDS for how it is called)."""
+def _expand(code: str, kinds: tuple[str, ...]) -> list[str]:
     expanded: list[str] = []
     for k in kinds:
         for kk in _ALIASES.get(k, (k,)):
             if kk not in KINDS:
                 raise ValueError(f"{code}: unknown kind {kk!r}")
             expanded.append(kk)
+    return expanded
 
+
+def rule(code: str, name: str, severity: str, summary: str, doc: str, *, kinds: tuple[str, ...],
+         needs_time: bool = False, fields: tuple[str, ...] | None = None, when: str | None = None,
+         state: Callable[[], Any] | None = None) -> Callable:
+    """Declare a rule; the decorated function is its check (see KINDS for how it is called).
+
+    ``state`` (a class or any callable) makes the rule's own memory; the decorated function gains
+    ``.on(kind)``, a decorator giving one of the declared kinds a check of its own.
+    """
+    expanded = _expand(code, kinds)
     if when is not None and when not in WHEN:
         raise ValueError(f"{code}: unknown precondition {when!r}")
 
     def deco(fn: Callable) -> Callable:
-        RULES.add(Rule(code, name, severity, summary, doc.strip() + "\n", tuple(expanded), fn, needs_time,
-                       frozenset(fields) if fields else None, when))
+        r = Rule(code, name, severity, summary, doc.strip() + "\n", tuple(expanded), fn, needs_time,
+                 frozenset(fields) if fields else None, when, state)
+        RULES.add(r)
+
+        def on(*kinds_: str) -> Callable:
+            ks = _expand(code, kinds_)
+            for k in ks:
+                if k not in r.kinds:
+                    raise ValueError(f"{code}: .on({k!r}) for a kind the rule does not declare")
+
+            def register(handler: Callable) -> Callable:
+                for k in ks:
+                    r.handlers[k] = handler
+                return handler
+
+            return register
+
+        fn.on = on
         return fn
 
     return deco

@@ -30,30 +30,33 @@ rebooted. A host that switches its own port to the new rate right after the writ
 
 ## Example
 {example(encode_short(1, 0, 0x06, bytes((4,))), encode_command(1, _FLASH), note="the baud rate is flashed but the servo never rebooted:")}
-""", kinds=("target", "command", "close"), fields=("baud_rate",))
-def baud_change_not_applied(lint, *args):
-    pending = lint.q001
-    if len(args) == 3:                       # target: a baud_rate write
-        rec, plan, targets = args
-        j = plan.index["baud_rate"]
-        for sid, raws, _ in targets:
-            pending[sid] = [rec, "flash", raws[j]]
-    elif len(args) == 2:                     # command: flash / reboot
-        rec, ev = args
-        sid = ev.id
-        for key in (list(pending) if sid == BROADCAST_ID else [sid, BROADCAST_ID]):
-            entry = pending.get(key)
-            if entry is None:
-                continue
-            if ev.flag & _FLASH and entry[1] == "flash":
-                entry[1] = "reboot"
-            if ev.flag & _REBOOT and entry[1] == "reboot":
-                del pending[key]
-    else:                                    # end of input
-        for sid, (rec, stage, code) in pending.items():
-            rate = f"code {code}"
-            why = "no flash write followed" if stage == "flash" else "it was flashed but the servo was never rebooted"
-            lint.emit("Q001", rec, f"baud_rate {rate} written to ID {sid} but {why}: it keeps its old rate", sid=sid)
+""", kinds=("target", "command", "close"), fields=("baud_rate",), state=dict)
+def baud_change_not_applied(pending, lint, rec, plan, targets):
+    # pending: servo -> [the baud_rate write, the step it waits for ("flash" | "reboot"), the rate code]
+    j = plan.index["baud_rate"]
+    for sid, raws, _ in targets:
+        pending[sid] = [rec, "flash", raws[j]]
+
+
+@baud_change_not_applied.on("command")
+def _baud_change_flashed_or_rebooted(pending, lint, rec, ev):
+    sid = ev.id
+    for key in (list(pending) if sid == BROADCAST_ID else [sid, BROADCAST_ID]):
+        entry = pending.get(key)
+        if entry is None:
+            continue
+        if ev.flag & _FLASH and entry[1] == "flash":
+            entry[1] = "reboot"
+        if ev.flag & _REBOOT and entry[1] == "reboot":
+            del pending[key]
+
+
+@baud_change_not_applied.on("close")
+def _baud_change_left_pending(pending, lint):
+    for sid, (rec, stage, code) in pending.items():
+        rate = f"code {code}"
+        why = "no flash write followed" if stage == "flash" else "it was flashed but the servo was never rebooted"
+        lint.emit("Q001", rec, f"baud_rate {rate} written to ID {sid} but {why}: it keeps its old rate", sid=sid)
 
 
 @rule("Q002", "id-change-not-persisted", "warning", "servo_id changed but never written to flash.", f"""
@@ -67,26 +70,29 @@ power-up (table 4.6, No. 4). A flash write sent to the old ID after the change r
 
 ## Example
 {example(encode_short(1, 0, 0x04, bytes((5,))), encode_command(1, _FLASH), note="ID 1 becomes 5, then the flash write goes to the old ID 1:")}
-""", kinds=("target", "command", "close"), fields=("servo_id",))
-def id_change_not_persisted(lint, *args):
-    pending = lint.q002
-    if len(args) == 3:
-        rec, plan, targets = args
-        j = plan.index["servo_id"]
-        for sid, raws, _ in targets:
-            if raws[j] != sid:
-                pending[raws[j]] = (rec, sid)
-    elif len(args) == 2:
-        rec, ev = args
-        if ev.flag & _FLASH:
-            if ev.id == BROADCAST_ID:
-                pending.clear()
-            else:
-                pending.pop(ev.id, None)
-    else:
-        for new, (rec, old) in pending.items():
-            lint.emit("Q002", rec, f"ID {old} changed to {new} but no flash write to ID {new} followed: "
-                                   f"it reverts at the next power-up", sid=old)
+""", kinds=("target", "command", "close"), fields=("servo_id",), state=dict)
+def id_change_not_persisted(pending, lint, rec, plan, targets):
+    # pending: new servo ID -> (the write that set it, the old ID)
+    j = plan.index["servo_id"]
+    for sid, raws, _ in targets:
+        if raws[j] != sid:
+            pending[raws[j]] = (rec, sid)
+
+
+@id_change_not_persisted.on("command")
+def _id_change_flashed(pending, lint, rec, ev):
+    if ev.flag & _FLASH:
+        if ev.id == BROADCAST_ID:
+            pending.clear()
+        else:
+            pending.pop(ev.id, None)
+
+
+@id_change_not_persisted.on("close")
+def _id_change_left_pending(pending, lint):
+    for new, (rec, old) in pending.items():
+        lint.emit("Q002", rec, f"ID {old} changed to {new} but no flash write to ID {new} followed: "
+                               f"it reverts at the next power-up", sid=old)
 
 
 @rule("Q003", "reboot-too-soon-after-flash", "warning", "A reboot before the flash write had time to finish.", f"""
@@ -100,8 +106,9 @@ power during one: a reboot in the middle can leave the stored settings half writ
 
 ## Example
 {example((0.0, encode_command(1, _FLASH)), (0.002, encode_command(1, _REBOOT)), note="a reboot 1.3 ms after the flash write:")}
-""", kinds=("command",), needs_time=True)
-def reboot_too_soon_after_flash(lint, rec, ev):
+""", kinds=("command",), needs_time=True, state=dict)
+def reboot_too_soon_after_flash(flashed, lint, rec, ev):
+    # flashed: servo -> (time its last flash write is done, the time that write ended, its offset)
     flag, sid = ev.flag, ev.id
     if flag & _FLASH and not flag & _REBOOT:
         reply = rec.reply
@@ -111,16 +118,16 @@ def reboot_too_soon_after_flash(lint, rec, ev):
             ready = ev[3] + lint.config.flash_write_time
         else:
             return
-        lint.q003[sid] = (ready, ev[3], rec.offset)
+        flashed[sid] = (ready, ev[3], rec.offset)
     elif flag & _REBOOT and not flag & _FLASH and ev[2] is not None:
         for key in (sid, BROADCAST_ID):
-            entry = lint.q003.get(key)
+            entry = flashed.get(key)
             if entry is not None and ev[2] < entry[0]:
                 dt = ev[2] - (entry[1] or 0)
                 lint.emit("Q003", rec, f"reboot {dt * 1e3:.1f} ms after the flash write @{entry[2]}; "
                                        f"allow {lint.config.flash_write_time * 1e3:.0f} ms (or wait for its ACK)")
                 break
-        lint.q003.pop(sid, None)
+        flashed.pop(sid, None)
 
 
 @rule("Q004", "goal-while-torque-off", "warning", "A goal position sent to a servo whose torque is off.", f"""
@@ -135,16 +142,30 @@ step after power-up or a reboot.
 
 ## Example
 {example(encode_short(1, 0, 0x24, bytes((0,))), encode_short(1, 0, 0x1E, bytes.fromhex("8403")))}
-""", kinds=("target",), fields=("goal_position",))
-def goal_while_torque_off(lint, rec, plan, targets):
+""", kinds=("target", "command"), fields=("goal_position", "torque_enable"), state=set)
+def goal_while_torque_off(said, lint, rec, plan, targets):
+    # said: servos Q004 spoke for in their current torque-off spell; a torque_enable write or a reboot
+    # ends the spell.
+    idx = plan.index
+    g = idx.get("goal_position")
+    j = idx.get("torque_enable")
     for sid, raws, sh in targets:
-        if sh.torque == 0 and not sh.q004 and sid != BROADCAST_ID:
-            j = plan.index.get("torque_enable")
+        if g is not None and sh.torque == 0 and sid not in said and sid != BROADCAST_ID:
             if j is not None and raws[j] != 0:
                 continue  # torque comes on in this very packet: Q005
-            sh.q004 = True
-            lint.emit("Q004", rec, f"goal_position {_deg(raws[plan.index['goal_position']])} to ID {sid}, "
-                                   f"whose torque is off", sid=sid)
+            said.add(sid)
+            lint.emit("Q004", rec, f"goal_position {_deg(raws[g])} to ID {sid}, whose torque is off", sid=sid)
+        if j is not None:
+            said.discard(sid)
+
+
+@goal_while_torque_off.on("command")
+def _torque_off_spell_rebooted(said, lint, rec, ev):
+    if ev.flag & _REBOOT:
+        if ev.id == BROADCAST_ID:
+            said.clear()
+        else:
+            said.discard(ev.id)
 
 
 @rule("Q005", "torque-on-with-goal", "warning", "Torque on and a goal position in one packet.", f"""
@@ -239,10 +260,11 @@ load and the time each poll cycle takes both grow with every servo.
 
 ## Example
 {example(encode_long(0x23, [(i, bytes((100,))) for i in range(1, 26)]), note="max_torque to 25 servos in one long packet:")}
-""", kinds=("short", "long", "return"), when="crowded")
-def too_many_servos(lint, rec, ev):
-    if not lint.q008 and len(lint.ids) > lint.config.max_servos:
-        lint.q008 = True
+""", kinds=("short", "long", "return"), when="crowded", state=list)
+def too_many_servos(said, lint, rec, ev):
+    # said: empty until Q008 has spoken (it speaks once)
+    if not said and len(lint.ids) > lint.config.max_servos:
+        said.append(rec)
         lint.emit("Q008", rec, f"{len(lint.ids)} servo IDs on the bus; a TTL bus carries at most {lint.config.max_servos}")
 
 

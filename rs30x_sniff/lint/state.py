@@ -14,8 +14,7 @@ _TRACKED = {
 class Shadow:
     """The few registers of one servo the rules need; None while unknown."""
 
-    __slots__ = ("torque", "pos", "goal_time", "cw", "ccw", "reverse", "return_delay", "temp_limit", "flags",
-                 "q004")
+    __slots__ = ("torque", "pos", "goal_time", "cw", "ccw", "reverse", "return_delay", "temp_limit", "flags")
 
     def __init__(self) -> None:
         self.torque: int | None = None
@@ -27,14 +26,11 @@ class Shadow:
         self.return_delay: int | None = None
         self.temp_limit = False            # a return said the temperature limit tripped, no reboot since
         self.flags = 0                     # status flags of the last return
-        self.q004 = False                  # Q004 already said for the current torque-off spell
-
 
     def reboot(self) -> None:
         # RAM goes back to its defaults (table 4.9): torque off; the temperature lock clears.
         self.torque = 0
         self.temp_limit = False
-        self.q004 = False
 
 
 class Plan:
@@ -45,7 +41,7 @@ class Plan:
     """
 
     __slots__ = ("model", "address", "n", "parts", "index", "read_only", "reserved", "partial", "ranged",
-                 "tracked", "sets_torque", "unpack", "target_checks", "apply")
+                 "tracked", "unpack", "target_checks", "apply")
 
     def __init__(self, model: Model, address: int, n: int) -> None:
         self.model, self.address, self.n = model, address, n
@@ -76,11 +72,8 @@ class Plan:
         self.read_only, self.reserved, self.partial = tuple(ro), tuple(res), tuple(part)
         self.ranged = tuple(ranged)
         self.tracked = tuple((attr, self.index[name]) for name, attr in _TRACKED.items() if name in self.index)
-        self.sets_torque = "torque_enable" in self.index
         # apply(shadow, raws): store the tracked registers, generated once per plan (it runs per servo written).
         body = [f"s.{attr} = r[{j}]" for attr, j in self.tracked]
-        if self.sets_torque:
-            body.append("s.q004 = False")
         src = "def apply(s, r):\n    " + ("\n    ".join(body) or "pass") + "\n"
         env: dict = {}
         exec(src, env)  # noqa: S102 - generated from register names of the validated memory map
