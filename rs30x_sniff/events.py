@@ -10,7 +10,16 @@ from __future__ import annotations
 from operator import itemgetter
 from typing import Any
 
-from .wire import FLAG_WANTS_ACK, Expect, command_names, expects, read_range, return_flag_names, return_mode
+from .wire import (
+    EXPECT_BY_MODE,
+    FLAG_WANTS_ACK,
+    RETURN_MODE_MASK,
+    Expect,
+    command_names,
+    expects,
+    return_flag_names,
+    return_mode,
+)
 
 # Why a run of bytes was skipped (Garbage.reason).
 NOISE = "noise"            # no frame header anywhere in the run
@@ -93,7 +102,8 @@ class ShortPacket(Event):
     @property
     def read_range(self) -> tuple[int, int] | None:
         """(address, length) of the memory this request asks to be returned, if any."""
-        return read_range(self[5], self[6], self[7])
+        e = EXPECT_BY_MODE[self[5] & RETURN_MODE_MASK]  # wire.read_range, inlined: replies look here
+        return (self[6], self[7]) if e is None else e.range
 
     @property
     def wants_ack(self) -> bool:

@@ -75,8 +75,9 @@ MAX_READ_ADDRESS = 139  # "addresses No.00 to No.139" readable by flag 0F
 
 # Per return mode (0-15) the Expect; None for mode F, which takes the request's range. A mode table
 # 4.3 does not define asks for nothing the pairing can wait for, so it expects nothing.
-_EXPECT_BY_MODE: tuple[Expect | None, ...] = tuple(
+EXPECT_BY_MODE: tuple[Expect | None, ...] = tuple(
     RETURN_MODE_TABLE[m].expect if m in RETURN_MODE_TABLE else _EXPECT_NONE for m in range(16))
+_EXPECT_BY_MODE = EXPECT_BY_MODE
 # Per flag byte (0-255), for the hot paths (framing, bus pairing): one tuple index, no masking.
 FLAG_WANTS_ACK: tuple[bool, ...] = tuple(f & RETURN_MODE_MASK == RETURN_ACK for f in range(256))
 FLAG_WANTS_REPLY: tuple[bool, ...] = tuple(
