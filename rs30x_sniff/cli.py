@@ -6,7 +6,9 @@ import argparse
 import importlib
 import importlib.util
 import os
+import signal
 import sys
+import threading
 
 from . import __version__
 from .commands.common import CliError
@@ -33,12 +35,31 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _stop(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def stop_on_hangup() -> dict:
+    """SIGTERM and SIGHUP stop a command the way Ctrl-C does, so every output is finished or removed
+    by the same code (a live capture and the monitor install their own handlers while they run).
+    Returns the handlers replaced, for :func:`main` to put back."""
+    saved: dict = {}
+    if threading.current_thread() is not threading.main_thread():
+        return saved
+    for name in ("SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is not None and signal.getsignal(sig) is signal.SIG_DFL:
+            saved[sig] = signal.signal(sig, _stop)
+    return saved
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "run", None):
         parser.print_help()
         return 2
+    saved = stop_on_hangup()
     try:
         return int(args.run(args) or 0)
     except (CliError, CaptureError, ModelError) as e:
@@ -51,3 +72,12 @@ def main(argv: list[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+    except OSError as e:
+        # A disk that fills up, a file that vanishes: one line, never a traceback. (Outputs are written
+        # beside their destination and renamed at the end, so nothing half-written is left.)
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"rs30x-sniff: error: {where}{e.strerror or e}", file=sys.stderr)
+        return 2
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)

@@ -77,11 +77,10 @@ MAX_READ_ADDRESS = 139  # "addresses No.00 to No.139" readable by flag 0F
 # 4.3 does not define asks for nothing the pairing can wait for, so it expects nothing.
 EXPECT_BY_MODE: tuple[Expect | None, ...] = tuple(
     RETURN_MODE_TABLE[m].expect if m in RETURN_MODE_TABLE else _EXPECT_NONE for m in range(16))
-_EXPECT_BY_MODE = EXPECT_BY_MODE
 # Per flag byte (0-255), for the hot paths (framing, bus pairing): one tuple index, no masking.
 FLAG_WANTS_ACK: tuple[bool, ...] = tuple(f & RETURN_MODE_MASK == RETURN_ACK for f in range(256))
 FLAG_WANTS_REPLY: tuple[bool, ...] = tuple(
-    _EXPECT_BY_MODE[f & RETURN_MODE_MASK] is not _EXPECT_NONE for f in range(256))
+    EXPECT_BY_MODE[f & RETURN_MODE_MASK] is not _EXPECT_NONE for f in range(256))
 _COMMAND_NAMES: tuple[tuple[str, ...], ...] = tuple(
     tuple(name for bit, name in COMMANDS if f & bit) for f in range(256))
 
@@ -108,13 +107,13 @@ def command_names(flag: int) -> tuple[str, ...]:
 
 def expects(flag: int, address: int = 0, length: int = 0) -> Expect:
     """What a short request with this flag (and, for mode F, this Address and Length) expects back."""
-    e = _EXPECT_BY_MODE[flag & RETURN_MODE_MASK]
+    e = EXPECT_BY_MODE[flag & RETURN_MODE_MASK]
     return Expect("return", (address, length)) if e is None else e
 
 
 def read_range(flag: int, address: int = 0, length: int = 0) -> tuple[int, int] | None:
     """(first address, byte count) of the return packet the request asks for, if any (table 4.3)."""
-    e = _EXPECT_BY_MODE[flag & RETURN_MODE_MASK]
+    e = EXPECT_BY_MODE[flag & RETURN_MODE_MASK]
     return (address, length) if e is None else e.range
 
 

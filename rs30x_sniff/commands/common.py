@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from contextlib import contextmanager
-from typing import IO, Any, Iterator
+from typing import Any, Iterator
 
 from ..io.captures import FORMATS, MCAP, MCAP_MAGIC, Chunk, read_capture
 from ..settings import Settings, SettingsError, find_config, load_config, resolve
@@ -201,16 +200,16 @@ def is_live(chunks: object) -> bool:
     return bool(getattr(chunks, "live", False))
 
 
-@contextmanager
-def output_stream(path: str | None) -> Iterator[IO[str]]:
-    """stdout, or a file opened for writing text (with a one-line error if it cannot be)."""
-    if not path or path == "-":
-        yield sys.stdout
-        return
-    try:
-        f = open(path, "w", encoding="utf-8")
-    except OSError as e:
-        raise CliError(f"{path}: cannot write: {e.strerror}") from None
-    with f:
-        yield f
+def no_data(name: str, counted: Any, source: object = None) -> bool:
+    """Warn on stderr when an input held no bytes (an empty file, a silent port); True if so.
 
+    ``counted`` is anything with ``bytes_in`` (a Decoder, CaptureStats).
+    """
+    if getattr(counted, "bytes_in", 0):
+        return False
+    if is_live(source):
+        why = "no bytes received (is RX on the bus wire, and the baud rate right?)"
+    else:
+        why = "no data (the capture is empty)"
+    print(f"rs30x-sniff: warning: {name}: {why}", file=sys.stderr)
+    return True

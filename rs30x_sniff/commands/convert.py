@@ -13,6 +13,7 @@ from ..pipeline import Decoder, drive
 from ..settings import Settings
 from ..sinks import ProgressSink
 from .common import CliError, add_decode_options, add_lint_options, make_linter, open_input, settings_for
+from .outputs import check_output, output_path
 
 
 # A file is converted in chunks of up to 1 MiB (still cut at 1 s of log time): the summary lists every
@@ -33,24 +34,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 # ---- shared with `simulate` -------------------------------------------------------------------
-def peek(chunks: Iterator[Chunk]) -> tuple[bool, Iterator[Chunk]]:
-    """(whether the capture has timestamps, the same chunks)."""
+def peek(chunks: Iterator[Chunk]) -> tuple[Chunk | None, Iterator[Chunk]]:
+    """(the first chunk, or None for an empty capture; the same chunks, that one included)."""
     first = next(chunks, None)
     if first is None:
-        return False, iter(())
-    return first[1] is not None, itertools.chain((first,), chunks)
-
-
-def check_output(path: str, force: bool, inputs: tuple[str, ...] = ()) -> None:
-    """Refuse to overwrite a file (without --force) and never write over an input."""
-    if os.path.isdir(path):
-        raise CliError(f"{path}: is a directory")
-    if os.path.exists(path):
-        for i in inputs:
-            if i != "-" and os.path.exists(i) and os.path.samefile(i, path):
-                raise CliError(f"{path}: is the input file; write to another file")
-        if not force:
-            raise CliError(f"{path}: already exists (use --force to overwrite)")
+        return None, iter(())
+    return first, itertools.chain((first,), chunks)
 
 
 def progress_bar(enabled: bool):
@@ -81,19 +70,24 @@ def run(args: argparse.Namespace) -> int:
     check_output(args.output, args.force, (args.input,))
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)
-    timed, chunks = peek(open_input(args.input, args.input_format))
+    first, chunks = peek(open_input(args.input, args.input_format))
+    if first is None:
+        raise CliError(f"{args.input}: no data (the capture is empty): nothing to convert")
     decoder = Decoder(settings.decode_options(), linter=linter)
     source = "stdin" if args.input == "-" else args.input
-    total = os.path.getsize(args.input) if args.input != "-" and (
+    total = os.path.getsize(args.input) if os.path.isfile(args.input) and (
         (args.input_format or detect_format(args.input)) == "bin") else None
     bar = progress_bar(sys.stderr.isatty())
-    sink = open_mcap_sink(args.output, source, settings, timed=timed)
-    if bar is None:
-        drive(chunks, decoder, sink)
-    else:
-        with bar:
-            task = bar.add_task("converting", total=total)
-            drive(chunks, decoder, sink, ProgressSink(lambda n: bar.advance(task, n)))
+    # Written beside OUT and renamed into place at the end: an input error leaves nothing behind, while
+    # a stop (Ctrl-C, SIGTERM, SIGHUP) keeps the finalized log of what was converted so far.
+    with output_path(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as tmp:
+        sink = open_mcap_sink(tmp, source, settings, timed=first[1] is not None)
+        if bar is None:
+            drive(chunks, decoder, sink)
+        else:
+            with bar:
+                task = bar.add_task("converting", total=total)
+                drive(chunks, decoder, sink, ProgressSink(lambda n: bar.advance(task, n)))
     print(f"{args.output}: {decoder.bytes_in} bytes, {sink.messages} messages, {sink.bytes_written} bytes written",
           file=sys.stderr)
     return 0

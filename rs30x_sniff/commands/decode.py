@@ -6,8 +6,9 @@ import argparse
 
 from ..pipeline import Decoder, drive
 from ..sinks import JsonlSink, TextSink
-from .common import (add_decode_options, add_lint_selection, add_live_options, is_live, make_linter, open_input,
-                     output_stream, settings_for)
+from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, is_live,
+                     make_linter, no_data, open_input, settings_for)
+from .outputs import add_output_options, output_stream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -22,22 +23,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--id", type=int, action="append", default=None, metavar="N",
                    help="only events to or from servo N (repeatable)")
     p.add_argument("-v", "--verbose", action="store_true", help="add a field tree with each field's raw bytes")
-    p.add_argument("-o", "--output", metavar="OUT", help="write to OUT instead of stdout")
+    add_output_options(p)
     add_lint_selection(p)
     p.add_argument("--no-lint", action="store_true", help="do not run the linter")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    check_positive("--duration", args.duration)
     settings = settings_for(args, args.input)
     opts = settings.decode_options()
     linter = make_linter(args, settings)
     chunks = open_input(args.input, args.input_format, baud=opts.baud, duration=args.duration)
     ids = set(args.id) if args.id else None
-    with output_stream(args.output) as out:
+    for sid in ids or ():
+        if not (1 <= sid <= 127 or sid == 255):
+            raise CliError(f"--id {sid}: not a servo ID (1 to 127, table 4.6 No. 4; 255 is the broadcast)")
+    with output_stream(args.output, force=args.force, inputs=(args.input,)) as out:
         if args.format == "jsonl":
             sink = JsonlSink(out, ids=ids, flush=is_live(chunks))
         else:
             sink = TextSink(out, ids=ids, flush=is_live(chunks), verbose=args.verbose)
-        drive(chunks, Decoder(opts, linter), sink)
+        dec = drive(chunks, Decoder(opts, linter), sink)
+    no_data(args.input, dec, chunks)
     return 1 if getattr(chunks, "lost", False) else 0  # a live port that failed (the source said why)

@@ -8,7 +8,7 @@ from typing import Iterator
 
 from ..io.captures import BINARY, HEX, MCAP, TIMESTAMPED, Chunk, detect_format, format_for_output, write_capture
 from .common import CliError
-from .convert import check_output
+from .outputs import STDOUT, check_output, output_path, write_stream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -32,8 +32,7 @@ def run(args: argparse.Namespace) -> int:
     fmt = args.format or format_for_output(args.output, None)
     if fmt == MCAP:
         raise CliError(f"{args.output}: export writes bin, hex or timestamped captures, not MCAP (use convert)")
-    if args.output != "-":
-        check_output(args.output, args.force, (args.input,))
+    check_output(args.output, args.force, (args.input,))
     reader = McapRawReader(args.input)
 
     def chunks() -> Iterator[Chunk]:
@@ -42,23 +41,12 @@ def run(args: argparse.Namespace) -> int:
         for data, t, log_time in reader:
             yield data, (t if t is not None or fmt != TIMESTAMPED else log_time / 1e9)
 
-    if args.output == "-":
-        _write_stdout(chunks(), fmt)
+    if args.output == STDOUT:
+        write_stream(sys.stdout.buffer, chunks(), fmt)
         return 0
-    try:
-        write_capture(args.output, chunks(), fmt)
-    except OSError as e:
-        raise CliError(f"{args.output}: cannot write: {e.strerror}") from None
+    with output_path(args.output, force=args.force, inputs=(args.input,)) as tmp:
+        try:
+            write_capture(tmp, chunks(), fmt)
+        except OSError as e:
+            raise CliError(f"{args.output}: cannot write: {e.strerror}") from None
     return 0
-
-
-def _write_stdout(chunks: Iterator[Chunk], fmt: str) -> None:
-    if fmt == BINARY:
-        out = sys.stdout.buffer
-        for data, _ in chunks:
-            out.write(data)
-        out.flush()
-        return
-    for data, t in chunks:
-        hexs = data.hex(" ").upper()
-        sys.stdout.write(f"{(t or 0.0):.6f} {hexs}\n" if fmt == TIMESTAMPED else hexs + "\n")

@@ -8,8 +8,9 @@ from typing import Any
 
 from ..pipeline import Decoder, drive
 from ..stats import CaptureStats
-from .common import (add_decode_options, add_lint_options, add_live_options, make_linter, open_input, output_stream,
-                     settings_for)
+from .common import (add_decode_options, add_lint_options, add_live_options, check_positive, make_linter, no_data,
+                     open_input, settings_for)
+from .outputs import add_output_options, check_output, output_stream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -21,18 +22,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_live_options(p)
     add_lint_options(p)
     p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
-    p.add_argument("-o", "--output", metavar="OUT", help="write to OUT instead of stdout")
+    add_output_options(p)
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    check_positive("--duration", args.duration)
+    if args.output:
+        check_output(args.output, args.force, (args.input,))  # before the work, not after
     settings = settings_for(args, args.input)
     opts = settings.decode_options()
     linter = make_linter(args, settings)
     source = open_input(args.input, args.input_format, baud=opts.baud, duration=args.duration)
     stats = CaptureStats(opts.baud)
     drive(source, Decoder(opts, linter), stats)
-    with output_stream(args.output) as out:
+    no_data(args.input, stats, source)
+    with output_stream(args.output, force=args.force, inputs=(args.input,)) as out:
         if args.format == "json":
             out.write(json.dumps({"input": args.input, "linted": linter is not None, "settings": settings.as_json(),
                                   **stats.as_dict()}, indent=2) + "\n")

@@ -17,8 +17,9 @@ from ..memmap import ModelError
 from ..pipeline import Decoder, drive
 from ..settings import Settings
 from ..sinks import FindingsSink, ProgressSink
-from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, config_layer, lint_config,
-                     open_input, output_stream, settings_for)
+from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, config_layer,
+                     lint_config, no_data, open_input, settings_for)
+from .outputs import add_output_options, check_output, output_stream
 
 PROGRESS_MIN_BYTES = 1 << 20  # a progress bar only for inputs worth waiting for
 
@@ -38,23 +39,33 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="lowest severity that makes the exit code 1 (default error)")
     p.add_argument("--format", choices=FORMATS, default=None, help="report format (default text)")
     p.add_argument("-j", "--jobs", type=int, default=1, metavar="N", help="lint N files in parallel (default 1)")
-    p.add_argument("-o", "--output", metavar="OUT", help="write the report to OUT instead of stdout")
+    add_output_options(p)
+    p.add_argument("--allow-empty", action="store_true",
+                   help="an input that holds no data is a warning, not an error (exit 2)")
     p.set_defaults(run=run)
 
 
 def lint_file(path: str, fmt: str | None, settings: Settings,
-              progress: Callable[[int], None] | None = None, duration: float | None = None) -> FileResult:
-    """Lint one capture (or a port, live); an unreadable input gives a result with ``error`` set
-    (findings so far kept)."""
+              progress: Callable[[int], None] | None = None, duration: float | None = None,
+              allow_empty: bool = False) -> FileResult:
+    """Lint one capture (or a port, live); an unreadable input, or one that holds no data (unless
+    ``allow_empty``), gives a result with ``error`` set (findings so far kept)."""
     opts = settings.decode_options()
     linter = Linter(lint_config(settings))
     found = FindingsSink()
     sinks = [found] if progress is None else [found, ProgressSink(progress)]
     result = FileResult(path, rules=[r.code for r in linter.rules])
     try:
-        drive(open_input(path, fmt, baud=opts.baud, duration=duration), Decoder(opts, linter), *sinks)
+        source = open_input(path, fmt, baud=opts.baud, duration=duration)
+        dec = drive(source, Decoder(opts, linter), *sinks)
     except (CaptureError, ModelError) as e:
         result.error = str(e)
+    else:
+        # CI must not pass a recording that holds nothing.
+        if not dec.bytes_in and not allow_empty:
+            result.error = f"{path}: no data (the capture is empty; --allow-empty to accept that)"
+        elif not dec.bytes_in:
+            no_data(path, dec, source)
     result.findings = found.findings
     result.skipped = list(linter.skipped)
     result.records = found.records
@@ -85,6 +96,9 @@ def _size(path: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_positive("--duration", args.duration)
+    if args.output:
+        check_output(args.output, args.force, tuple(args.inputs))  # before the work, not after
     config = config_layer(args)
     per_file = [settings_for(args, p, config=config) for p in args.inputs]
     cfg = lint_config(per_file[0])
@@ -107,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         advance = None
     try:
         if args.jobs > 1 and len(args.inputs) > 1:
-            jobs = [(p, args.input_format, st) for p, st in zip(args.inputs, per_file)]
+            jobs = [(p, args.input_format, st, None, None, args.allow_empty) for p, st in zip(args.inputs, per_file)]
             with ProcessPoolExecutor(max_workers=min(args.jobs, len(jobs))) as pool:
                 for path, res in zip(args.inputs, pool.map(_lint_job, jobs)):
                     results.append(res)
@@ -115,13 +129,17 @@ def run(args: argparse.Namespace) -> int:
                         advance(_size(path))
         else:
             for p, st in zip(args.inputs, per_file):
-                results.append(lint_file(p, args.input_format, st, advance, args.duration))
+                results.append(lint_file(p, args.input_format, st, advance, args.duration, args.allow_empty))
     finally:
         if progress_ctx is not None:
             progress_ctx.stop()
-    with output_stream(args.output) as out:
-        write_report(fmt, results, out, cfg.fail_on)
     errors = [r.error for r in results if r.error]
+    readable = [r for r in results if not r.error]
+    # After an input error, no report file: it would read as a clean pass of every input. On stdout the
+    # readable files are still reported (the unreadable ones are not counted), and the exit code is 2.
+    if readable and not (errors and args.output):
+        with output_stream(args.output, force=args.force, inputs=tuple(args.inputs)) as out:
+            write_report(fmt, readable, out, cfg.fail_on)
     for e in errors:
         print(f"rs30x-sniff: error: {e}", file=sys.stderr)
     if errors:

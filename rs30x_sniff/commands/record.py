@@ -12,7 +12,8 @@ from ..io.serial_tap import LOST, STOPPED, LiveSource, SerialTap
 from ..pipeline import Decoder, Sink, Step, drive
 from ..sinks import TextSink
 from ..stats import RecentLoad
-from .common import CliError, add_decode_options, add_lint_selection, check_positive, make_linter, settings_for
+from .common import CliError, add_decode_options, add_lint_selection, check_positive, make_linter, no_data, settings_for
+from .outputs import check_output
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 FLUSH_INTERVAL = 1.0    # an idle bus still gets its open MCAP chunk written within about a second
@@ -26,6 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "port all leave a finalized file.")
     p.add_argument("port", metavar="PORT", help="serial device (/dev/ttyUSB0) or pyserial URL (socket://host:port)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.mcap", help="MCAP file to write")
+    p.add_argument("--force", action="store_true", help="replace OUT (and its numbered parts) if they exist")
     add_decode_options(p)
     p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--print", dest="print_lines", action="store_true",
@@ -40,10 +42,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 class _Files(Sink):
     """The output: one MCAP file, or numbered ones rotated at a size; flushed about once a second."""
 
-    def __init__(self, path: str, split_bytes: int | None, make) -> None:
+    def __init__(self, path: str, split_bytes: int | None, make, force: bool = False) -> None:
         self.base = Path(path)
         self.split_bytes = split_bytes
         self.make = make
+        self.force = force
         self.index = 0
         self.paths: list[str] = []
         self.sink: McapSink = self._open()
@@ -56,6 +59,9 @@ class _Files(Sink):
         else:
             self.index += 1
             path = str(self.base.with_name(f"{self.base.stem}-{self.index:03d}{self.base.suffix or '.mcap'}"))
+        # Written in place, not renamed at the end: a recorder killed outright still leaves its log
+        # under the name asked for (readable up to its last chunk). So the check comes first.
+        check_output(path, self.force)
         try:
             sink = self.make(path, self.index)
         except OSError as e:
@@ -129,6 +135,7 @@ class _Status(Sink):
 
 
 def run(args: argparse.Namespace) -> int:
+    check_output(args.output, args.force)  # before the port is opened
     settings = settings_for(args)
     opts = settings.decode_options()
     linter = make_linter(args, settings)
@@ -148,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
                         extra_metadata=extra)
 
     try:
-        files = _Files(args.output, split, make_sink)
+        files = _Files(args.output, split, make_sink, args.force)
     except BaseException:
         src.close()
         raise
@@ -157,7 +164,8 @@ def run(args: argparse.Namespace) -> int:
     if args.print_lines:
         # After the status line starts: on a terminal it routes stdout above itself.
         sinks.append(TextSink(sys.stdout, flush=True))
-    drive(src.chunks(IDLE_INTERVAL), Decoder(opts, linter), *sinks)
+    dec = drive(src.chunks(IDLE_INTERVAL), Decoder(opts, linter), *sinks)
+    no_data(args.port, dec, src)
 
     where = ", ".join(files.paths)
     summary = f"{status.bytes:,} bytes, {status.packets:,} packets, {status.findings:,} findings in {where}"

@@ -8,7 +8,8 @@ import re
 
 from ..lint import RULES
 from ..lint.registry import Rule
-from .common import CliError, output_stream
+from .common import CliError
+from .outputs import add_output_options, output_stream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -17,7 +18,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("rule", nargs="?", metavar="CODE|NAME", help="a rule code (F001) or name (checksum-mismatch)")
     p.add_argument("--format", choices=("text", "json", "markdown"), default="text",
                    help="text (default), json, or markdown (what docs/rules.md holds)")
-    p.add_argument("-o", "--output", metavar="OUT", help="write to OUT instead of stdout")
+    add_output_options(p)
     p.set_defaults(run=run)
 
 
@@ -67,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         if r is None:
             raise CliError(f"unknown rule {args.rule!r} (see `rs30x-sniff rules`)")
         rules = [r]
-    with output_stream(args.output) as out:
+    with output_stream(args.output, force=args.force) as out:
         if args.format == "json":
             data = rule_json(rules[0], doc=True) if args.rule else [rule_json(r) for r in rules]
             out.write(json.dumps(data, indent=1) + "\n")

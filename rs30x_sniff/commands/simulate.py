@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
-from ..io.captures import MCAP, FORMATS, format_for_output, write_capture
+from ..io.captures import FORMATS, MCAP, format_for_output, write_capture
 from ..wire import BAUD_RATES, DEFAULT_BAUD
-from .common import CliError
+from .common import CliError, check_positive
+from .outputs import STDOUT, output_path, write_stream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -57,17 +57,21 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"--scenario {args.scenario}: unknown (known: {', '.join(scenarios.SCENARIOS)})")
     if args.baud not in BAUD_RATES:
         raise CliError(f"--baud {args.baud}: the servos run at one of {', '.join(map(str, BAUD_RATES))} (table 4.7)")
-    if args.duration is not None and args.duration <= 0:
-        raise CliError(f"--duration {args.duration:g}: must be positive")
+    check_positive("--duration", args.duration)
     if not args.output and not args.port:
         raise CliError("say where the bus goes: -o FILE, --port PORT, or both")
     chunks = scenarios.run(args.scenario, baud=args.baud, seed=args.seed, duration=args.duration)
     if args.output:
-        if os.path.exists(args.output) and not args.force:
-            raise CliError(f"{args.output}: already exists (use --force to overwrite)")
+        fmt = format_for_output(args.output, args.output_format)
         if args.port:
             chunks = list(chunks)  # the same bytes go to both
-        n = write_file(args.output, chunks, format_for_output(args.output, args.output_format), args.baud)
+        if args.output == STDOUT:
+            if fmt == MCAP:
+                raise CliError("-o -: MCAP needs a file (give --output-format bin, hex or timestamped for stdout)")
+            n = write_stream(sys.stdout.buffer, chunks, fmt)
+        else:
+            with output_path(args.output, force=args.force) as tmp:
+                n = write_file(tmp, chunks, fmt, args.baud)
         if not args.port:
             print(f"rs30x-sniff: {args.scenario}: {n:,} bytes to {args.output}", file=sys.stderr)
     if args.port:

@@ -23,9 +23,11 @@ TAP_BAUD_RATES = (*BAUD_RATES, 460800)
 READ_TIMEOUT = 0.05  # how often the reader thread looks at its stop flag
 
 # End reasons of a live capture.
-STOPPED = "stopped"    # Ctrl-C, SIGTERM, or stop() from the program
+STOPPED = "stopped"    # Ctrl-C, SIGTERM, SIGHUP, or stop() from the program
 DURATION = "duration"  # --duration elapsed
 LOST = "lost"          # the port raised an error or vanished
+# Signals that end a capture cleanly (SIGHUP: the terminal or ssh session went away).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, *((signal.SIGHUP,) if hasattr(signal, "SIGHUP") else ()))
 
 
 def is_port(path: str) -> bool:
@@ -195,7 +197,8 @@ class LiveSource:
         self._started = True
         self.tap.open()
         if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            # SIGHUP too: a closed ssh session must leave a finished log, as Ctrl-C does.
+            for sig in STOP_SIGNALS:
                 self._saved[sig] = signal.signal(sig, self._on_signal)
         if self.duration is not None:
             self._deadline = time.monotonic() + self.duration

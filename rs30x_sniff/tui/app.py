@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import signal
 import time
 from collections import Counter
 from dataclasses import dataclass
@@ -139,6 +140,18 @@ class MonitorApp(App):
         self._refresh_header()
         self.run_worker(self.feeder.run, thread=True, name="capture", group="capture", exit_on_error=False)
         self.set_interval(self.config.tick_interval, self._tick)
+        self._quit_on_signals()
+
+    def _quit_on_signals(self) -> None:
+        """SIGTERM and SIGHUP quit as `q` does: the recording is finished and the terminal restored."""
+        try:
+            loop = asyncio.get_running_loop()
+            for name in ("SIGTERM", "SIGHUP"):
+                sig = getattr(signal, name, None)
+                if sig is not None:
+                    loop.add_signal_handler(sig, lambda: asyncio.ensure_future(self.action_quit()))
+        except (NotImplementedError, RuntimeError, ValueError):
+            pass  # not the main thread, or a platform without loop signal handlers: the default applies
 
     # ---- capture thread -> screen ---------------------------------------------------------------------
     def _post_batch(self, batch: Batch) -> None:

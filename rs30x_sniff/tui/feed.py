@@ -141,9 +141,13 @@ class Feeder:
     def _chunks(self) -> Iterator[tuple[bytes, float | None]]:
         """The source's chunks, with the screen's commands applied and batches posted between them."""
         self._last_post = self.clock()
+        warnings = getattr(self.source, "warnings", None)
         for chunk in self.source.chunks(self.stop_event):
             self._apply_commands()
             yield chunk
+            if warnings:
+                self._note = "; ".join(warnings)  # shown on the screen, not printed behind it
+                warnings.clear()
             now = self.clock()
             n = len(self._collect.records)
             if n and (now - self._last_post >= self.interval or n >= self.max_batch) or self._note is not None:
@@ -166,6 +170,10 @@ class Feeder:
                 self.source.close()
             except Exception as e:  # noqa: BLE001 - closing must not cost the last batch
                 error = error or f"closing the source: {type(e).__name__}: {e}"
+        warnings = getattr(self.source, "warnings", None)
+        if warnings:
+            self._note = "; ".join(warnings)
+            warnings.clear()
         self._apply_commands()
         self._close_sink()
         self.finished = True

@@ -69,7 +69,8 @@ class FileSource:
         self.name = path
         self.fmt = fmt
         self.time_base = "capture"
-        self._it = read_capture(path, fmt)
+        self.warnings: list[str] = []  # what the reader worked around (a damaged MCAP), for the screen
+        self._it = read_capture(path, fmt, warn=self.warnings.append)
         self._first = next(self._it, None)  # reads the head now, so a bad file fails before the screen starts
 
     def _all(self) -> Iterator[Chunk]:

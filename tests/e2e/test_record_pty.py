@@ -24,7 +24,7 @@ def _finish(proc, timeout: float = 20.0) -> tuple[int, str, str]:
     return proc.returncode, out.decode(), err.decode()
 
 
-@pytest.mark.parametrize("sig,word", [(signal.SIGINT, "Ctrl-C"), (signal.SIGTERM, "SIGTERM")])
+@pytest.mark.parametrize("sig,word", [(signal.SIGINT, "Ctrl-C"), (signal.SIGTERM, "SIGTERM"), (signal.SIGHUP, "SIGHUP")])
 def test_stop_by_signal_keeps_every_byte(pty, tmp_path, sig, word):
     out = tmp_path / "bus.mcap"
     proc = cli("record", pty.path, "-o", str(out), "--print")

@@ -84,19 +84,19 @@ def test_bad_inputs_are_one_line_errors(tmp_path, capsys):
     one_line_error(capsys, "NO-SUCH-RULE")
 
 
-def test_a_bad_line_mid_capture_keeps_what_was_converted(tmp_path, capsys):
+def test_a_bad_line_mid_capture_leaves_no_file(tmp_path, capsys):
+    """An input error is a failed run: no complete-looking MCAP is left behind (issue 10), and an
+    existing file at OUT (with --force) is not touched either."""
     src = tmp_path / "bad.thex"
     lines = [f"{t:.6f} {d.hex(' ')}" for d, t in hexapod_frames(50)]
     src.write_text("\n".join(lines[:30] + ["0.700000 zz 12"] + lines[30:]) + "\n")
     out = tmp_path / "bad.mcap"
     assert main(["convert", str(src), "-o", str(out), "--no-lint"]) == 2
     one_line_error(capsys, ":31: not a hex byte")
-    # The file is finished and holds the 30 chunks before the bad line.
-    with open(out, "rb") as f:
-        reader = make_reader(f)
-        assert reader.get_summary().statistics.channel_message_counts
-        raws = list(reader.iter_messages(topics=["/rs30x/raw"]))
-    assert len(raws) == 30
+    assert not out.exists() and [p.name for p in tmp_path.iterdir()] == ["bad.thex"]
+    out.write_bytes(b"keep me")
+    assert main(["convert", str(src), "-o", str(out), "--no-lint", "--force"]) == 2
+    assert out.read_bytes() == b"keep me"
 
 
 def test_info_text_and_json_agree_across_formats(tmp_path, hexapod_thex, capsys):
