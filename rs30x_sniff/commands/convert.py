@@ -80,14 +80,21 @@ def run(args: argparse.Namespace) -> int:
     bar = progress_bar(sys.stderr.isatty())
     # Written beside OUT and renamed into place at the end: an input error leaves nothing behind, while
     # a stop (Ctrl-C, SIGTERM, SIGHUP) keeps the finalized log of what was converted so far.
-    with output_path(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as tmp:
-        sink = open_mcap_sink(tmp, source, settings, timed=first[1] is not None)
-        if bar is None:
-            drive(chunks, decoder, sink)
-        else:
-            with bar:
-                task = bar.add_task("converting", total=total)
-                drive(chunks, decoder, sink, ProgressSink(lambda n: bar.advance(task, n)))
-    print(f"{args.output}: {decoder.bytes_in} bytes, {sink.messages} messages, {sink.bytes_written} bytes written",
-          file=sys.stderr)
+    stopped = None
+    try:
+        with output_path(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as tmp:
+            sink = open_mcap_sink(tmp, source, settings, timed=first[1] is not None)
+            if bar is None:
+                drive(chunks, decoder, sink)
+            else:
+                with bar:
+                    task = bar.add_task("converting", total=total)
+                    drive(chunks, decoder, sink, ProgressSink(lambda n: bar.advance(task, n)))
+    except KeyboardInterrupt as e:
+        stopped = str(e) or "Ctrl-C"  # the log of what was read so far is finished and kept
+    summary = f"{args.output}: {decoder.bytes_in} bytes, {sink.messages} messages, {sink.bytes_written} bytes written"
+    if stopped:
+        print(f"rs30x-sniff: stopped ({stopped}): {summary}", file=sys.stderr)
+        return 130
+    print(summary, file=sys.stderr)
     return 0
