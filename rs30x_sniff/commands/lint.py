@@ -55,6 +55,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     found = FindingsSink()
     sinks = [found] if progress is None else [found, ProgressSink(progress)]
     result = FileResult(path, rules=[r.code for r in linter.rules])
+    source = None
     try:
         source = open_input(path, fmt, baud=opts.baud, duration=duration)
         dec = drive(source, Decoder(opts, linter), *sinks)
@@ -67,6 +68,12 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
         elif not dec.bytes_in:
             no_data(path, dec, source)
     result.findings = found.findings
+    locate = getattr(source, "locate", None)  # text captures: findings by line and column, as ruff does
+    if locate is not None:
+        for f in result.findings:
+            loc = locate(f.offset)
+            if loc is not None:
+                result.locations[f.offset] = loc
     result.skipped = list(linter.skipped)
     result.records = found.records
     return result

@@ -26,6 +26,14 @@ class FileResult:
     skipped: list[str] = field(default_factory=list)   # codes skipped for lack of timestamps
     records: int = 0
     error: str | None = None                           # one line, when the file could not be read
+    # (line, column) of a finding's offset in a text capture, as its reader located it (none for
+    # binary and MCAP captures, whose findings keep their byte offsets).
+    locations: dict[int, tuple[int, int]] = field(default_factory=dict)
+
+    def where(self, f: Finding) -> str:
+        """``FILE:LINE:COL`` in a text capture, else ``FILE:OFFSET``."""
+        loc = self.locations.get(f.offset)
+        return f"{self.path}:{loc[0]}:{loc[1]}" if loc else f"{self.path}:{f.offset}"
 
 
 def fails(f: Finding, fail_on: str) -> bool:
@@ -46,7 +54,7 @@ def write_text(results: list[FileResult], out: IO[str], fail_on: str = "error") 
     counts: Counter = Counter()
     for r in results:
         for f in _sorted(r):
-            out.write(f"{r.path}:{f.offset}{_t(f)} {f.code} {f.name}: {f.message}\n")
+            out.write(f"{r.where(f)}{_t(f)} {f.code} {f.name}: {f.message}\n")
             raw = f.raw[:32].hex(" ").upper() + (" ..." if len(f.raw) > 32 else "")
             out.write(f"    {raw}\n")
             counts[f.code] += 1
@@ -113,7 +121,7 @@ def write_junit(results: list[FileResult], out: IO[str], fail_on: str = "error")
                 skipped += 1
                 continue
             bad = [f for f in found if fails(f, fail_on)]
-            lines = "\n".join(f"{r.path}:{f.offset}{_t(f)} {f.code} {f.name}: {f.message}" for f in found)
+            lines = "\n".join(f"{r.where(f)}{_t(f)} {f.code} {f.name}: {f.message}" for f in found)
             if bad:
                 failures += 1
                 fail = ET.SubElement(case, "failure", message=f"{len(bad)} finding(s): {bad[0].message}",
@@ -157,6 +165,10 @@ def sarif_log(results: list[FileResult]) -> dict:
     for res in results:
         for f in _sorted(res):
             props = {"t": f.t, "servoId": f.id, "severity": f.severity}
+            region = {"byteOffset": f.offset, "byteLength": max(len(f.raw), 1)}
+            loc = res.locations.get(f.offset)
+            if loc:
+                region.update(startLine=loc[0], startColumn=loc[1])
             out.append({
                 "ruleId": f.code,
                 "ruleIndex": index[f.code],
@@ -164,7 +176,7 @@ def sarif_log(results: list[FileResult]) -> dict:
                 "message": {"text": f.message},
                 "locations": [{"physicalLocation": {
                     "artifactLocation": {"uri": res.path},
-                    "region": {"byteOffset": f.offset, "byteLength": max(len(f.raw), 1)},
+                    "region": region,
                 }}],
                 "properties": props,
             })
@@ -195,7 +207,9 @@ def write_github(results: list[FileResult], out: IO[str], fail_on: str = "error"
         for f in _sorted(r):
             title = _gh_escape(f"{f.code} {f.name}", True)
             msg = _gh_escape(f"{f.message} (offset {f.offset}{', t=' + format(f.t, '.6f') if f.t is not None else ''})")
-            out.write(f"::{_GITHUB_LEVEL[f.severity]} file={_gh_escape(r.path, True)},title={title}::{msg}\n")
+            loc = r.locations.get(f.offset)
+            at = f",line={loc[0]},col={loc[1]}" if loc else ""
+            out.write(f"::{_GITHUB_LEVEL[f.severity]} file={_gh_escape(r.path, True)}{at},title={title}::{msg}\n")
 
 
 WRITERS = {"text": write_text, "json": write_json, "junit": write_junit, "sarif": write_sarif,

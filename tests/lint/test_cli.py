@@ -35,7 +35,7 @@ def run(capsys, *argv):
 def test_text_report(capsys):
     code, out, err = run(capsys, EXAMPLES)
     assert code == 1 and err == ""
-    assert f"{EXAMPLES}:86 P009 combined-flash-reboot: flash write and reboot in one packet" in out
+    assert f"{EXAMPLES}:15:1 P009 combined-flash-reboot: flash write and reboot in one packet" in out
     assert "    FA AF 01 60 07 01 01 12 74" in out
     assert "7 findings (3 errors, 4 warnings) in 1 file." in out
     assert "Skipped (no timestamps in" in out and "B001, B006, Q003" in out.replace("F004, ", "")
@@ -45,7 +45,7 @@ def test_text_report(capsys):
 def test_text_with_timestamps_has_times_and_no_skips(capsys):
     code, out, _ = run(capsys, B006)
     assert code == 0  # B006 is a warning; --fail-on error
-    assert f"{B006}:26 (t=0.020600) B006 return-latency: reply 9.906 ms after the request" in out
+    assert f"{B006}:6:10 (t=0.020600) B006 return-latency: reply 9.906 ms after the request" in out
     assert "Skipped" not in out
 
 
@@ -139,6 +139,8 @@ SARIF_SUBSET = {
                             "physicalLocation": {"type": "object", "required": ["artifactLocation"], "properties": {
                                 "artifactLocation": {"type": "object", "required": ["uri"]},
                                 "region": {"type": "object", "properties": {
+                                    "startLine": {"type": "integer", "minimum": 1},
+                                    "startColumn": {"type": "integer", "minimum": 1},
                                     "byteOffset": {"type": "integer", "minimum": 0},
                                     "byteLength": {"type": "integer", "minimum": 0}}}}}}}}}}},
             }}},
@@ -157,7 +159,8 @@ def test_sarif_format(capsys):
     assert len(res) == 7
     p9 = next(r for r in res if r["ruleId"] == "P009")
     assert rules[p9["ruleIndex"]]["id"] == "P009" and p9["level"] == "error"
-    assert p9["locations"][0]["physicalLocation"]["region"] == {"byteOffset": 86, "byteLength": 9}
+    assert p9["locations"][0]["physicalLocation"]["region"] == {"byteOffset": 86, "byteLength": 9, "startLine": 15,
+                                                                  "startColumn": 1}
     assert next(r for r in res if r["ruleId"] == "Q004")["level"] == "warning"
 
 
@@ -165,7 +168,7 @@ def test_github_format(capsys):
     code, out, _ = run(capsys, EXAMPLES, "--format", "github")
     lines = out.splitlines()
     assert len(lines) == 7
-    assert lines[0].startswith(f"::error file={EXAMPLES},title=B002 missing-return::ID 1 did not answer")
+    assert lines[0].startswith(f"::error file={EXAMPLES},line=10,col=1,title=B002 missing-return::ID 1 did not answer")
     assert any(line.startswith("::warning ") and "Q004" in line for line in lines)
 
 
