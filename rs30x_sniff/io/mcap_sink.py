@@ -12,6 +12,7 @@ from .. import __version__
 from ..events import Garbage, ShortPacket
 from ..render import record_json
 from ..schemas import schema_bytes
+from ..stats import CaptureStats
 from ..wire import BROADCAST_ID, byte_time
 
 RAW_TOPIC = "/rs30x/raw"
@@ -21,6 +22,7 @@ DIAGNOSTICS_TOPIC = "/rs30x/diagnostics"
 STATE_TOPIC = "/rs30x/servo/{id}/state"
 METADATA_NAME = "rs30x"               # written first: a killed writer still leaves it
 MODELS_METADATA_NAME = "rs30x.models"  # written by finish(): what the bus taught us
+STATS_METADATA_NAME = "rs30x.stats"    # written by finish(): `info`'s figures for the whole log, as JSON
 
 TIME_BASES = ("capture", "synthetic", "monotonic")
 # foxglove.LogLevel values (Foxglove's published schema).
@@ -80,6 +82,7 @@ class McapSink:
         self._size = 0
         self.messages = 0
         self.chunks = 0
+        self.stats = CaptureStats(baud)  # what passes through the drive loop, summed as `info` sums it
         meta = {"source": source, "baud": str(baud), "time_base": time_base, "tool": "rs30x-sniff",
                 "tool_version": __version__, "models": _models_text(self._models)}
         meta.update(extra_metadata or {})
@@ -219,6 +222,7 @@ class McapSink:
     # ---- as a sink of the drive loop (rs30x_sniff.pipeline) ----------------------------------------
     def chunk(self, data: bytes, t: float | None) -> None:
         self.raw(data, t)
+        self.stats.chunk(data, t)
 
     def batch(self, step: Any) -> None:
         record = self.record
@@ -226,6 +230,7 @@ class McapSink:
             record(rec)
         if step.findings:
             self.findings(step.findings)
+        self.stats.batch(step)
 
     def idle(self) -> None:
         pass
@@ -241,6 +246,9 @@ class McapSink:
         self._finished = True
         try:
             self._writer.add_metadata(MODELS_METADATA_NAME, {"models": _models_text(self._models)})
+            if self.stats.bytes_in:
+                self.stats.close()
+                self._writer.add_metadata(STATS_METADATA_NAME, {"stats": json.dumps(self.stats.as_dict())})
             self._writer.finish()
         finally:
             self._size = self._file.tell()

@@ -12,7 +12,7 @@ from mcap.reader import make_reader
 
 from rs30x_sniff.cli import build_parser, main
 from rs30x_sniff.commands import monitor as monitor_command
-from rs30x_sniff.io.mcap_sink import DIAGNOSTICS_TOPIC
+from rs30x_sniff.io.mcap_sink import DIAGNOSTICS_TOPIC, STATS_METADATA_NAME
 from rs30x_sniff.tui.feed import Feeder
 from rs30x_sniff.tui.store import Store
 
@@ -50,13 +50,16 @@ def via_info(capsys, path: Path, opts: list[str]) -> dict:
     return json.loads(_out(capsys, ["info", str(path), "--format", "json", *opts]))
 
 
-def via_convert(capsys, path: Path, opts: list[str], out: Path) -> Counter:
+def via_convert(capsys, path: Path, opts: list[str], out: Path) -> tuple[Counter, dict]:
+    """The findings on the MCAP's diagnostics channel, and the statistics in its metadata."""
     _out(capsys, ["convert", str(path), "-o", str(out), "--force", *opts])
     found = Counter()
     with open(out, "rb") as f:
-        for _, channel, msg in make_reader(f).iter_messages(topics=[DIAGNOSTICS_TOPIC]):
+        reader = make_reader(f)
+        for _, channel, msg in reader.iter_messages(topics=[DIAGNOSTICS_TOPIC]):
             found[(json.loads(msg.data)["name"].split()[0], json.loads(msg.data)["line"])] += 1
-    return found
+        stats = {m.name: m.metadata for m in reader.iter_metadata()}[STATS_METADATA_NAME]["stats"]
+    return found, json.loads(stats)
 
 
 def via_monitor(path: Path, opts: list[str]) -> Store:
@@ -81,7 +84,7 @@ def check_agreement(capsys, path: Path, opts: list[str], tmp_path: Path) -> Coun
     decoded = via_decode(capsys, path, opts)
     linted = via_lint(capsys, path, opts)
     info = via_info(capsys, path, opts)
-    converted = via_convert(capsys, path, opts, tmp_path / "out.mcap")
+    converted, mcap_stats = via_convert(capsys, path, opts, tmp_path / "out.mcap")
     store = via_monitor(path, opts)
     monitored = Counter((f.code, f.offset) for f in store.findings)
     assert decoded == linted, "decode vs lint"
@@ -91,7 +94,9 @@ def check_agreement(capsys, path: Path, opts: list[str], tmp_path: Path) -> Coun
     for (code, _), n in linted.items():
         by_rule[code] += n
     assert {k.split()[0]: v for k, v in info["findings_by_rule"].items()} == dict(by_rule), "info vs lint"
-    # The monitor's figures are info's: poll rates per servo and the bus load, by one definition.
+    # The monitor's figures and the MCAP metadata's are info's: one definition of the statistics.
+    figures = {k: v for k, v in info.items() if k not in ("input", "linted", "settings")}
+    assert mcap_stats == figures
     stats = store.capture_stats
     assert stats["bus_load"] == info["bus_load"]
     assert {k: v["poll_rate_hz"] for k, v in stats["servos"].items()} == \
