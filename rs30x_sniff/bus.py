@@ -231,6 +231,11 @@ class BusTracker:
         self._held: list[Record] = []
         self._model_cache: dict[int, Model] = {}
         self._uniform = self.uniform  # kept up to date by _learn, so a long packet costs no model lookups
+        # Where servo_id lives and what it may hold (table 4.6 No. 4: address 4, 1-127, the same in every
+        # map): a write there moves the servo to its new ID at once.
+        reg = self.default.register("servo_id")
+        self._id_address = reg.address
+        self._id_range = reg.range or (1, 127)
 
     @property
     def uniform(self) -> bool:
@@ -331,27 +336,72 @@ class BusTracker:
         if end > 256:
             for vid, data in ev.records:
                 self.servo(vid).store(address, data, t)
-            return
-        mask = ((1 << n) - 1) << address
-        servos = self.servos
-        for vid, data in ev.records:
-            st = servos.get(vid)
-            if st is None:
-                st = self.servo(vid)
-            st.image[address:end] = data  # inlined ServoState.store: 18 of these per gait frame
-            st.known |= mask
-            st.last_t = t
+        else:
+            mask = ((1 << n) - 1) << address
+            servos = self.servos
+            for vid, data in ev.records:
+                st = servos.get(vid)
+                if st is None:
+                    st = self.servo(vid)
+                st.image[address:end] = data  # inlined ServoState.store: 18 of these per gait frame
+                st.known |= mask
+                st.last_t = t
+        ida = self._id_address
+        if address <= ida < end:
+            k = ida - address
+            self._renumber([(vid, data[k]) for vid, data in ev.records if len(data) > k])
 
     def _on_short(self, rec: Record, ev: ShortPacket) -> None:
         sid = ev.id
-        if ev.data and ev.checksum_ok:
-            targets = list(self.servos.values()) if sid == BROADCAST_ID else [self.servo(sid)]
-            for st in targets:
-                st.store(ev.address, ev.data, ev.t_start)
-        if sid != BROADCAST_ID:
-            self.servo(sid).requests += 1
+        # A packet whose Sum is wrong names no servo we can trust: it creates none and changes no shadow.
+        if ev.checksum_ok:
+            data = ev.data
+            if sid == BROADCAST_ID:
+                if data:
+                    for st in list(self.servos.values()):
+                        st.store(ev.address, data, ev.t_start)
+            else:
+                st = self.servos.get(sid) or self.servo(sid)
+                st.requests += 1
+                if data:
+                    address = ev.address
+                    st.store(address, data, ev.t_start)
+                    ida = self._id_address
+                    if address <= ida < address + len(data):
+                        self._renumber([(sid, data[ida - address])])
         if FLAG_WANTS_REPLY[ev.flag]:  # an ACK/NACK or a return (table 4.3)
             self._pending = rec
+
+    def _renumber(self, moves: list[tuple[int, int]]) -> None:
+        """Servos whose servo_id was written: each (old, new) servo answers to its new ID at once
+        (table 4.6 No. 4), so its shadow, counters and learned model move there."""
+        lo, hi = self._id_range
+        moves = [(old, new) for old, new in moves if old != new and lo <= new <= hi]
+        if not moves:
+            return
+        servos, learned, cache = self.servos, self.learned, self._model_cache
+        # Take every moving servo out first: a long packet may swap two IDs.
+        taken = [(new, servos.pop(old, None)) for old, new in moves]
+        for old, _ in moves:
+            learned.pop(old, None)
+            cache.pop(old, None)
+        for new, st in taken:
+            cache.pop(new, None)
+            if st is None:
+                continue
+            before = servos.get(new)
+            if before is not None:  # traffic to the new ID before the change still counts there
+                st.requests += before.requests
+                st.returns += before.returns
+            st.id = new
+            model = self.configured.get(new) or st.model
+            if model is self.default:
+                learned.pop(new, None)
+            else:
+                learned[new] = model
+            st.model = model
+            servos[new] = st
+        self._uniform = self.uniform
 
     def _on_reply(self, rec: Record, pending: Record | None) -> None:
         ev = rec.event

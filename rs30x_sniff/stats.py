@@ -132,7 +132,9 @@ class CaptureStats(Sink):
             self.garbage_bytes += len(ev.raw)
             return
         if not ev.checksum_ok:
+            # Its ID, VIDs and op cannot be trusted: a bad checksum, not traffic of the servos it names.
             self.bad_checksums += 1
+            return
         t = type(ev)
         if t is ShortPacket:
             self.by_op[ev.op] += 1
