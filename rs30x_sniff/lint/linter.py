@@ -171,6 +171,8 @@ class Linter:
                 for fn in plan.target_checks:
                     fn(self, rec, plan, targets)
                 plan.apply(sh, raws)
+                if plan.id_part is not None and sid != BROADCAST_ID:
+                    self._renumber(rec, plan, [(sid, raws[plan.id_part])])
         if ev.flag & COMMAND_BITS:
             for fn in self._on["command"]:
                 fn(self, rec, ev)
@@ -185,6 +187,24 @@ class Linter:
             for s in (self.servos.values() if sid == BROADCAST_ID else (self.shadow(sid),)):
                 s.cw = s.ccw = s.reverse = None
                 s.return_delay = 0
+                s.baud = None  # RAM holds the default now, the servo still runs at its old rate (No. 6)
+
+    def _renumber(self, rec: Record, plan: Plan, moves: list[tuple[int, int]]) -> None:
+        """A write of servo_id: each (old, new) servo answers to its new ID at once (table 4.6 No. 4), so
+        its Shadow moves there, and the rules move what they remember of it (kind "moved")."""
+        lo, hi = plan.id_range
+        moves = [(old, new) for old, new in moves if old != new and lo <= new <= hi]
+        if not moves:
+            return
+        for fn in self._on["moved"]:
+            fn(self, rec, moves)
+        servos = self.servos
+        taken = [(new, servos.pop(old, None)) for old, new in moves]  # all out first: a long packet may swap
+        for new, sh in taken:
+            if sh is None:
+                servos.pop(new, None)
+            else:
+                servos[new] = sh
 
     def _long(self, rec: Record, ev: Any) -> None:
         records = ev.records
@@ -212,7 +232,11 @@ class Linter:
             apply = plan.apply
             for _, raws, sh in targets:
                 apply(sh, raws)
+            k = plan.id_part
+            if k is not None:
+                self._renumber(rec, plan, [(vid, raws[k]) for vid, raws, _ in targets])
             return
+        moves = []
         for (vid, d), model in zip(records, vid_models or (rec.model,) * len(records)):
             p = self.plan(model, ev.address, len(d))
             if len(d) != p.n:
@@ -223,6 +247,10 @@ class Linter:
             for fn in p.target_checks:
                 fn(self, rec, p, targets)
             p.apply(sh, raws)
+            if p.id_part is not None:
+                moves.append((vid, raws[p.id_part]))
+        if moves:
+            self._renumber(rec, p, moves)
 
     def _return(self, rec: Record, ev: Any) -> None:
         sh = self.shadow(ev.id)

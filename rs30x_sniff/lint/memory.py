@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from ..wire import encode_long, encode_short
+from ..memmap import default_registry
+from ..wire import encode_long, encode_read, encode_return, encode_short
 from .registry import example, rule
 
 
@@ -92,3 +93,41 @@ def partial_register_write(lint, rec, plan, ids):
     if plan.partial:
         who, sid = _who(ids)
         lint.emit("M004", rec, f"writes only {', '.join(plan.partial)} of {who}", sid=sid)
+
+
+def _known_models() -> str:
+    return ", ".join(f"0x{n:04X} {m.name}" for n, m in sorted(default_registry().by_number.items()))
+
+
+@rule("M005", "unknown-model-number", "info", "A servo reports a model number no memory map knows.", f"""
+## What it does
+Flags a return of addresses 0-1 (model_number, table 4.5) whose model number none of the memory maps
+in decoders/*.toml has ({_known_models()}). Names the number and the map the servo's
+registers are decoded with instead: the one `--model` chose for that ID, else the default. Said once
+per servo.
+
+## Why it matters
+The sniffer picks each servo's memory map from its model number. An unknown one (0x300C is common in
+the field) is decoded as another model, so the registers where the models differ, the top speed
+(Q007) and the settable ranges (M003) may be wrong for that servo. Pass `--model` for its ID, or add
+a memory map for the model under decoders/.
+
+## Example
+{example(encode_read(1, 0x00, 2), encode_return(1, 0x00, bytes.fromhex("0C30")), note="a servo answers model number 0x300C:")}
+""", kinds=("return",), state=set)
+def unknown_model_number(said, lint, rec, ev):
+    # said: servo IDs already named
+    if ev.address != 0:
+        return
+    data = ev.data
+    if len(data) < 2:
+        return
+    number = data[0] | data[1] << 8
+    model = rec.model
+    if model is None or number == model.model_number or ev.id in said:
+        return
+    if number in default_registry().by_number:
+        return  # a known model (decoded as another only if --model says so)
+    said.add(ev.id)
+    lint.emit("M005", rec, f"ID {ev.id} reports model number 0x{number:04X}, which no memory map knows "
+                           f"({_known_models()}); decoding it with the {model.name} map instead")

@@ -22,11 +22,15 @@ FAMILIES = {"F": "Framing", "P": "Packet structure", "M": "Memory map", "B": "Bu
 #   write                                     check(lint, rec, plan, ids) once per packet that writes memory
 #   target                                    check(lint, rec, plan, targets) once per write, with targets a
 #                                             list of (servo id, raw values per plan part, Shadow)
+#   moved                                     check(lint, rec, moves) after a write of servo_id moved servos to
+#                                             new IDs (at once, table 4.6 No. 4): moves lists (old, new) pairs,
+#                                             and the Shadows have moved; a rule moves its own per-servo memory
 #   close                                     check(lint) at end of input
 # A rule declared with state= keeps its own memory: the linter makes one state object per run by calling
 # that factory, and passes it first to every call of the rule's checks: check(state, lint, rec, ev).
 # One function serves every kind of a rule; ``@the_check.on(kind)`` gives a kind a function of its own.
-KINDS = ("short", "long", "return", "ack", "nack", "garbage", "corrupt", "command", "write", "target", "close")
+KINDS = ("short", "long", "return", "ack", "nack", "garbage", "corrupt", "command", "write", "target", "moved",
+         "close")
 
 
 # Preconditions a rule may declare with when=: the linter tests each once per record (for the kinds that

@@ -19,10 +19,24 @@ def _deg(raw: int) -> str:
     return f"{raw / 10:.1f}deg"
 
 
+def _carry(memory, lint, rec, moves) -> None:
+    """The "moved" check of a rule whose memory is a dict or set keyed by servo ID: what it remembers of
+    a servo follows it to the new ID (table 4.6 No. 4: the new ID holds at once)."""
+    if isinstance(memory, dict):
+        taken = [(new, memory.pop(old)) for old, new in moves if old in memory]  # all out first: swaps
+        memory.update(taken)
+    else:
+        taken = [new for old, new in moves if old in memory]
+        memory.difference_update([old for old, _ in moves])
+        memory.update(taken)
+
+
 @rule("Q001", "baud-change-not-applied", "warning", "baud_rate written without a following flash write and reboot.", f"""
 ## What it does
 Flags a write of baud_rate (table 4.6, No. 6) to a servo that is not followed, before the end of the
 capture, by a flash write and then a reboot of that servo (or of ID 255). Said at the end of input.
+The servo is followed across a change of its ID (the flash and reboot may go to the new ID), and a
+write of the rate it already has (written or read back before) needs neither.
 
 ## Why it matters
 The manual says the servo keeps running at its old rate until the new value is flashed and the servo
@@ -30,12 +44,18 @@ rebooted. A host that switches its own port to the new rate right after the writ
 
 ## Example
 {example(encode_short(1, 0, 0x06, bytes((4,))), encode_command(1, _FLASH), note="the baud rate is flashed but the servo never rebooted:")}
-""", kinds=("target", "command", "close"), fields=("baud_rate",), state=dict)
+""", kinds=("target", "command", "moved", "close"), fields=("baud_rate",), state=dict)
 def baud_change_not_applied(pending, lint, rec, plan, targets):
-    # pending: servo -> [the baud_rate write, the step it waits for ("flash" | "reboot"), the rate code]
+    # pending: servo (by its current ID) -> [the baud_rate write, the step it waits for ("flash" | "reboot"),
+    # the rate code, the ID it was written to]
     j = plan.index["baud_rate"]
-    for sid, raws, _ in targets:
-        pending[sid] = [rec, "flash", raws[j]]
+    for sid, raws, sh in targets:
+        if raws[j] == sh.baud:
+            continue  # the rate it has already (the shadow is updated after the target checks): no change
+        pending[sid] = [rec, "flash", raws[j], sid]
+
+
+baud_change_not_applied.on("moved")(_carry)
 
 
 @baud_change_not_applied.on("command")
@@ -53,16 +73,18 @@ def _baud_change_flashed_or_rebooted(pending, lint, rec, ev):
 
 @baud_change_not_applied.on("close")
 def _baud_change_left_pending(pending, lint):
-    for sid, (rec, stage, code) in pending.items():
+    for sid, (rec, stage, code, to) in pending.items():
         rate = f"code {code}"
+        who = f"ID {to}" if to == sid else f"ID {to} (now ID {sid})"
         why = "no flash write followed" if stage == "flash" else "it was flashed but the servo was never rebooted"
-        lint.emit("Q001", rec, f"baud_rate {rate} written to ID {sid} but {why}: it keeps its old rate", sid=sid)
+        lint.emit("Q001", rec, f"baud_rate {rate} written to {who} but {why}: it keeps its old rate", sid=to)
 
 
 @rule("Q002", "id-change-not-persisted", "warning", "servo_id changed but never written to flash.", f"""
 ## What it does
 Flags a write of servo_id that changes a servo's ID when no flash write to the new ID (or to ID 255)
-follows before the end of the capture. Said at the end of input.
+follows before the end of the capture. Said at the end of input. A servo renumbered twice (1 to 2,
+then 2 to 3) needs one flash write, to its last ID.
 
 ## Why it matters
 The servo answers to its new ID at once, so everything looks fine, but the ID reverts at the next
@@ -72,11 +94,16 @@ power-up (table 4.6, No. 4). A flash write sent to the old ID after the change r
 {example(encode_short(1, 0, 0x04, bytes((5,))), encode_command(1, _FLASH), note="ID 1 becomes 5, then the flash write goes to the old ID 1:")}
 """, kinds=("target", "command", "close"), fields=("servo_id",), state=dict)
 def id_change_not_persisted(pending, lint, rec, plan, targets):
-    # pending: new servo ID -> (the write that set it, the old ID)
+    # pending: new servo ID -> (the write that set it, the ID the servo had when last flashed, as far as known)
     j = plan.index["servo_id"]
-    for sid, raws, _ in targets:
-        if raws[j] != sid:
-            pending[raws[j]] = (rec, sid)
+    changes = [(sid, raws[j]) for sid, raws, _ in targets if raws[j] != sid]
+    if not changes:
+        return
+    earlier = [pending.pop(sid, None) for sid, _ in changes]  # all out first: a long packet may swap IDs
+    for (sid, new), before in zip(changes, earlier):
+        origin = sid if before is None else before[1]
+        if new != origin:
+            pending[new] = (rec, origin)
 
 
 @id_change_not_persisted.on("command")
@@ -106,7 +133,7 @@ power during one: a reboot in the middle can leave the stored settings half writ
 
 ## Example
 {example((0.0, encode_command(1, _FLASH)), (0.002, encode_command(1, _REBOOT)), note="a reboot 1.3 ms after the flash write:")}
-""", kinds=("command",), needs_time=True, state=dict)
+""", kinds=("command", "moved"), needs_time=True, state=dict)
 def reboot_too_soon_after_flash(flashed, lint, rec, ev):
     # flashed: servo -> (time its last flash write is done, the time that write ended, its offset)
     flag, sid = ev.flag, ev.id
@@ -130,6 +157,9 @@ def reboot_too_soon_after_flash(flashed, lint, rec, ev):
         flashed.pop(sid, None)
 
 
+reboot_too_soon_after_flash.on("moved")(_carry)
+
+
 @rule("Q004", "goal-while-torque-off", "warning", "A goal position sent to a servo whose torque is off.", f"""
 ## What it does
 Flags a goal_position write to a servo whose torque_enable the linter last saw as 0 (written or read,
@@ -142,7 +172,7 @@ step after power-up or a reboot.
 
 ## Example
 {example(encode_short(1, 0, 0x24, bytes((0,))), encode_short(1, 0, 0x1E, bytes.fromhex("8403")))}
-""", kinds=("target", "command"), fields=("goal_position", "torque_enable"), state=set)
+""", kinds=("target", "command", "moved"), fields=("goal_position", "torque_enable"), state=set)
 def goal_while_torque_off(said, lint, rec, plan, targets):
     # said: servos Q004 spoke for in their current torque-off spell; a torque_enable write or a reboot
     # ends the spell.
@@ -166,6 +196,9 @@ def _torque_off_spell_rebooted(said, lint, rec, ev):
             said.clear()
         else:
             said.discard(ev.id)
+
+
+goal_while_torque_off.on("moved")(_carry)
 
 
 @rule("Q005", "torque-on-with-goal", "warning", "Torque on and a goal position in one packet.", f"""

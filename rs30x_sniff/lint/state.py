@@ -8,13 +8,14 @@ from ..memmap import Model
 _TRACKED = {
     "goal_position": "pos", "present_position": "pos", "goal_time": "goal_time", "torque_enable": "torque",
     "cw_angle_limit": "cw", "ccw_angle_limit": "ccw", "reverse": "reverse", "return_delay": "return_delay",
+    "baud_rate": "baud",
 }
 
 
 class Shadow:
     """The few registers of one servo the rules need; None while unknown."""
 
-    __slots__ = ("torque", "pos", "goal_time", "cw", "ccw", "reverse", "return_delay", "temp_limit", "flags")
+    __slots__ = ("torque", "pos", "goal_time", "cw", "ccw", "reverse", "return_delay", "baud", "temp_limit", "flags")
 
     def __init__(self) -> None:
         self.torque: int | None = None
@@ -24,6 +25,7 @@ class Shadow:
         self.ccw: int | None = None
         self.reverse: int | None = None
         self.return_delay: int | None = None
+        self.baud: int | None = None       # baud_rate code in RAM (written or read), applied or not
         self.temp_limit = False            # a return said the temperature limit tripped, no reboot since
         self.flags = 0                     # status flags of the last return
 
@@ -41,7 +43,7 @@ class Plan:
     """
 
     __slots__ = ("model", "address", "n", "parts", "index", "read_only", "reserved", "partial", "ranged",
-                 "tracked", "unpack", "target_checks", "apply")
+                 "tracked", "unpack", "target_checks", "apply", "id_part", "id_range")
 
     def __init__(self, model: Model, address: int, n: int) -> None:
         self.model, self.address, self.n = model, address, n
@@ -72,6 +74,9 @@ class Plan:
         self.read_only, self.reserved, self.partial = tuple(ro), tuple(res), tuple(part)
         self.ranged = tuple(ranged)
         self.tracked = tuple((attr, self.index[name]) for name, attr in _TRACKED.items() if name in self.index)
+        # A write of servo_id moves the servo to its new ID at once (table 4.6 No. 4), if in range (1-127).
+        self.id_part = self.index.get("servo_id")
+        self.id_range = (1, 127) if self.id_part is None else (parts[self.id_part][0].range or (1, 127))
         # apply(shadow, raws): store the tracked registers, generated once per plan (it runs per servo written).
         body = [f"s.{attr} = r[{j}]" for attr, j in self.tracked]
         src = "def apply(s, r):\n    " + ("\n    ".join(body) or "pass") + "\n"

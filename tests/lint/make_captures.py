@@ -129,6 +129,12 @@ CASES: dict[str, tuple[str, list]] = {
         (encode_long(0x1E, [(1, b"\x84"), (2, b"\x84")]), "M004", "low byte only, in a long packet"),
         (w(1, 0x1E, POS), "", ""),
     ]),
+    "M005": ("model numbers no memory map knows", [
+        (encode_read(1, 0x00, 2), "", "read model_number"), (ret(1, 0x00, b"\x0c\x30"), "M005", "0x300C"),
+        (encode_read(1, 0x00, 2), "", ""), (ret(1, 0x00, b"\x0c\x30"), "", "said once per servo"),
+        (encode_read(2, 0x00, 2), "", ""), (ret(2, 0x00, b"\x40\x30"), "", "0x3040 RS304MD: known, fine"),
+        (encode_read(3, 0x00, 4), "", ""), (ret(3, 0x00, bytes.fromhex("0C30 0100")), "M005", "in a wider read too"),
+    ]),
     "B001": ("a host that does not wait for the return", [
         (0.000, READ1, "", ""), (0.0009, RET1, "", "answered 0.2 ms later: fine"),
         (0.010, READ1, "", "no answer before ..."), (0.0110, encode_read(2, 0x2A, 2), "B001", "... this poll, 0.3 ms later"),
