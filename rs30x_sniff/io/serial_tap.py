@@ -315,3 +315,41 @@ class LiveSource:
 def _one_line(e: BaseException) -> str:
     text = str(e).strip() or type(e).__name__
     return " ".join(text.split())
+
+
+def port_reader(port: str, *, read_timeout: float = READ_TIMEOUT) -> Callable[[int, float], bytes]:
+    """A ``read_for(baud, seconds) -> bytes`` for :func:`rs30x_sniff.autobaud.scan` on a real port.
+
+    Each call opens ``port`` at ``baud`` (8N1, no flow control, as :class:`SerialTap`), drops what the
+    OS buffered before, reads for ``seconds`` and closes the port. It never writes.
+    """
+    import serial
+
+    def read_for(baud: int, seconds: float) -> bytes:
+        try:
+            ser = serial.serial_for_url(port, baudrate=baud, bytesize=serial.EIGHTBITS,
+                                        parity=serial.PARITY_NONE, stopbits=serial.STOPBITS_ONE,
+                                        timeout=read_timeout, xonxoff=False, rtscts=False, dsrdtr=False)
+        except (serial.SerialException, ValueError, OSError) as e:
+            raise CaptureError(f"{port}: cannot open port at {baud}: {_one_line(e)}") from None
+        try:
+            ser.reset_input_buffer()  # bytes read at the previous rate are not this rate's
+            out = bytearray()
+            end = time.monotonic() + seconds
+            while time.monotonic() < end:
+                out += ser.read(max(1, ser.in_waiting))
+            return bytes(out)
+        except (serial.SerialException, OSError) as e:
+            raise CaptureError(f"{port}: port lost while scanning rates: {_one_line(e)}") from None
+        finally:
+            ser.close()
+
+    return read_for
+
+
+def scan_port(port: str, rates=None, dwell: float | None = None):
+    """``--baud auto``: listen to ``port`` at each rate of table 4.7 (most likely first) and return the
+    :class:`rs30x_sniff.autobaud.ScanResult` (``.baud`` is None when no rate gave valid frames)."""
+    from ..autobaud import SCAN_DWELL, SCAN_ORDER, scan
+
+    return scan(port_reader(port), SCAN_ORDER if rates is None else rates, SCAN_DWELL if dwell is None else dwell)

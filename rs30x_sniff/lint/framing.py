@@ -94,3 +94,64 @@ def inter_byte_gap(lint, rec, ev):
     idle = (t1 - t0) - len(ev[1]) * bt
     if idle > lint.config.inter_byte_gap * bt:
         lint.emit("F004", rec, f"{idle * 1e3:.3f} ms ({idle / bt:.1f} byte times) of idle line inside the frame")
+
+
+class _Stretch:
+    """F007's memory: the current run of garbage with no valid frame, and the records' timing."""
+
+    def __init__(self) -> None:
+        from ..autobaud import BaudFromTimes, NoFrameStretch
+
+        self.run = NoFrameStretch()
+        self.last = -1  # lint.records count of the last garbage (or corrupt) record of the run
+        self.times = BaudFromTimes(keep=512)
+
+
+# 18 goal writes sent back to back at 115200 bit/s, as a receiver at 57600 reads them (made with
+# rs30x_sniff.sim.wire.retime): 180 bytes on the line, 73 bytes of garbage read.
+_WRONG_BAUD = bytes.fromhex(
+    "3E84611EBC080B84300061 0DCE090BB4684261 08CA090BE4004261 09CB080BF4C48461 1C3E080BA4948061"
+    "1FE6090B94B48061 0ECC090BC43E8061 0BC90A0BD4E68561 0ACB0A0B84FE")
+
+
+@rule("F007", "wrong-baud-rate", "error", "A long run of bytes with no valid frame: the bus is at another baud rate.", f"""
+## What it does
+Flags a stretch of traffic that holds no checksum-valid frame where a healthy bus would have had
+several: 64 bytes of garbage in a row, or half a second of it (at least 16 bytes) in a timed capture.
+Said once per stretch, as soon as the stretch is that long; a valid frame ends the stretch. A byte
+capture cannot tell which rate the bus is at, so the finding names the rates of table 4.7 to try;
+a timed capture whose bytes came back to back at another rate than the one decoded names that rate.
+
+## Why it matters
+A receiver set to the wrong rate still delivers bytes (with framing errors), so a capture at the
+wrong rate looks like a busy bus of noise: no packets, nothing else to see. The usual causes are a
+servo whose baud_rate was changed, flashed and rebooted (table 4.7, No. 6), or a sniffer left at the
+factory default 115200 on a bus that runs at another rate. `--baud auto` on a port finds the rate.
+
+## Example
+{example(_WRONG_BAUD, note="18 goal writes sent at 115200 bit/s, read at 57600:")}
+""", kinds=("garbage", "corrupt", "packet", "ack", "nack"), state=_Stretch)
+def wrong_baud_rate(st, lint, rec, ev):
+    # Garbage: the run grows. Runs of garbage are split where the decoder found a (corrupt) frame
+    # header or an idle gap, so consecutive garbage records are one stretch.
+    n = lint.records
+    if st.last != n - 1:
+        st.run.reset()
+    st.last = n
+    t0 = ev[2]
+    if t0 is not None:
+        st.times.chunk(ev[1], t0)
+    if ev.kind != "garbage" or not st.run.garbage(len(ev[1]), t0, ev[3]):
+        return
+    from ..autobaud import wrong_baud_message
+
+    est = st.times.estimate if lint.timed else None
+    lint.emit("F007", rec, wrong_baud_message(st.run.bytes, st.run.span, lint.config.baud, est), sid=None)
+
+
+@wrong_baud_rate.on("packet", "ack", "nack")
+def _wrong_baud_valid_frame(st, lint, rec, ev):
+    # A valid frame ends the stretch; its time still helps the estimate of the line's rate.
+    t0 = ev[2]
+    if t0 is not None:
+        st.times.chunk(ev[1], t0)

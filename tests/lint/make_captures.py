@@ -12,6 +12,7 @@ from pathlib import Path
 from rs30x_sniff.lint import RULES
 from rs30x_sniff.lint.registry import frame
 from rs30x_sniff.wire import encode_command, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.sim.wire import retime
 
 OUT = Path(__file__).resolve().parents[2] / "captures" / "lint"
 RET = b"\xfd\xdf"
@@ -35,6 +36,10 @@ READ1, RET1 = encode_read(1, 0x2A, 2), ret(1, 0x2A, POS)
 POLL = encode_short(1, 0x09, 0, b"", length=0, count=1)
 STATUS = bytes(18)
 
+# 18 goal writes sent back to back at 115200 bit/s, as a sniffer left at 57600 reads them (F007).
+WRONG_BAUD = b"".join(d for d, _ in retime(
+    [(b"".join(goal(sid, 900 - 50 * sid) for sid in range(1, 19)), 0.0)], 115200, 57600))
+
 # code -> (comment, [(frame, expects, note) or (t, frame, expects, note)])
 CASES: dict[str, tuple[str, list]] = {
     "F001": ("a corrupted write between two good ones", [
@@ -56,6 +61,12 @@ CASES: dict[str, tuple[str, list]] = {
         (0.0111, goal(2, 900)[4:], "", "... the rest 0.75 ms later"),
         (0.020, goal(3, 900)[:4], "", "first 4 bytes ..."),
         (0.02037, goal(3, 900)[4:], "", "... the rest 0.02 ms late: within 5 byte times"),
+    ]),
+    "F007": ("the host moves the bus from 57600 to 115200 bit/s; the sniffer stays at 57600", [
+        (goal(1, 900), "", "at 57600: fine"),
+        (w(1, 0x06, b"\x07"), "", "baud_rate code 7: 115200 (table 4.7) ..."),
+        (encode_command(1, 0x40), "", "... flashed ..."), (encode_command(1, 0x20), "", "... rebooted"),
+        (WRONG_BAUD, "F002 F007", "18 goal writes at 115200 read at 57600: 73 bytes, no frame"),
     ]),
     "P001": ("flag bit 7", [(w(1, 0x1E, POS, 0x80), "P001", ""), (goal(1, 900), "", "")]),
     "P002": ("a long packet with a flag", [
