@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from bisect import bisect_right
+from dataclasses import dataclass
 from functools import reduce
 from operator import xor
 
@@ -28,6 +29,23 @@ _FA, _AF, _FD, _DF = 0xFA, 0xAF, 0xFD, 0xDF
 DEFAULT_MAX_DATA = 1024
 # An idle line longer than this many byte times inside a frame means the sender stopped mid-frame.
 DEFAULT_GAP_BYTES = 20.0
+
+# Faults of a capture's clock (the bytes themselves may be fine): a chunk stamped before the previous
+# one, or after it but before its bytes could have gone over the wire at the baud rate.
+TIME_BACKWARDS = "backwards"
+TIME_TOO_CLOSE = "too-close"
+
+
+@dataclass
+class TimeFault:
+    """The first time a capture's clock broke one way, and how often it did."""
+
+    kind: str
+    offset: int          # stream offset of the chunk's first byte
+    t: float             # the time the chunk was stamped with
+    earliest: float      # the earliest time its first byte could have started (the previous one's end)
+    count: int = 1
+
 
 # Results of FrameDecoder._frame_end besides an end index.
 _WAIT = -1      # cannot decide yet: more bytes are needed
@@ -61,6 +79,11 @@ class FrameDecoder:
         self._chunk_times: list[float | None] = []
         self._breaks: list[int] = []  # stream offsets preceded by an idle gap, ascending
         self._last_t: float | None = None  # start time of the last byte fed so far
+        self._chunk_t: float | None = None  # the time the last timed chunk was stamped with
+        # Times that went backwards or came too close are kept here (first place and count) and the
+        # clock is held monotonic: a later chunk starts no earlier than the previous one ended, so no
+        # latency is ever negative (the linter reports these as F005/F006).
+        self.time_faults: dict[str, TimeFault] = {}
         self.closed = False
 
     @property
@@ -76,6 +99,20 @@ class FrameDecoder:
         if not data:
             return []
         start = self.offset
+        stamped = t
+        if t is not None and self._last_t is not None:
+            earliest = self._last_t + self.byte_time
+            if t < earliest - self.byte_time / 4:  # a quarter byte of slack for rounded timestamps
+                # Backwards: stamped before the previous chunk's own stamp (not its corrected time).
+                kind = TIME_BACKWARDS if t < self._chunk_t else TIME_TOO_CLOSE
+                fault = self.time_faults.get(kind)
+                if fault is None:
+                    self.time_faults[kind] = TimeFault(kind, start, t, earliest)
+                else:
+                    fault.count += 1
+                t = earliest
+        if stamped is not None:
+            self._chunk_t = stamped
         if t is not None or self._chunk_times:
             if t is not None and self._last_t is not None and self.gap_bytes is not None:
                 idle = t - self._last_t - self.byte_time

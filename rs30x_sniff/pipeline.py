@@ -82,6 +82,7 @@ class Decoder:
         if self.linter is not None:
             for rec in out:
                 self.linter.feed(rec)
+            self.linter.time_faults = self.frames.time_faults  # the capture's clock, for F005/F006
             out.late = self.late_findings = self.linter.close()
             out.findings = self._new_findings()
         return out

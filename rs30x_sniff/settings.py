@@ -15,6 +15,7 @@ from .lint.config import resolve as resolve_rules
 from .lint.registry import SEVERITIES
 from .memmap import ModelError, ModelRegistry, default_registry
 from .pipeline import DecodeOptions
+from .timebase import TIME_REFS
 from .wire import BAUD_RATES, DEFAULT_BAUD
 
 CONFIG_NAME = "rs30x-sniff.toml"
@@ -98,6 +99,7 @@ KEYS: dict[str, Key] = {
     "models": Key(_models, "--model ID=", "model per servo ID"),
     "gap_bytes": Key(_not_negative, "--gap-bytes", "idle byte times that end a frame (0: off)"),
     "reply_timeout": Key(_positive, "--reply-timeout", "seconds before a reply counts as missing"),
+    "time_ref": Key(_one_of(TIME_REFS), "--time-ref", "what timestamped hex times mark: first byte or arrival"),
     "select": Key(_rules, "--select", "rules to run"),
     "ignore": Key(_rules, "--ignore", "rules to skip"),
     "severity": Key(_severity, "--severity", "severity per rule"),
@@ -221,6 +223,7 @@ class Settings:
     models: Mapping[int, str] = field(default_factory=dict)
     gap_bytes: float | None = DEFAULT_GAP_BYTES   # None: gap detection off
     reply_timeout: float = DEFAULT_REPLY_TIMEOUT
+    time_ref: str | None = None                    # None: told by the content (rs30x_sniff.timebase)
     lint: Mapping[str, Any] = field(default_factory=dict)  # select, ignore, severity, fail_on, thresholds
     report_format: str | None = None
     origin: Mapping[str, str] = field(default_factory=dict)
@@ -251,7 +254,8 @@ class Settings:
         """The decode settings with where each came from (``info --format json``, MCAP metadata)."""
         return {"baud": self.baud, "default_model": self.default_model,
                 "models": {str(k): v for k, v in sorted(self.models.items())}, "gap_bytes": self.gap_bytes,
-                "reply_timeout": self.reply_timeout, "origin": dict(self.origin), "config": self.config_path}
+                "reply_timeout": self.reply_timeout, "time_ref": self.time_ref, "origin": dict(self.origin),
+                "config": self.config_path}
 
 
 def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, Any] | None = None,
@@ -269,14 +273,14 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     cap = dict(capture or {})
     layers = [(CAPTURE, cap), (where_conf, conf), (COMMAND_LINE, cli)]
     values: dict[str, Any] = {"baud": DEFAULT_BAUD, "model": None, "gap_bytes": DEFAULT_GAP_BYTES,
-                              "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False}
+                              "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False, "time_ref": None}
     origin = {k: DEFAULTS for k in ("baud", "model", "gap_bytes", "reply_timeout")}
     models: dict[int, str] = {}
     lint: dict[str, Any] = {}
     ignore: list[str] = []
     severity: dict[str, str] = {}
     for where, layer in layers:
-        for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any"):
+        for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any", "time_ref"):
             if key in layer:
                 values[key] = layer[key]
                 origin[key] = where
@@ -302,6 +306,7 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
                             f"add --baud-any (baud-any = true) to use it anyway")
     fmt = cli.get("format", conf.get("format"))
     return Settings(baud=baud, default_model=values["model"], models=models,
-                    gap_bytes=values["gap_bytes"] or None, reply_timeout=values["reply_timeout"], lint=lint,
+                    gap_bytes=values["gap_bytes"] or None, reply_timeout=values["reply_timeout"],
+                    time_ref=values["time_ref"], lint=lint,
                     report_format=fmt, origin=origin,
                     config_path=where_conf if config else None)

@@ -7,9 +7,10 @@ import os
 import sys
 from typing import Any, Iterator
 
-from ..io.captures import FORMATS, MCAP, MCAP_MAGIC, Chunk, read_capture
+from ..io.captures import FORMATS, MCAP, MCAP_MAGIC, Chunk
+from ..io.inputs import read_input
+from ..timebase import TIME_REFS
 from ..settings import Settings, SettingsError, find_config, load_config, resolve
-from ..wire import DEFAULT_BAUD
 
 
 class CliError(Exception):
@@ -30,6 +31,9 @@ def add_decode_options(p: argparse.ArgumentParser) -> None:
                    help="idle byte times inside a frame that end it as truncated (default 20; 0 turns it off)")
     p.add_argument("--reply-timeout", type=float, default=None, metavar="S",
                    help="seconds after a request before its reply counts as missing (default 0.05)")
+    p.add_argument("--time-ref", choices=TIME_REFS, default=None,
+                   help="what a timestamped hex capture's times mark: each line's first byte, or its arrival "
+                        "(the end of its last byte, as serial loggers stamp reads); default: told by the content")
 
 
 def add_lint_selection(p: argparse.ArgumentParser) -> None:
@@ -75,7 +79,7 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
             out.setdefault("models", {})[key.strip()] = name.strip()
         else:
             out["model"] = spec.strip()
-    for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on"):
+    for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on", "time_ref"):
         v = getattr(args, key, None)
         if v is not None:
             out[key] = v
@@ -176,13 +180,13 @@ def check_positive(option: str, value: float | None) -> None:
 
 
 # ---- inputs ----------------------------------------------------------------------------------------
-def open_input(path: str, fmt: str | None = None, *, baud: int | None = None,
-               duration: float | None = None) -> Iterator[Chunk]:
-    """Chunks from a capture file (or '-' for stdin), or live from a serial port.
+def open_input(path: str, fmt: str | None, settings: Settings, *, duration: float | None = None) -> Iterator[Chunk]:
+    """Chunks from a capture file (or '-' for stdin), or live from a serial port, as ``settings`` say.
 
     A port (a character device such as /dev/ttyUSB0, or a pyserial URL such as socket://host:port)
-    is read passively at ``baud`` until Ctrl-C, SIGTERM or ``duration`` seconds; the returned
-    source then has ``live = True`` and, after iteration, ``lost`` tells whether the port failed.
+    is read passively at the settings' baud until Ctrl-C, SIGTERM, SIGHUP or ``duration`` seconds;
+    the returned source then has ``live = True`` and, after iteration, ``lost`` tells whether the
+    port failed. A timestamped capture's times are read by the settings' time reference.
     """
     if fmt is None:
         from ..io.serial_tap import is_port  # no pyserial import unless INPUT is a port
@@ -191,8 +195,8 @@ def open_input(path: str, fmt: str | None = None, *, baud: int | None = None,
             from ..io.serial_tap import LiveSource
 
             check_positive("--duration", duration)
-            return LiveSource(path, baud or DEFAULT_BAUD, duration=duration).start()
-    return read_capture(path, fmt)
+            return LiveSource(path, settings.baud, duration=duration).start()
+    return read_input(path, fmt, baud=settings.baud, time_ref=settings.time_ref)
 
 
 def is_live(chunks: object) -> bool:

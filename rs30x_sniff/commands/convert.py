@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     check_output(args.output, args.force, (args.input,))
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)
-    first, chunks = peek(open_input(args.input, args.input_format))
+    first, chunks = peek(open_input(args.input, args.input_format, settings))
     if first is None:
         raise CliError(f"{args.input}: no data (the capture is empty): nothing to convert")
     decoder = Decoder(settings.decode_options(), linter=linter)

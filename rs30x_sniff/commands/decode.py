@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     settings = settings_for(args, args.input)
     opts = settings.decode_options()
     linter = make_linter(args, settings)
-    chunks = open_input(args.input, args.input_format, baud=opts.baud, duration=args.duration)
+    chunks = open_input(args.input, args.input_format, settings, duration=args.duration)
     ids = set(args.id) if args.id else None
     for sid in ids or ():
         if not (1 <= sid <= 127 or sid == 255):

@@ -33,16 +33,21 @@ def run(args: argparse.Namespace) -> int:
     settings = settings_for(args, args.input)
     opts = settings.decode_options()
     linter = make_linter(args, settings)
-    source = open_input(args.input, args.input_format, baud=opts.baud, duration=args.duration)
+    source = open_input(args.input, args.input_format, settings, duration=args.duration)
     stats = CaptureStats(opts.baud)
     drive(source, Decoder(opts, linter), stats)
     no_data(args.input, stats, source)
+    shown = settings.as_json()
+    time_ref = getattr(source, "time_ref", None) if stats.timed else None  # what the times mark, and why
+    if time_ref is not None:
+        shown["time_ref"] = time_ref.ref
+        shown["origin"]["time_ref"] = time_ref.reason
     with output_stream(args.output, force=args.force, inputs=(args.input,)) as out:
         if args.format == "json":
-            out.write(json.dumps({"input": args.input, "linted": linter is not None, "settings": settings.as_json(),
+            out.write(json.dumps({"input": args.input, "linted": linter is not None, "settings": shown,
                                   **stats.as_dict()}, indent=2) + "\n")
         else:
-            _print_text(out, args.input, stats, linter is not None)
+            _print_text(out, args.input, stats, linter is not None, time_ref)
     return 0
 
 
@@ -50,7 +55,7 @@ def _ms(v: float | None) -> str:
     return "-" if v is None else f"{v * 1e3:.3f} ms"
 
 
-def _print_text(out: Any, name: str, s: CaptureStats, linted: bool) -> None:
+def _print_text(out: Any, name: str, s: CaptureStats, linted: bool, time_ref: Any = None) -> None:
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
@@ -61,6 +66,8 @@ def _print_text(out: Any, name: str, s: CaptureStats, linted: bool) -> None:
     timing = "" if s.timed else " (no timestamps: line time at the baud rate)"
     con.print(f"[bold]{escape(name)}[/bold]")
     con.print(f"  duration   {s.duration:.6f} s{timing}")
+    if time_ref is not None and s.timed:
+        con.print(f"  times      {escape(time_ref.reason)}")
     con.print(f"  bytes      {s.bytes} at {s.baud} bit/s, bus load {load}")
     kinds = ", ".join(f"{k} {v}" for k, v in d["by_type"].items()) or "none"
     con.print(f"  records    {s.records}: {kinds}")

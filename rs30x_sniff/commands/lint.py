@@ -57,7 +57,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     result = FileResult(path, rules=[r.code for r in linter.rules])
     source = None
     try:
-        source = open_input(path, fmt, baud=opts.baud, duration=duration)
+        source = open_input(path, fmt, settings, duration=duration)
         dec = drive(source, Decoder(opts, linter), *sinks)
     except (CaptureError, ModelError) as e:
         result.error = str(e)

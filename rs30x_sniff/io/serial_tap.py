@@ -61,8 +61,10 @@ class SerialTap:
 
     Each chunk is stamped with ``time.monotonic_ns()`` when the read returns. Its first byte's time
     is back-computed from the baud rate (``t_arrival - len(chunk) x byte time``) and kept after the
-    previous chunk's last byte. ``t`` is seconds since the port was opened; the wall-clock time of
-    that moment is in :attr:`wall_start_ns` (for the capture's metadata).
+    previous chunk's last byte. ``t`` is wall-clock time (seconds since the epoch), read from the
+    monotonic clock anchored once to the system clock when the port opened (:attr:`wall_start_ns`):
+    a log lines up with a ROS bag or a video, and a clock step during the capture cannot make time
+    run backwards.
     """
 
     def __init__(self, port: str, baud: int, *, read_timeout: float = READ_TIMEOUT,
@@ -150,7 +152,7 @@ class SerialTap:
 
     def _stamp(self, data: bytes, arrival_ns: int) -> None:
         n = len(data)
-        t = (arrival_ns - self.start_ns) / 1e9 - n * self.byte_time
+        t = (self.wall_start_ns + arrival_ns - self.start_ns) / 1e9 - n * self.byte_time
         if t < self._next_t:
             t = self._next_t  # bytes cannot overlap the previous chunk's
         self._next_t = t + n * self.byte_time

@@ -94,6 +94,13 @@ class Linter:
         self._new.append(f)
         return f
 
+    def emit_at(self, code: str, offset: int, t: float | None, message: str, sid: int | None = None) -> Finding:
+        """Report a finding about a place in the stream rather than a record (the capture's own clock)."""
+        f = Finding(code, RULES[code].name, self._sev[code], message, offset, t, sid)
+        self.findings.append(f)
+        self._new.append(f)
+        return f
+
     # ---- input -------------------------------------------------------------------------------
     def feed(self, rec: Record) -> list[Finding]:
         """Check one record (records must come in wire order); returns the findings it produced."""

@@ -55,8 +55,9 @@ def write_text(results: list[FileResult], out: IO[str], fail_on: str = "error") 
     for r in results:
         for f in _sorted(r):
             out.write(f"{r.where(f)}{_t(f)} {f.code} {f.name}: {f.message}\n")
-            raw = f.raw[:32].hex(" ").upper() + (" ..." if len(f.raw) > 32 else "")
-            out.write(f"    {raw}\n")
+            if f.raw:  # a finding about the capture's clock has no packet of its own
+                raw = f.raw[:32].hex(" ").upper() + (" ..." if len(f.raw) > 32 else "")
+                out.write(f"    {raw}\n")
             counts[f.code] += 1
     total = sum(counts.values())
     if counts:

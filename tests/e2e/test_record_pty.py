@@ -86,7 +86,9 @@ def test_decode_streams_lines_from_a_port_while_it_runs(pty):
     readable, _, _ = select.select([proc.stdout], [], [], 3.0)
     assert readable and proc.poll() is None  # a line while decode is still running
     first = os.read(proc.stdout.fileno(), 1 << 16).decode()  # unbuffered: communicate() reads the rest
-    assert first.startswith(" ") and "PING id=1" in first.splitlines()[0]
+    assert "PING id=1" in first.splitlines()[0]
+    # Stamped in wall-clock time (seconds since the epoch), not in seconds since the port opened.
+    assert abs(float(first.split()[0]) - time.time()) < 60
     rc, rest, stderr = _finish(proc)
     assert rc == 0, stderr
     assert "REBOOT id=12" in first + rest

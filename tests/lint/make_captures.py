@@ -62,6 +62,17 @@ CASES: dict[str, tuple[str, list]] = {
         (0.020, goal(3, 900)[:4], "", "first 4 bytes ..."),
         (0.02037, goal(3, 900)[4:], "", "... the rest 0.02 ms late: within 5 byte times"),
     ]),
+    "F005": ("a logger's timestamps that go back in time", [
+        (0.100, READ1, "", "read present_position"),
+        (0.090, RET1, "F005", "its return, stamped 10 ms before the read"),
+        (0.200, goal(1, 900), "", ""),
+        (0.150, goal(2, 900), "", "back again: counted, not flagged twice"),
+    ]),
+    "F006": ("chunks stamped closer than their bytes could travel at 115200 bit/s", [
+        (0.0000, goal(1, 900), "", "10 bytes take 0.868 ms"),
+        (0.0005, goal(2, 900), "F006", "stamped 0.5 ms after the previous began"),
+        (0.0100, goal(3, 900), "", "well after"),
+    ]),
     "F007": ("the host moves the bus from 57600 to 115200 bit/s; the sniffer stays at 57600", [
         (goal(1, 900), "", "at 57600: fine"),
         (w(1, 0x06, b"\x07"), "", "baud_rate code 7: 115200 (table 4.7) ..."),

@@ -111,10 +111,11 @@ def test_transactions_pair_requests_with_replies(tmp_path):
     req = encode_short(1, 0x09, 0, b"", length=0, count=1)
     ret = encode_return(1, 42, bytes(18))
     lost = encode_short(4, 0x09, 0, b"", length=0, count=1)
-    to_mcap([(req, 1.0), (ret, 1.0 + 0.0003), (lost, 1.5), (req, 2.0)], out)
+    req_end = 1.0 + len(req) * 10 / 115200
+    to_mcap([(req, 1.0), (ret, req_end + 0.0003), (lost, 1.5), (req, 2.0)], out)
     tx = [json.loads(m.data) for _, c, m in read_all(out) if c.topic == "/rs30x/transactions"]
     assert [(x["id"], x["status"]) for x in tx] == [(1, "answered"), (4, "missing"), (1, "missing")]
-    assert tx[0]["reply_type"] == "return" and tx[0]["latency_s"] == pytest.approx(0.0003 - 8 * 10 / 115200)
+    assert tx[0]["reply_type"] == "return" and tx[0]["latency_s"] == pytest.approx(0.0003)
     assert tx[0]["read"][0] == "present_position"
     assert tx[1]["reply_offset"] is None and tx[1]["latency_s"] is None
 

@@ -1,0 +1,47 @@
+"""A capture file opened as a source of first-byte-timed chunks: the one way every command reads a file."""
+
+from __future__ import annotations
+
+import itertools
+import os
+from typing import Callable, Iterator
+
+from ..timebase import FIRST, SAMPLE_CHUNKS, TimedSource, TimeRef, judge
+from .captures import MCAP, TIMESTAMPED, Chunk, read_capture, stderr_warning
+
+RECORDED = TimeRef(FIRST, "each chunk's first byte, as the log records it")
+
+
+def read_input(path: str, fmt: str | None = None, *, baud: int, time_ref: str | None = None,
+               warn: Callable[[str], None] | None = stderr_warning) -> Iterator[Chunk]:
+    """The chunks of a capture file (or ``-``/a pipe), their times meaning each chunk's first byte.
+
+    Timestamped hex from another tool's logger is often stamped at arrival (the end of the read):
+    ``time_ref`` says so, or the content tells (rs30x_sniff.timebase). A file is sampled by a read
+    of its own first lines; a pipe cannot be read ahead, so its times are taken as first-byte times
+    unless ``time_ref`` says otherwise. The source's ``time_ref`` says which reading and why.
+    """
+    src = read_capture(path, fmt, warn=warn)
+    kind = getattr(src, "format", fmt)
+    if kind == TIMESTAMPED:
+        if time_ref is None:
+            judged = _judge_file(path, baud)
+            return TimedSource(src, baud, judged.ref, judged)
+        return TimedSource(src, baud, time_ref)
+    if kind == MCAP:
+        src.time_ref = RECORDED  # type: ignore[attr-defined]
+    return src
+
+
+def _judge_file(path: str, baud: int) -> TimeRef:
+    if path == "-" or not os.path.isfile(path):
+        return TimeRef(FIRST, "each line's first byte (assumed: a pipe cannot be read ahead to tell; "
+                              "--time-ref arrival if a logger stamped its reads)")
+    sample = read_capture(path, TIMESTAMPED, warn=None)
+    try:
+        head = [c for c in itertools.islice(sample, SAMPLE_CHUNKS) if c[1] is not None]
+    except Exception:  # noqa: BLE001 - a bad line: the main read reports it where it is
+        head = []
+    finally:
+        sample.close()
+    return judge(head, baud)

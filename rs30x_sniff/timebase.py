@@ -1,0 +1,87 @@
+"""What a capture's timestamps mean (the first byte of a chunk, or its arrival), told from the content."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Iterator
+
+from .wire import byte_time
+
+FIRST = "first"      # t is when the chunk's first byte started (our .thex, MCAP raw, the live tap)
+ARRIVAL = "arrival"  # t is when the read returned: the end of the chunk's last byte (socat, spy://, ...)
+TIME_REFS = (FIRST, ARRIVAL)
+SAMPLE_CHUNKS = 512  # chunks looked at to tell the reference; the rest streams through
+
+Chunk = tuple[bytes, "float | None"]
+
+
+@dataclass(frozen=True)
+class TimeRef:
+    """The reference a capture's times are read with, and why (for `info`)."""
+
+    ref: str
+    reason: str
+
+
+def judge(chunks: list[Chunk], baud: int) -> TimeRef:
+    """Tell the time reference from consecutive timed chunks at ``baud``.
+
+    Bytes cannot overlap on the wire. Read as first-byte times, a chunk must not start before the
+    previous one has ended (t_next >= t + n * byte time); read as arrival times, it must not have
+    started before the previous one arrived (t_next - n_next * byte time >= t). A logger that stamps
+    reads on arrival breaks the first rule at every reply that follows its request closely; our own
+    captures break the second whenever a chunk follows another back to back. The reading with fewer
+    impossible overlaps wins; with none either way, first-byte times are assumed (and said so).
+    """
+    bt = byte_time(baud)
+    tol = bt / 4
+    as_first = as_arrival = pairs = 0
+    prev: Chunk | None = None
+    for data, t in chunks:
+        if t is None or not data:
+            continue
+        if prev is not None:
+            pdata, pt = prev
+            pairs += 1
+            if t < pt + len(pdata) * bt - tol:
+                as_first += 1
+            if t - len(data) * bt < pt - tol:
+                as_arrival += 1
+        prev = (data, t)
+    if as_first > as_arrival:
+        return TimeRef(ARRIVAL, f"stamped at arrival, told by the content: {as_first} of {pairs} chunks would "
+                                f"start before the previous one ended if stamped at their first byte")
+    if as_arrival > as_first:
+        return TimeRef(FIRST, f"stamped at the first byte, told by the content: {as_arrival} of {pairs} chunks "
+                              f"would overlap the previous one if stamped at arrival")
+    return TimeRef(FIRST, "stamped at the first byte (assumed: the content does not tell)")
+
+
+def to_first_byte(chunks: Iterable[Chunk], baud: int) -> Iterator[Chunk]:
+    """Arrival times laid back to each chunk's first byte at the baud rate (t - n x byte time)."""
+    bt = byte_time(baud)
+    for data, t in chunks:
+        yield data, (None if t is None else t - len(data) * bt)
+
+
+class TimedSource:
+    """A capture's chunks with their times read as first-byte times, by ``ref`` (``time_ref`` says
+    which and why); other attributes (``locate``, ``warnings``, ``close``) are the source's."""
+
+    def __init__(self, source: Iterable[Chunk], baud: int, ref: str, why: TimeRef | None = None) -> None:
+        self.source = source
+        self.baud = baud
+        self.time_ref = why or TimeRef(ref, "given by --time-ref")
+        self._it: Iterator[Chunk] | None = None
+
+    def __getattr__(self, name: str):  # locate(), warnings, close(), live... of the wrapped source
+        return getattr(self.source, name)
+
+    def __iter__(self) -> Iterator[Chunk]:
+        if self._it is None:
+            it = iter(self.source)
+            self._it = to_first_byte(it, self.baud) if self.time_ref.ref == ARRIVAL else it
+        return self._it
+
+    def __next__(self) -> Chunk:
+        return next(iter(self))
