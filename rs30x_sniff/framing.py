@@ -29,6 +29,10 @@ _FA, _AF, _FD, _DF = 0xFA, 0xAF, 0xFD, 0xDF
 DEFAULT_MAX_DATA = 1024
 # An idle line longer than this many byte times inside a frame means the sender stopped mid-frame.
 DEFAULT_GAP_BYTES = 20.0
+# A run of garbage is handed out in pieces of this many bytes, counted from the run's first byte (so the
+# pieces do not depend on chunking): a bus read at the wrong baud rate is all garbage and has neither
+# frames nor idle gaps to end a run, and a live display must show it within a second or two.
+GARBAGE_PIECE = 128
 
 # Faults of a capture's clock (the bytes themselves may be fine): a chunk stamped before the previous
 # one, or after it but before its bytes could have gone over the wire at the baud rate.
@@ -239,6 +243,8 @@ class FrameDecoder:
         self._start = 0   # buffer index of the first byte not yet in an event
         i = self._scan
         while i < n:
+            while i - self._start >= GARBAGE_PIECE:  # [start, i) is garbage already
+                self._emit_garbage(out, self._start + GARBAGE_PIECE)
             start = self._start
             base = self._base
             br = self._breaks
@@ -307,6 +313,8 @@ class FrameDecoder:
                 if gap is not None:
                     nxt = gap - base
             i = nxt
+        while i - self._start >= GARBAGE_PIECE:
+            self._emit_garbage(out, self._start + GARBAGE_PIECE)
         if final and n > self._start:
             self._emit_garbage(out, n)
             i = n

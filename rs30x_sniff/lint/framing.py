@@ -49,6 +49,10 @@ servo's own parser and cost the next command.
 def garbage_bytes(lint, rec, ev):
     if ev.reason == "truncated":
         return
+    prev = lint.prev
+    if prev is not None and prev.event.kind == "garbage" and prev.event.end_offset == ev.offset \
+            and prev.event.reason != "truncated":
+        return  # the next piece of a long run (the decoder hands runs out in pieces): said once
     what = "no frame header" if ev.reason == "noise" else "a header whose length cannot be a frame"
     lint.emit("F002", rec, f"{len(ev.raw)} byte(s) with {what}")
 
