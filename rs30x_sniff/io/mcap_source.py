@@ -201,8 +201,10 @@ class McapRawReader:
             library = b.string()
             b.done()
             if not library.startswith(_TOOL):
+                # The name is the file's text: shown quoted if it is not plain, so the error stays one line.
+                shown = library if library.isprintable() and len(library) <= 60 else repr(library[:60])
                 raise CaptureError(f"{self.path}: not an rs30x-sniff MCAP (written by "
-                                   f"{library or 'an unnamed tool'}; it has no {RAW_TOPIC} channel)")
+                                   f"{shown or 'an unnamed tool'}; it has no {RAW_TOPIC} channel)")
             state.header = True
             return
         if opcode == Opcode.METADATA:

@@ -160,3 +160,17 @@ def test_an_mcap_fifo_is_refused(tmp_path, small_mcap):
     threading.Thread(target=feed, daemon=True).start()
     with pytest.raises(CaptureError, match="needs a seekable file"):
         list(read_capture(str(fifo)))
+
+
+def test_a_foreign_writer_name_with_a_newline_stays_one_line(tmp_path):
+    # Found by fuzz_mcap: the header's library string went into the message as it was.
+    from mcap.writer import Writer
+
+    foreign = tmp_path / "other.mcap"
+    with open(foreign, "wb") as f:
+        w = Writer(f)
+        w.start(profile="", library="rs\nevil")
+        w.finish()
+    with pytest.raises(CaptureError, match="not an rs30x-sniff MCAP") as e:
+        list(read_capture(str(foreign)))
+    assert "\n" not in str(e.value) and "'rs\\nevil'" in str(e.value)
