@@ -326,7 +326,8 @@ class CaptureReader:
         from .mcap_source import McapRawReader  # imported lazily: only MCAP inputs need the mcap library
 
         if not seekable:
-            raise CaptureError(f"{self.path}: an MCAP capture needs a seekable file, not a pipe (save it to a file first)")
+            raise CaptureError(f"{self.path}: an MCAP capture needs a seekable file, not a pipe "
+                               "(save it to a file first)")
         reader = McapRawReader(self.path, warn=self._warn)
         reader.warnings = self.warnings
         for data, t, _ in reader:

@@ -129,7 +129,8 @@ class McapRawReader:
         try:
             st = os.fstat(f.fileno())
             if not stat.S_ISREG(st.st_mode) or not f.seekable():
-                raise CaptureError(f"{path}: an MCAP capture needs a seekable file, not a pipe (save it to a file first)")
+                raise CaptureError(f"{path}: an MCAP capture needs a seekable file, not a pipe "
+                                   "(save it to a file first)")
         except BaseException:
             f.close()
             raise
@@ -462,7 +463,8 @@ def _check_prefix(opcode: int, length: int, prefix: bytes, pos: int) -> None:
         raise _Damage(pos, f"a {_name(opcode)} record whose length ({length}) contradicts its content ({expected})")
 
 
-def read_mcap_raw(path: str, warn: Callable[[str], None] | None = stderr_warning) -> Iterator[tuple[bytes, float | None]]:
+def read_mcap_raw(path: str, warn: Callable[[str], None] | None = stderr_warning
+                  ) -> Iterator[tuple[bytes, float | None]]:
     """The capture an rs30x-sniff MCAP holds: its /rs30x/raw chunks with their original timestamps."""
     for data, t, _ in McapRawReader(path, warn=warn):
         yield data, t

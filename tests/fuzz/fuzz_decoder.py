@@ -1,4 +1,4 @@
-"""Atheris target: the decoder (rs30x_sniff.pipeline.Decoder) fed arbitrary chunks and times; properties in targets.check_decoder."""
+"""Atheris target: rs30x_sniff.pipeline.Decoder fed arbitrary chunks and times; properties in targets.check_decoder."""
 
 import sys
 from pathlib import Path

@@ -1,9 +1,8 @@
-"""Fuzz targets: one function per reader (and the decoder) taking arbitrary bytes and checking its properties.
+"""Fuzz targets: one function per reader (and the decoder) taking arbitrary bytes and checking its properties."""
 
-Each ``check_<target>(data)`` returns normally or raises AssertionError (a property broken) or any
-other exception (a crash); ``CaptureError`` is the documented answer to bad input and is swallowed.
-Shared by the atheris scripts (``fuzz_<target>.py``) and the pytest smoke test.
-"""
+# Each check_<target>(data) returns, or raises AssertionError (a property broken) or anything else
+# (a crash); CaptureError is the documented answer to bad input and is swallowed. Shared by the
+# atheris scripts (fuzz_<target>.py) and the pytest smoke test.
 
 from __future__ import annotations
 
