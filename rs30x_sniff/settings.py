@@ -51,7 +51,12 @@ def _count(v: Any) -> str | None:
     return None if v > 0 else "must be positive"
 
 
+AUTO = "auto"
+
+
 def _baud(v: Any) -> str | None:
+    if v == AUTO:
+        return None
     return _count(v)  # the manual's rates are checked against baud-any once every layer is merged
 
 
@@ -93,7 +98,7 @@ class Key:
 
 
 KEYS: dict[str, Key] = {
-    "baud": Key(_baud, "--baud", "bus baud rate (table 4.7)"),
+    "baud": Key(_baud, "--baud", "bus baud rate (table 4.7), or auto"),
     "baud_any": Key(_flag, "--baud-any", "accept a baud rate outside table 4.7"),
     "model": Key(_model_name, "--model", "model of every servo"),
     "models": Key(_models, "--model ID=", "model per servo ID"),
@@ -224,6 +229,7 @@ class Settings:
     gap_bytes: float | None = DEFAULT_GAP_BYTES   # None: gap detection off
     reply_timeout: float = DEFAULT_REPLY_TIMEOUT
     time_ref: str | None = None                    # None: told by the content (rs30x_sniff.timebase)
+    baud_auto: bool = False                        # --baud auto: a port is scanned, a capture's times tell
     lint: Mapping[str, Any] = field(default_factory=dict)  # select, ignore, severity, fail_on, thresholds
     report_format: str | None = None
     origin: Mapping[str, str] = field(default_factory=dict)
@@ -271,6 +277,7 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     conf = dict(config or {})
     where_conf = conf.pop("source", CONFIG)
     cap = dict(capture or {})
+    cap_origin = cap.pop("origin", {})  # why the capture says what it says (its metadata, its timestamps)
     layers = [(CAPTURE, cap), (where_conf, conf), (COMMAND_LINE, cli)]
     values: dict[str, Any] = {"baud": DEFAULT_BAUD, "model": None, "gap_bytes": DEFAULT_GAP_BYTES,
                               "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False, "time_ref": None}
@@ -283,7 +290,7 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
         for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any", "time_ref"):
             if key in layer:
                 values[key] = layer[key]
-                origin[key] = where
+                origin[key] = cap_origin.get(key, where) if layer is cap else where
         for sid, name in layer.get("models", {}).items():
             models[sid] = name
             origin[f"models.{sid}"] = where
@@ -299,13 +306,19 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     if severity:
         lint["severity"] = severity
     baud = values["baud"]
-    if baud not in BAUD_RATES and not values["baud_any"] and origin["baud"] != CAPTURE:
+    baud_auto = baud == AUTO
+    if baud_auto:
+        # The capture's own word (an MCAP's metadata, a timed capture's spacing) if it has one; a port
+        # is scanned by the command once the settings are known.
+        baud = cap.get("baud", DEFAULT_BAUD)
+        origin["baud"] = cap_origin.get("baud", CAPTURE) if "baud" in cap else f"{DEFAULTS} (auto: nothing to tell by)"
+    elif baud not in BAUD_RATES and not values["baud_any"] and ("baud" in conf or "baud" in cli):
         # A capture records the rate it was made at; only a rate someone typed is held to table 4.7.
         rates = ", ".join(map(str, BAUD_RATES))
         raise SettingsError(f"{_label('baud', baud, origin['baud'])}: not a rate of table 4.7 ({rates}); "
                             f"add --baud-any (baud-any = true) to use it anyway")
     fmt = cli.get("format", conf.get("format"))
-    return Settings(baud=baud, default_model=values["model"], models=models,
+    return Settings(baud=baud, baud_auto=baud_auto, default_model=values["model"], models=models,
                     gap_bytes=values["gap_bytes"] or None, reply_timeout=values["reply_timeout"],
                     time_ref=values["time_ref"], lint=lint,
                     report_format=fmt, origin=origin,

@@ -3,14 +3,21 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import itertools
 import os
 import sys
 from typing import Any, Iterator
 
-from ..io.captures import FORMATS, MCAP, MCAP_MAGIC, Chunk
+from ..io.captures import FORMATS, MCAP, MCAP_MAGIC, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture
 from ..io.inputs import read_input
 from ..timebase import TIME_REFS
+from ..wire import DEFAULT_BAUD
+from ..pipeline import Sink, Step
 from ..settings import Settings, SettingsError, find_config, load_config, resolve
+
+
+TIMESTAMP_SAMPLE = 2000  # chunks of a timestamped capture read ahead to tell its baud rate
 
 
 class CliError(Exception):
@@ -21,8 +28,9 @@ def add_decode_options(p: argparse.ArgumentParser) -> None:
     """--model, --baud and the timing knobs every decoding command shares."""
     p.add_argument("--model", action="append", default=[], metavar="[ID=]MODEL",
                    help="servo model for every ID (RS303MR, RS304MD) or for one ID (3=RS304MD); repeatable")
-    p.add_argument("--baud", type=int, default=None, metavar="BPS",
-                   help="bus baud rate, one of table 4.7's (default 115200, or what an MCAP capture recorded)")
+    p.add_argument("--baud", type=baud_arg, default=None, metavar="BPS|auto",
+                   help="bus baud rate, one of table 4.7's, or auto: a port is tried at each rate, a capture goes "
+                        "by its metadata or timestamps (default: what the capture shows, else 115200)")
     p.add_argument("--baud-any", action="store_true", default=None,
                    help="accept a --baud that is not one of the manual's rates")
     p.add_argument("--input-format", choices=FORMATS, default=None,
@@ -34,6 +42,16 @@ def add_decode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--time-ref", choices=TIME_REFS, default=None,
                    help="what a timestamped hex capture's times mark: each line's first byte, or its arrival "
                         "(the end of its last byte, as serial loggers stamp reads); default: told by the content")
+
+
+def baud_arg(text: str) -> int | str:
+    """--baud's value: a number, or ``auto``."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a baud rate (a number, or auto)") from None
 
 
 def add_lint_selection(p: argparse.ArgumentParser) -> None:
@@ -112,18 +130,30 @@ def config_layer(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def capture_layer(path: str | None, fmt: str | None = None) -> dict[str, Any]:
-    """What a capture records about how it was made (an MCAP file of ours: baud, models); {} otherwise."""
+    """What a capture says about how it was made: an MCAP of ours its baud and models, a timestamped
+    capture the rate its back-to-back frames show; {} otherwise (``origin`` says where each came from)."""
     if not path or path == "-" or not os.path.isfile(path):
         return {}
     if fmt is None:
         try:
             with open(path, "rb") as f:
-                if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
-                    return {}
+                magic = f.read(len(MCAP_MAGIC))
         except OSError:
             return {}
-    elif fmt != MCAP:
-        return {}
+        if magic == MCAP_MAGIC:
+            return _mcap_layer(path)
+        try:
+            fmt = detect_format(path)
+        except CaptureError:
+            return {}  # the reading command says why, with the line
+    if fmt == MCAP:
+        return _mcap_layer(path)
+    if fmt == TIMESTAMPED:
+        return _timestamps_layer(path)
+    return {}
+
+
+def _mcap_layer(path: str) -> dict[str, Any]:
     from ..io.mcap_source import McapRawReader  # only MCAP inputs need the mcap library
     from ..memmap import ModelError, default_registry
 
@@ -132,7 +162,7 @@ def capture_layer(path: str | None, fmt: str | None = None) -> dict[str, Any]:
         meta = reader.read_metadata()
     except Exception:  # noqa: BLE001 - unreadable metadata: the reader says why when the data is read
         return {}
-    out: dict[str, Any] = {}
+    out: dict[str, Any] = {"origin": {"baud": "capture (the MCAP's metadata)"}}
     if reader.baud:
         out["baud"] = reader.baud
     reg = default_registry()
@@ -148,13 +178,107 @@ def capture_layer(path: str | None, fmt: str | None = None) -> dict[str, Any]:
     return out
 
 
-def settings_for(args: argparse.Namespace, path: str | None = None, *, config: dict | None = None) -> Settings:
-    """The settings for one input: command line > config file > what the capture records > defaults."""
+def _timestamps_layer(path: str) -> dict[str, Any]:
+    """The rate a timestamped capture's back-to-back chunks show (its first lines are read for it)."""
+    from ..autobaud import estimate_baud, estimate_from_spacings
+
+    sample = read_capture(path, TIMESTAMPED, warn=None)
     try:
-        return resolve(command_line_layer(args), config_layer(args) if config is None else config,
-                       capture_layer(path, getattr(args, "input_format", None)))
+        chunks = [c for c in itertools.islice(sample, TIMESTAMP_SAMPLE) if c[1] is not None and c[0]]
+    except CaptureError:
+        return {}  # a bad line: the reading command reports it where it is
+    finally:
+        sample.close()
+    # Stamped at the first byte, back-to-back chunks are one byte time apart per byte of the earlier
+    # chunk; stamped at arrival, per byte of the later one. The reading that fits a rate better wins.
+    est = max(estimate_baud(chunks),
+              estimate_from_spacings(((t2 - t1) / len(d2), len(d1)) for (d1, t1), (d2, t2) in zip(chunks, chunks[1:])
+                                     if t2 > t1),
+              key=lambda e: (e.baud is not None, e.score))
+    out: dict[str, Any] = {"estimate": est}
+    if est.baud is not None:
+        out["baud"] = est.baud
+        out["origin"] = {"baud": f"capture (its timestamps: {est.evidence})"}
+    return out
+
+
+def settings_for(args: argparse.Namespace, path: str | None = None, *, config: dict | None = None) -> Settings:
+    """The settings for one input: command line > config file > what the capture records > defaults.
+
+    With ``--baud auto`` a port is scanned at the rates of table 4.7 (listening only) and a capture
+    goes by what it records; without it, a timestamped capture's own rate is used when neither the
+    command line nor a config file gives one, and a rate they give that the timestamps contradict
+    is warned about.
+    """
+    capture = capture_layer(path, getattr(args, "input_format", None))
+    estimate = capture.pop("estimate", None)
+    try:
+        settings = resolve(command_line_layer(args), config_layer(args) if config is None else config, capture)
     except SettingsError as e:
         raise CliError(str(e)) from None
+    if settings.baud_auto and path and is_port_path(path):
+        settings = _scan(path, settings)
+    elif "baud" in capture and settings.origin["baud"] == capture["origin"]["baud"] and settings.baud != DEFAULT_BAUD:
+        print(f"rs30x-sniff: {path}: {settings.baud} bit/s, from its timestamps (--baud to say otherwise)",
+              file=sys.stderr)
+    elif estimate is not None and "baud" in capture:
+        from ..autobaud import contradicts
+
+        if contradicts(estimate, settings.baud):
+            print(f"rs30x-sniff: warning: {path}: its timestamps show {estimate.baud} bit/s, not the "
+                  f"{settings.baud} given ({settings.origin['baud']}): {estimate.evidence}", file=sys.stderr)
+    return settings
+
+
+def is_port_path(path: str) -> bool:
+    from ..io.serial_tap import is_port  # no pyserial import unless INPUT is a port
+
+    return is_port(path)
+
+
+def _scan(port: str, settings: Settings) -> Settings:
+    """``--baud auto`` on a port: listen at each rate of table 4.7 and take the one with valid frames."""
+    from ..io.serial_tap import scan_port
+
+    result = scan_port(port)
+    if not result:
+        raise CliError(f"{port}: {result.describe()}")
+    print(f"rs30x-sniff: {port}: {result.describe()}", file=sys.stderr)
+    return dataclasses.replace(settings, baud=result.baud,
+                               origin={**settings.origin, "baud": f"--baud auto ({result.score:.1f} frames/s)"})
+
+
+class BaudWatchWarning(Sink):
+    """With ``--baud auto`` on a port: says once, on stderr, when the chosen rate stops giving valid
+    frames (a baud change written to the servos mid-session is common during setup)."""
+
+    def __init__(self, port: str, baud: int) -> None:
+        from ..autobaud import BaudWatch
+
+        self.port = port
+        self.watch = BaudWatch(baud)
+        self.said = False
+
+    def chunk(self, data: bytes, t: float | None) -> None:
+        self.watch.chunk(data, t)
+        self._say()
+
+    def batch(self, step: Step) -> None:
+        self.watch.batch(step)
+        self._say()
+
+    def _say(self) -> None:
+        if self.watch.rescan_due and not self.said:
+            self.said = True
+            print(f"rs30x-sniff: warning: {self.port}: {self.watch.reason} (run again with --baud auto)",
+                  file=sys.stderr)
+
+
+def live_sinks(settings: Settings, source: object, name: str) -> list[Sink]:
+    """The sinks every command adds for a live port: the rate watch of ``--baud auto``."""
+    if settings.baud_auto and is_live(source):
+        return [BaudWatchWarning(name, settings.baud)]
+    return []
 
 
 def lint_config(settings: Settings) -> Any:

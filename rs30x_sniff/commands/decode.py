@@ -7,7 +7,7 @@ import argparse
 from ..pipeline import Decoder, drive
 from ..sinks import JsonlSink, TextSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, is_live,
-                     make_linter, no_data, open_input, settings_for)
+                     live_sinks, make_linter, no_data, open_input, settings_for)
 from .outputs import add_output_options, output_stream
 
 
@@ -44,6 +44,6 @@ def run(args: argparse.Namespace) -> int:
             sink = JsonlSink(out, ids=ids, flush=is_live(chunks))
         else:
             sink = TextSink(out, ids=ids, flush=is_live(chunks), verbose=args.verbose)
-        dec = drive(chunks, Decoder(opts, linter), sink)
+        dec = drive(chunks, Decoder(opts, linter), sink, *live_sinks(settings, chunks, args.input))
     no_data(args.input, dec, chunks)
     return 1 if getattr(chunks, "lost", False) else 0  # a live port that failed (the source said why)

@@ -18,7 +18,7 @@ from ..pipeline import Decoder, drive
 from ..settings import Settings
 from ..sinks import FindingsSink, ProgressSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, config_layer,
-                     lint_config, no_data, open_input, settings_for)
+                     lint_config, live_sinks, no_data, open_input, settings_for)
 from .outputs import add_output_options, check_output, output_stream
 
 PROGRESS_MIN_BYTES = 1 << 20  # a progress bar only for inputs worth waiting for
@@ -58,7 +58,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     source = None
     try:
         source = open_input(path, fmt, settings, duration=duration)
-        dec = drive(source, Decoder(opts, linter), *sinks)
+        dec = drive(source, Decoder(opts, linter), *sinks, *live_sinks(settings, source, path))
     except (CaptureError, ModelError) as e:
         result.error = str(e)
     else:

@@ -12,7 +12,8 @@ from ..io.serial_tap import LOST, STOPPED, LiveSource, SerialTap
 from ..pipeline import Decoder, Sink, Step, drive
 from ..sinks import TextSink
 from ..stats import RecentLoad
-from .common import CliError, add_decode_options, add_lint_selection, check_positive, make_linter, no_data, settings_for
+from .common import (CliError, add_decode_options, add_lint_selection, check_positive, live_sinks, make_linter,
+                     no_data, settings_for)
 from .outputs import check_output
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
@@ -136,7 +137,7 @@ class _Status(Sink):
 
 def run(args: argparse.Namespace) -> int:
     check_output(args.output, args.force)  # before the port is opened
-    settings = settings_for(args)
+    settings = settings_for(args, args.port)
     opts = settings.decode_options()
     linter = make_linter(args, settings)
     check_positive("--duration", args.duration)
@@ -160,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
         src.close()
         raise
     status = _Status(sys.stderr.isatty(), opts.baud, args.output)
-    sinks: list[Sink] = [files, status]
+    sinks: list[Sink] = [files, status, *live_sinks(settings, src, args.port)]
     if args.print_lines:
         # After the status line starts: on a terminal it routes stdout above itself.
         sinks.append(TextSink(sys.stdout, flush=True))
