@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+from datetime import datetime
 import os
 import sys
 from typing import Any, Iterator
@@ -30,6 +31,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     add_decode_options(p)
     add_lint_options(p)
+    p.add_argument("--start-time", metavar="ISO8601",
+                   help="anchor the log's times to this wall-clock time (e.g. 2026-11-22T15:30:00Z): the start of a "
+                        "capture without timestamps, or time 0 of one whose times count from 0")
     p.set_defaults(run=run)
 
 
@@ -52,7 +56,21 @@ def progress_bar(enabled: bool):
                     TimeElapsedColumn(), console=Console(stderr=True), transient=True)
 
 
-def open_mcap_sink(path: str, source: str, settings: Settings, *, timed: bool, **extra: str) -> Any:
+def parse_start_time(text: str | None) -> float | None:
+    """``--start-time`` as seconds since the epoch (a time without a zone is local time)."""
+    if text is None:
+        return None
+    try:
+        when = datetime.fromisoformat(text.strip())
+    except ValueError:
+        raise CliError(f"--start-time {text}: not an ISO 8601 time (e.g. 2026-11-22T15:30:00Z)") from None
+    if when.tzinfo is None:
+        when = when.astimezone()
+    return when.timestamp()
+
+
+def open_mcap_sink(path: str, source: str, settings: Settings, *, timed: bool, start_time: float | None = None,
+                   **extra: str) -> Any:
     """The MCAP sink of a converted (or simulated) capture, with its settings in the metadata."""
     from ..io.mcap_sink import McapSink
 
@@ -60,7 +78,7 @@ def open_mcap_sink(path: str, source: str, settings: Settings, *, timed: bool, *
         return McapSink(path, source=source, baud=settings.baud, time_base="capture" if timed else "synthetic",
                         models=dict(settings.models),
                         extra_metadata={"default_model": settings.default_model or "", **extra},
-                        chunk_size=CHUNK_SIZE)
+                        chunk_size=CHUNK_SIZE, start_time=start_time)
     except OSError as e:
         raise CliError(f"{path}: cannot write: {e.strerror}") from None
 
@@ -68,6 +86,7 @@ def open_mcap_sink(path: str, source: str, settings: Settings, *, timed: bool, *
 # ---- the command ---------------------------------------------------------------------------------
 def run(args: argparse.Namespace) -> int:
     check_output(args.output, args.force, (args.input,))
+    start_time = parse_start_time(args.start_time)
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)
     first, chunks = peek(open_input(args.input, args.input_format, settings))
@@ -83,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     stopped = None
     try:
         with output_path(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as tmp:
-            sink = open_mcap_sink(tmp, source, settings, timed=first[1] is not None)
+            sink = open_mcap_sink(tmp, source, settings, timed=first[1] is not None, start_time=start_time)
             if bar is None:
                 drive(chunks, decoder, sink)
             else:

@@ -152,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
         extra = dict(src.metadata)
         if part:
             extra["part"] = str(part)
-        return McapSink(path, source=args.port, baud=opts.baud, time_base="monotonic", models=opts.models,
+        return McapSink(path, source=args.port, baud=opts.baud, time_base="wall", models=opts.models,
                         extra_metadata=extra)
 
     try:

@@ -24,7 +24,9 @@ METADATA_NAME = "rs30x"               # written first: a killed writer still lea
 MODELS_METADATA_NAME = "rs30x.models"  # written by finish(): what the bus taught us
 STATS_METADATA_NAME = "rs30x.stats"    # written by finish(): `info`'s figures for the whole log, as JSON
 
-TIME_BASES = ("capture", "synthetic", "monotonic")
+# capture: the capture's own times; synthetic: byte positions at the baud rate (no timestamps);
+# wall: a live port, in wall-clock time; monotonic: older live logs, seconds since the port opened.
+TIME_BASES = ("capture", "synthetic", "wall", "monotonic")
 # foxglove.LogLevel values (Foxglove's published schema).
 _LOG_LEVEL = {"info": 2, "warning": 3, "error": 4}
 # The mcap Writer also cuts chunks by size; ours does it first (so every cut is flushed to the OS),
@@ -51,7 +53,7 @@ class McapSink:
 
     def __init__(self, path: str | IO[bytes], *, source: str, baud: int, time_base: str,
                  models: dict[int, str] | None = None, extra_metadata: dict[str, str] | None = None,
-                 chunk_seconds: float = 1.0, chunk_size: int = 256 * 1024) -> None:
+                 chunk_seconds: float = 1.0, chunk_size: int = 256 * 1024, start_time: float | None = None) -> None:
         if time_base not in TIME_BASES:
             raise ValueError(f"time_base must be one of {TIME_BASES}, not {time_base!r}")
         if isinstance(path, (str, bytes)) or hasattr(path, "__fspath__"):
@@ -65,6 +67,7 @@ class McapSink:
         self.baud = baud
         self.time_base = time_base
         self._byte_time = byte_time(baud)
+        self._origin = start_time or 0.0
         self._chunk_ns = int(chunk_seconds * 1e9)
         self._chunk_size = chunk_size
         self._writer = Writer(self._file, chunk_size=chunk_size * _WRITER_CHUNK_FACTOR,
@@ -84,6 +87,7 @@ class McapSink:
         self.chunks = 0
         self.stats = CaptureStats(baud)  # what passes through the drive loop, summed as `info` sums it
         meta = {"source": source, "baud": str(baud), "time_base": time_base, "tool": "rs30x-sniff",
+                "start_time": "" if start_time is None else repr(start_time),
                 "tool_version": __version__, "models": _models_text(self._models)}
         meta.update(extra_metadata or {})
         self._writer.add_metadata(METADATA_NAME, meta)
@@ -138,7 +142,8 @@ class McapSink:
 
     def _time(self, t: float | None, offset: int) -> float:
         # A capture without timestamps: the time the byte would have reached the wire at full line rate.
-        return t if t is not None else offset * self._byte_time
+        # --start-time anchors either kind to the wall clock (``start_time`` seconds since the epoch).
+        return self._origin + (t if t is not None else offset * self._byte_time)
 
     # ---- messages -----------------------------------------------------------------------------
     def raw(self, data: bytes, t: float | None) -> None:

@@ -26,7 +26,7 @@ def _rest(src) -> Iterator[Chunk]:
 class Source(Protocol):
     name: str        # what the header shows
     kind: str        # "file", "replay", "port", "simulator"
-    time_base: str   # for the MCAP sink: "capture", "synthetic" or "monotonic"
+    time_base: str   # for the MCAP sink: "capture", "synthetic" or "wall"
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]: ...
 
@@ -113,7 +113,7 @@ class PortSource:
     """A serial port through the passive tap (which never writes to the bus)."""
 
     kind = "port"
-    time_base = "monotonic"
+    time_base = "wall"
 
     def __init__(self, port: str, baud: int) -> None:
         from ..io.serial_tap import LiveSource  # pyserial is needed only for live capture

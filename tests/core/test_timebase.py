@@ -108,3 +108,34 @@ def test_a_pipe_is_not_read_ahead(capsys, setup_chunks, tmp_path):
     info = json.loads(proc.stdout)
     assert info["settings"]["time_ref"] == ARRIVAL
     assert abs(info["latency_s"]["p50"] - RETURN_DELAY) <= BT
+
+
+def test_start_time_anchors_a_log_to_the_wall_clock(capsys, tmp_path):
+    from datetime import datetime, timezone
+
+    from mcap.reader import make_reader
+
+    src = Path(__file__).resolve().parents[2] / "captures" / "manual-examples.hex"  # no timestamps
+    out = tmp_path / "anchored.mcap"
+    assert main(["convert", str(src), "-o", str(out), "--start-time", "2026-11-22T15:30:00Z"]) == 0
+    with open(out, "rb") as f:
+        times = [m.log_time for _, _, m in make_reader(f).iter_messages(topics=["/rs30x/raw"])]
+    start = datetime(2026, 11, 22, 15, 30, tzinfo=timezone.utc).timestamp()
+    assert times[0] == round(start * 1e9) and times == sorted(times)
+    assert main(["convert", str(src), "-o", str(tmp_path / "x.mcap"), "--start-time", "yesterday"]) == 2
+    assert "--start-time yesterday: not an ISO 8601 time" in capsys.readouterr().err
+
+
+def test_the_live_tap_stamps_wall_clock_time():
+    import time
+
+    from rs30x_sniff.io.serial_tap import SerialTap
+
+    tap = SerialTap("loop://", 115200)
+    tap.open()
+    try:
+        tap._stamp(b"\x00" * 10, tap.clock())
+        _, t = tap.queue.get(timeout=2)
+    finally:
+        tap.stop()
+    assert abs(t - time.time()) < 5  # seconds since the epoch, not since the port opened

@@ -113,7 +113,7 @@ def test_finish_is_idempotent_and_context_manager_finishes_on_error(tmp_path):
             raise RuntimeError("capture failed")
     assert list(read_capture(str(tmp_path / "b.mcap"))) == [(b"\x07", 0.5)]
     with pytest.raises(ValueError):
-        McapSink(str(tmp_path / "c.mcap"), source="s", baud=115200, time_base="wall")
+        McapSink(str(tmp_path / "c.mcap"), source="s", baud=115200, time_base="sundial")
 
 
 # ---- damaged and foreign files -------------------------------------------------------------------
