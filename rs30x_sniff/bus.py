@@ -420,7 +420,10 @@ class BusTracker:
             req = None
         rec.request = req
         if req is not None and ev.t_start is not None and req.event.t_end is not None:
-            rec.latency = ev.t_start - req.event.t_end
+            # Never below zero: a reply cannot start before its request ended. Stamps that say otherwise
+            # (a logger's arrival times read as first-byte times, a wrong baud) are F006's to report.
+            latency = ev.t_start - req.event.t_end
+            rec.latency = latency if latency > 0.0 else 0.0
         if type(ev) is ReturnPacket:
             if ev.checksum_ok:
                 st = self.servo(ev.id)

@@ -48,6 +48,7 @@ class TimeFault:
     offset: int          # stream offset of the chunk's first byte
     t: float             # the time the chunk was stamped with
     earliest: float      # the earliest time its first byte could have started (the previous one's end)
+    placed: float        # the time it was given instead (no earlier than the previous chunk's)
     count: int = 1
 
 
@@ -84,6 +85,7 @@ class FrameDecoder:
         self._breaks: list[int] = []  # stream offsets preceded by an idle gap, ascending
         self._last_t: float | None = None  # start time of the last byte fed so far
         self._chunk_t: float | None = None  # the time the last timed chunk was stamped with
+        self._start_t: float | None = None  # ... and the time it was placed at (no earlier than the one before)
         # Times that went backwards or came too close are kept here (first place and count) and the
         # clock is held monotonic: a later chunk starts no earlier than the previous one ended, so no
         # latency is ever negative (the linter reports these as F005/F006).
@@ -109,14 +111,19 @@ class FrameDecoder:
             if t < earliest - self.byte_time / 4:  # a quarter byte of slack for rounded timestamps
                 # Backwards: stamped before the previous chunk's own stamp (not its corrected time).
                 kind = TIME_BACKWARDS if t < self._chunk_t else TIME_TOO_CLOSE
+                # Held at the previous chunk's start, not pushed past its last byte: at a wrong baud rate
+                # every chunk comes "too close", and pushing each one on would run the clock ahead of the
+                # capture without bound (a 6 s recording stamped as 31.8 s). Latencies never go below 0.
+                placed = self._start_t if t < self._start_t else t
                 fault = self.time_faults.get(kind)
                 if fault is None:
-                    self.time_faults[kind] = TimeFault(kind, start, t, earliest)
+                    self.time_faults[kind] = TimeFault(kind, start, t, earliest, placed)
                 else:
                     fault.count += 1
-                t = earliest
+                t = placed
         if stamped is not None:
             self._chunk_t = stamped
+            self._start_t = t
         if t is not None or self._chunk_times:
             if t is not None and self._last_t is not None and self.gap_bytes is not None:
                 idle = t - self._last_t - self.byte_time

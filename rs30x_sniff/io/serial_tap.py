@@ -152,9 +152,13 @@ class SerialTap:
 
     def _stamp(self, data: bytes, arrival_ns: int) -> None:
         n = len(data)
-        t = (self.wall_start_ns + arrival_ns - self.start_ns) / 1e9 - n * self.byte_time
+        arrival = (self.wall_start_ns + arrival_ns - self.start_ns) / 1e9
+        t = arrival - n * self.byte_time
         if t < self._next_t:
-            t = self._next_t  # bytes cannot overlap the previous chunk's
+            # Bytes cannot overlap the previous chunk's, but a chunk never starts after it arrived: at a
+            # wrong baud rate, pushing every chunk past the last one's end would run the clock ahead of
+            # real time without bound (the decoder's F006 says the bytes came too fast for the rate).
+            t = min(self._next_t, arrival)
         self._next_t = t + n * self.byte_time
         self.bytes_read += n
         self.queue.put((data, t))

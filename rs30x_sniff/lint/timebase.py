@@ -17,8 +17,8 @@ def _times(n: int) -> str:
 @rule("F005", "time-went-backwards", "warning", "The capture's timestamps go back in time.", f"""
 ## What it does
 Flags a timestamped capture in which a chunk is stamped earlier than the chunk before it, once, at the
-first place it happens, with how often it happened. Such chunks are placed right after the previous
-one's last byte, so the clock the other rules and figures use never runs backwards.
+first place it happens, with how often it happened. Such chunks are placed at the previous chunk's time,
+so the clock the other rules and figures use never runs backwards.
 
 ## Why it matters
 Bytes cannot arrive before the bytes ahead of them. Backwards times come from a logger that merged
@@ -31,10 +31,10 @@ Read as they stand they give negative latencies, a zero-length capture and a bus
 def time_went_backwards(lint):
     fault = getattr(lint, "time_faults", {}).get(TIME_BACKWARDS)
     if fault is not None:
-        lint.emit_at("F005", fault.offset, fault.earliest,
+        lint.emit_at("F005", fault.offset, fault.placed,
                      f"the capture's clock goes backwards {_times(fault.count)}: first here, stamped "
                      f"{fault.t:.6f} s, {(fault.earliest - fault.t) * 1e3:.3f} ms before the previous bytes "
-                     f"ended (held at their end, so no time runs backwards)")
+                     f"ended (held at the previous chunk's time, so no time runs backwards)")
 
 
 @rule("F006", "time-too-close", "warning",
@@ -42,7 +42,7 @@ def time_went_backwards(lint):
 ## What it does
 Flags a timestamped capture in which a chunk is stamped after the one before it but before that one's
 bytes could have crossed the wire at the baud rate (10 bits a byte, 8N1), once, at the first place,
-with how often it happened. Such chunks are placed right after the previous one's last byte.
+with how often it happened. Their times are kept, and a reply's latency is never taken below zero.
 
 ## Why it matters
 Either the times mark when each read returned (the end of its last byte, as serial loggers such as
@@ -56,7 +56,7 @@ before their requests end and latencies come out negative.
 def time_too_close(lint):
     fault = getattr(lint, "time_faults", {}).get(TIME_TOO_CLOSE)
     if fault is not None:
-        lint.emit_at("F006", fault.offset, fault.earliest,
+        lint.emit_at("F006", fault.offset, fault.placed,
                      f"{fault.count} chunk{'s' if fault.count > 1 else ''} stamped before the bytes ahead "
                      f"could have crossed the wire at {lint.config.baud} bit/s (first here, "
                      f"{(fault.earliest - fault.t) * 1e6:.0f} us early): are the times each read's arrival "
