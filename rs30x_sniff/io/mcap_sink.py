@@ -44,101 +44,29 @@ def _ns(t: float) -> int:
     return int(round(t * 1e9)) if t > 0 else 0
 
 
-class McapSink:
-    """Writes one MCAP file: register each schema and channel once (lazily), chunks cut by size and
-    by log time so a writer killed mid-way loses at most ``chunk_seconds`` of traffic.
-
-    Use as a context manager, or call :meth:`finish` (safe to call twice).
+class JsonChannels:
+    """The channels' messages, built once for every sink that publishes them (an MCAP file, a Foxglove
+    WebSocket server): a subclass says how a channel is opened (``_channel``) and a message written
+    (``_write``), so both carry the same bodies with the same log times.
     """
 
-    def __init__(self, path: str | IO[bytes], *, source: str, baud: int, time_base: str,
-                 models: dict[int, str] | None = None, extra_metadata: dict[str, str] | None = None,
-                 chunk_seconds: float = 1.0, chunk_size: int = 256 * 1024, start_time: float | None = None) -> None:
-        if time_base not in TIME_BASES:
-            raise ValueError(f"time_base must be one of {TIME_BASES}, not {time_base!r}")
-        if isinstance(path, (str, bytes)) or hasattr(path, "__fspath__"):
-            self._file: IO[bytes] = open(path, "wb")
-            self._owns_file = True
-        else:
-            self._file = path
-            self._owns_file = False
-        self.path = path
+    def __init__(self, *, source: str, baud: int, models: dict[int, str] | None = None,
+                 start_time: float | None = None) -> None:
         self.source = source
         self.baud = baud
-        self.time_base = time_base
         self._byte_time = byte_time(baud)
         self._origin = start_time or 0.0
-        self._chunk_ns = int(chunk_seconds * 1e9)
-        self._chunk_size = chunk_size
-        self._writer = Writer(self._file, chunk_size=chunk_size * _WRITER_CHUNK_FACTOR,
-                              compression=CompressionType.ZSTD)
-        self._writer.start(profile="", library=f"rs30x-sniff {__version__}")
-        self._schemas: dict[str, int] = {}
-        self._channels: dict[str, int] = {}
-        self._chunk_start: int | None = None   # log time of the first message in the open chunk
-        self._chunk_bytes = 0
         self._raw_offset = 0                   # stream offset of the next raw byte
         self._models: dict[int, str] = dict(models or {})
         self._states: dict[int, dict[str, str]] = {}  # servo -> register name -> '"name":value'
-        self._state_channels: dict[int, int] = {}
-        self._finished = False
-        self._size = 0
-        self.messages = 0
-        self.chunks = 0
-        self.stats = CaptureStats(baud)  # what passes through the drive loop, summed as `info` sums it
-        meta = {"source": source, "baud": str(baud), "time_base": time_base, "tool": "rs30x-sniff",
-                "start_time": "" if start_time is None else repr(start_time),
-                "tool_version": __version__, "models": _models_text(self._models)}
-        meta.update(extra_metadata or {})
-        self._writer.add_metadata(METADATA_NAME, meta)
+        self._state_channels: dict[int, Any] = {}
 
-    # ---- context manager -----------------------------------------------------------------------
-    def __enter__(self) -> McapSink:
-        return self
+    def _channel(self, topic: str, schema_name: str) -> Any:
+        """The handle ``_write`` takes for ``topic`` (registered on first use)."""
+        raise NotImplementedError
 
-    def __exit__(self, *exc: object) -> None:
-        # Finish even on an error: what was captured so far stays a complete, indexed file.
-        self.finish()
-
-    @property
-    def bytes_written(self) -> int:
-        """Bytes in the file so far (what has reached the file object)."""
-        return self._size if self._finished else self._file.tell()
-
-    # ---- channels -----------------------------------------------------------------------------
-    def _channel(self, topic: str, schema_name: str) -> int:
-        cid = self._channels.get(topic)
-        if cid is None:
-            sid = self._schemas.get(schema_name)
-            if sid is None:
-                data = schema_bytes(schema_name)
-                sid = self._schemas[schema_name] = self._writer.register_schema(schema_name, "jsonschema", data)
-                self._chunk_bytes += len(data) + len(schema_name) + 32  # the schema record goes in the chunk
-            cid = self._channels[topic] = self._writer.register_channel(topic, "json", sid)
-            self._chunk_bytes += len(topic) + 32
-        return cid
-
-    def _write(self, cid: int, log_time: int, data: bytes) -> None:
-        start = self._chunk_start
-        if start is None:
-            self._chunk_start = log_time
-        elif (log_time - start > self._chunk_ns or start - log_time > self._chunk_ns
-              or self._chunk_bytes >= self._chunk_size):
-            self.flush()
-            self._chunk_start = log_time
-        self._writer.add_message(cid, log_time, data, log_time)
-        self._chunk_bytes += len(data) + _MESSAGE_OVERHEAD
-        self.messages += 1
-
-    def flush(self) -> None:
-        """Close the open chunk and hand it to the OS (a live recorder calls this when the bus is idle)."""
-        if self._finished:
-            return
-        if self._chunk_start is not None:
-            self.chunks += 1
-        self._writer.flush()
-        self._chunk_start = None
-        self._chunk_bytes = 0
+    def _write(self, cid: Any, log_time: int, data: bytes) -> None:
+        raise NotImplementedError
 
     def _time(self, t: float | None, offset: int) -> float:
         # A capture without timestamps: the time the byte would have reached the wire at full line rate.
@@ -223,6 +151,96 @@ class McapSink:
                    "message": f.message if f.id is None else f"id {f.id}: {f.message}",
                    "name": f"{f.code} {f.name}", "file": self.source, "line": f.offset}
             self._write(self._channel(DIAGNOSTICS_TOPIC, "foxglove.Log"), ns, _encode(msg).encode())
+
+
+class McapSink(JsonChannels):
+    """Writes one MCAP file: register each schema and channel once (lazily), chunks cut by size and
+    by log time so a writer killed mid-way loses at most ``chunk_seconds`` of traffic.
+
+    Use as a context manager, or call :meth:`finish` (safe to call twice).
+    """
+
+    def __init__(self, path: str | IO[bytes], *, source: str, baud: int, time_base: str,
+                 models: dict[int, str] | None = None, extra_metadata: dict[str, str] | None = None,
+                 chunk_seconds: float = 1.0, chunk_size: int = 256 * 1024, start_time: float | None = None) -> None:
+        if time_base not in TIME_BASES:
+            raise ValueError(f"time_base must be one of {TIME_BASES}, not {time_base!r}")
+        if isinstance(path, (str, bytes)) or hasattr(path, "__fspath__"):
+            self._file: IO[bytes] = open(path, "wb")
+            self._owns_file = True
+        else:
+            self._file = path
+            self._owns_file = False
+        super().__init__(source=source, baud=baud, models=models, start_time=start_time)
+        self.path = path
+        self.time_base = time_base
+        self._chunk_ns = int(chunk_seconds * 1e9)
+        self._chunk_size = chunk_size
+        self._writer = Writer(self._file, chunk_size=chunk_size * _WRITER_CHUNK_FACTOR,
+                              compression=CompressionType.ZSTD)
+        self._writer.start(profile="", library=f"rs30x-sniff {__version__}")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._chunk_start: int | None = None   # log time of the first message in the open chunk
+        self._chunk_bytes = 0
+        self._finished = False
+        self._size = 0
+        self.messages = 0
+        self.chunks = 0
+        self.stats = CaptureStats(baud)  # what passes through the drive loop, summed as `info` sums it
+        meta = {"source": source, "baud": str(baud), "time_base": time_base, "tool": "rs30x-sniff",
+                "start_time": "" if start_time is None else repr(start_time),
+                "tool_version": __version__, "models": _models_text(self._models)}
+        meta.update(extra_metadata or {})
+        self._writer.add_metadata(METADATA_NAME, meta)
+
+    # ---- context manager -----------------------------------------------------------------------
+    def __enter__(self) -> McapSink:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        # Finish even on an error: what was captured so far stays a complete, indexed file.
+        self.finish()
+
+    @property
+    def bytes_written(self) -> int:
+        """Bytes in the file so far (what has reached the file object)."""
+        return self._size if self._finished else self._file.tell()
+
+    # ---- channels -----------------------------------------------------------------------------
+    def _channel(self, topic: str, schema_name: str) -> int:
+        cid = self._channels.get(topic)
+        if cid is None:
+            sid = self._schemas.get(schema_name)
+            if sid is None:
+                data = schema_bytes(schema_name)
+                sid = self._schemas[schema_name] = self._writer.register_schema(schema_name, "jsonschema", data)
+                self._chunk_bytes += len(data) + len(schema_name) + 32  # the schema record goes in the chunk
+            cid = self._channels[topic] = self._writer.register_channel(topic, "json", sid)
+            self._chunk_bytes += len(topic) + 32
+        return cid
+
+    def _write(self, cid: int, log_time: int, data: bytes) -> None:
+        start = self._chunk_start
+        if start is None:
+            self._chunk_start = log_time
+        elif (log_time - start > self._chunk_ns or start - log_time > self._chunk_ns
+              or self._chunk_bytes >= self._chunk_size):
+            self.flush()
+            self._chunk_start = log_time
+        self._writer.add_message(cid, log_time, data, log_time)
+        self._chunk_bytes += len(data) + _MESSAGE_OVERHEAD
+        self.messages += 1
+
+    def flush(self) -> None:
+        """Close the open chunk and hand it to the OS (a live recorder calls this when the bus is idle)."""
+        if self._finished:
+            return
+        if self._chunk_start is not None:
+            self.chunks += 1
+        self._writer.flush()
+        self._chunk_start = None
+        self._chunk_bytes = 0
 
     # ---- as a sink of the drive loop (rs30x_sniff.pipeline) ----------------------------------------
     def chunk(self, data: bytes, t: float | None) -> None:
