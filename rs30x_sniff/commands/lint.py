@@ -18,7 +18,7 @@ from ..pipeline import Decoder, drive
 from ..settings import Settings
 from ..sinks import FindingsSink, ProgressSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, config_layer,
-                     lint_config, live_sinks, no_data, open_input, settings_for)
+                     is_live, lint_config, live_sinks, no_data, open_input, settings_for)
 from .outputs import add_output_options, check_output, output_stream
 
 PROGRESS_MIN_BYTES = 1 << 20  # a progress bar only for inputs worth waiting for
@@ -64,7 +64,8 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     else:
         # CI must not pass a recording that holds nothing.
         if not dec.bytes_in and not allow_empty:
-            result.error = f"{path}: no data (the capture is empty; --allow-empty to accept that)"
+            what = "no bytes received from the port" if is_live(source) else "no data (the capture is empty)"
+            result.error = f"{path}: {what}; --allow-empty to accept that"
         elif not dec.bytes_in:
             no_data(path, dec, source)
     result.findings = found.findings

@@ -21,6 +21,7 @@ Chunk = tuple[bytes, float]
 # simulators and for capturing a host that is misconfigured).
 TAP_BAUD_RATES = (*BAUD_RATES, 460800)
 READ_TIMEOUT = 0.05  # how often the reader thread looks at its stop flag
+MAX_AHEAD = 0.05     # seconds a chunk may be placed after its arrival to keep bytes from overlapping
 
 # End reasons of a live capture.
 STOPPED = "stopped"    # Ctrl-C, SIGTERM, SIGHUP, or stop() from the program
@@ -155,10 +156,12 @@ class SerialTap:
         arrival = (self.wall_start_ns + arrival_ns - self.start_ns) / 1e9
         t = arrival - n * self.byte_time
         if t < self._next_t:
-            # Bytes cannot overlap the previous chunk's, but a chunk never starts after it arrived: at a
-            # wrong baud rate, pushing every chunk past the last one's end would run the clock ahead of
-            # real time without bound (the decoder's F006 says the bytes came too fast for the rate).
-            t = min(self._next_t, arrival)
+            # Bytes cannot overlap the previous chunk's: read jitter (USB latency, a pty's writer catching
+            # up) is absorbed by placing the chunk after them. But not by more than MAX_AHEAD past its
+            # arrival: at a wrong baud rate every chunk would push the clock further ahead of real time
+            # (a 6 s recording stamped as 31.8 s); there it keeps its arrival, and the decoder's F006
+            # says the bytes came faster than the rate allows.
+            t = self._next_t if self._next_t - arrival <= MAX_AHEAD else arrival
         self._next_t = t + n * self.byte_time
         self.bytes_read += n
         self.queue.put((data, t))

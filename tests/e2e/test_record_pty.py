@@ -115,3 +115,13 @@ def test_decode_on_a_port_that_goes_away_exits_1_with_one_line(pty):
     assert "REBOOT id=12" in out
     lines = stderr.strip().splitlines()
     assert len(lines) == 1 and "port lost" in lines[0] and "Traceback" not in stderr
+
+
+def test_a_silent_port_is_not_a_clean_pass(pty):
+    """A port with no traffic for --duration 1: decode warns, lint exits 2 (CI must not pass nothing)."""
+    proc = cli("decode", pty.path, "--duration", "1", "--isolated")
+    rc, out, err = _finish(proc)
+    assert rc == 0 and out == "" and "no bytes received" in err and err.count("\n") == 1
+    proc = cli("lint", pty.path, "--duration", "1", "--isolated")
+    rc, out, err = _finish(proc)
+    assert rc == 2 and "no bytes received from the port" in err

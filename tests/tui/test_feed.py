@@ -213,3 +213,17 @@ def test_a_source_that_fails_to_close_still_delivers_the_last_batch():
     _, batches = run_feeder(Broken())
     assert batches[-1].done and len([r for b in batches for r in b.records]) == 1
     assert batches[-1].error == "closing the source: ValueError: signal only works in main thread"
+
+
+def test_a_damaged_mcap_says_so_on_the_screen_not_behind_it(tmp_path, capsys):
+    """Cut mid-chunk, the file is read up to the damage; the warning reaches the screen as a note."""
+    from tests.io.conftest import frames, make_mcap
+
+    path = make_mcap(tmp_path / "cut.mcap", frames(200))
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) * 2 // 3])
+    feeder, batches = run_feeder(FileSource(str(path)), linter=default_linter())
+    notes = [b.note for b in batches if b.note]
+    assert batches[-1].done and sum(len(b.records) for b in batches) > 0
+    assert notes and "cut.mcap" in notes[0]
+    assert "warning" not in capsys.readouterr().err  # nothing printed behind the screen
