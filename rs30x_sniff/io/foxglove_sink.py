@@ -5,11 +5,13 @@ from __future__ import annotations
 from typing import Any
 
 from ..schemas import schema_bytes
-from .mcap_sink import JsonChannels
+from .mcap_sink import DIAGNOSTICS_TOPIC, PACKETS_TOPIC, RAW_TOPIC, TRANSACTIONS_TOPIC, JsonChannels
 
 DEFAULT_HOST = "127.0.0.1"  # this machine only: the bus is not published to the network unless asked
 DEFAULT_PORT = 8765         # Foxglove's own default
 SERVER_NAME = "rs30x-sniff"
+FIXED_CHANNELS = ((RAW_TOPIC, "rs30x.Raw"), (PACKETS_TOPIC, "rs30x.Packet"),
+                  (TRANSACTIONS_TOPIC, "rs30x.Transaction"), (DIAGNOSTICS_TOPIC, "foxglove.Log"))
 
 
 class FoxgloveError(Exception):
@@ -51,8 +53,10 @@ class FoxgloveSink(JsonChannels):
         self._foxglove = foxglove
         self._context = foxglove.Context()
         try:
+            # The SDK's own default backlog unless asked: passing None is not the same as leaving it out.
+            options = {} if backlog is None else {"message_backlog_size": backlog}
             self.server = foxglove.start_server(name=SERVER_NAME, host=host, port=port, context=self._context,
-                                                message_backlog_size=backlog)
+                                                **options)
         except Exception as e:  # noqa: BLE001 - the SDK raises its own error types for a busy port
             raise FoxgloveError(f"cannot serve on {host}:{port}: {e}") from None
         self.host = host
@@ -60,6 +64,10 @@ class FoxgloveSink(JsonChannels):
         self._channels: dict[str, Any] = {}
         self.messages = 0
         self._closed = False
+        # Advertised now, not at their first message: a client subscribes on an advertisement, so a
+        # channel made lazily would lose its first message (the first finding) to every client.
+        for topic, schema_name in FIXED_CHANNELS:
+            self._channel(topic, schema_name)
 
     @property
     def ws_url(self) -> str:
