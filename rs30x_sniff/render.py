@@ -73,11 +73,12 @@ def bad_sum(rec: Record) -> bool:
     return not rec.event.checksum_ok and type(rec.event) is not Garbage
 
 
-def summary(rec: Record, *, bare: bool = False, keep: bool = True) -> str:
+def summary(rec: Record, *, bare: bool = False, keep: bool = True, only: set[int] | None = None) -> str:
     """A one-line description of the record without time, offset or direction.
 
     ``bare`` leaves out what a table shows in columns of its own (the kind word, the ID, the
-    latency); ``keep=False`` decodes the fields without keeping them on the record.
+    latency); ``keep=False`` decodes the fields without keeping them on the record; ``only`` keeps
+    a long packet's fields for those servo IDs alone (``decode --id``).
     """
     ev = rec.event
     t = type(ev)
@@ -97,7 +98,7 @@ def summary(rec: Record, *, bare: bool = False, keep: bool = True) -> str:
     if t is LongPacket:
         by_id: dict[int, list[str]] = {}
         for f in fields:
-            if not _shown(f):
+            if not _shown(f) or (only is not None and f.id not in only):
                 continue
             by_id.setdefault(f.id, []).append(field_text(f))
         parts += [f"{vid}:{','.join(items)}" for vid, items in by_id.items()]
@@ -124,11 +125,11 @@ def summary(rec: Record, *, bare: bool = False, keep: bool = True) -> str:
     return " ".join(parts)
 
 
-def text_line(rec: Record) -> str:
+def text_line(rec: Record, only: set[int] | None = None) -> str:
     """One greppable line: time, offset, direction, then the summary and any findings."""
     t = rec.event.t_start
     ts = f"{t:12.6f}" if t is not None else f"{'-':>12}"
-    line = f"{ts} @{rec.offset:<8} {direction(rec):<5} {summary(rec)}"
+    line = f"{ts} @{rec.offset:<8} {direction(rec):<5} {summary(rec, only=only)}"
     if rec.findings:
         line += "  [" + ", ".join(f"{d.code} {d.name}" for d in rec.findings) + "]"
     return line
@@ -173,8 +174,9 @@ def request_flag_names(ev: ShortPacket | LongPacket) -> list[str]:
     return ["reserved_bit7"] if ev.flag & FLAG_RESERVED else []
 
 
-def record_json(rec: Record) -> dict[str, Any]:
-    """The public JSON object of a record (``decode --format jsonl``, MCAP /rs30x/packets)."""
+def record_json(rec: Record, only: set[int] | None = None) -> dict[str, Any]:
+    """The public JSON object of a record (``decode --format jsonl``, MCAP /rs30x/packets); ``only``
+    keeps a long packet's fields for those servo IDs alone (``decode --id``)."""
     ev = rec.event
     t = type(ev)
     obj: dict[str, Any] = {
@@ -187,7 +189,7 @@ def record_json(rec: Record) -> dict[str, Any]:
         "id": None, "flag": None, "address": None, "length": None, "count": None,
         "op": None,
         "model": rec.model.name if rec.model is not None and t is not Garbage else None,
-        "fields": [field_json(f) for f in rec.fields],
+        "fields": [field_json(f) for f in rec.fields if only is None or f.id in only],
         "flags": [],
         "reply_to": rec.request.offset if rec.request is not None else None,
         "reply": rec.reply.offset if rec.reply is not None else None,

@@ -59,8 +59,8 @@ class TextSink(_LineSink):
 
     def line(self, rec: Record) -> str:
         if self.verbose:
-            return text_line(rec) + "\n" + "\n".join(verbose_lines(rec)) + "\n"
-        return text_line(rec) + "\n"
+            return text_line(rec, self.ids) + "\n" + "\n".join(verbose_lines(rec)) + "\n"
+        return text_line(rec, self.ids) + "\n"
 
     def finding_line(self, f: Any) -> str:
         ts = f"{f.t:12.6f}" if f.t is not None else f"{'-':>12}"
@@ -71,7 +71,7 @@ class JsonlSink(_LineSink):
     """``decode --format jsonl``: one JSON object per event, end-of-input findings as diagnostics."""
 
     def line(self, rec: Record) -> str:
-        return json.dumps(record_json(rec)) + "\n"
+        return json.dumps(record_json(rec, self.ids)) + "\n"
 
     def finding_line(self, f: Any) -> str:
         return json.dumps({"type": "diagnostic", **f.as_json()}) + "\n"

@@ -34,7 +34,11 @@ def _asked(rec) -> str:
     if rec.expects == "ack":
         return "an ACK"
     names = rec.read_names
-    return f"a return of {', '.join(names[:3])}{' ...' if len(names) > 3 else ''}"
+    if len(names) > 3:  # the whole range, never cut ("..."): machine formats carry the message as it is
+        address, length = rec.event.read_range
+        named = [n for n in names if not n.startswith("reserved")] or names
+        return f"a return of addresses {address}-{address + length - 1} ({named[0]} to {named[-1]})"
+    return f"a return of {', '.join(names)}"
 
 
 @rule("B001", "request-before-return", "error", "A new request while a reply was still due.", f"""

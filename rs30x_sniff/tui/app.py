@@ -65,6 +65,8 @@ class MonitorApp(App):
     TITLE = "rs30x-sniff monitor"
     BINDINGS = [
         Binding("q", "quit", "Quit"),
+        # Ctrl-C quits, as in cantools' and python-can's monitors (Textual would only say "press ctrl+q").
+        Binding("ctrl+c", "quit", "Quit", show=False, priority=True),
         Binding("space", "toggle_pause", "Pause"),
         Binding("slash", "open_filter", "Filter"),
         Binding("n", "next_finding", "Next finding"),

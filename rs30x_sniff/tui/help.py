@@ -11,7 +11,7 @@ from textual.screen import ModalScreen
 from textual.widgets import Static
 
 KEYS = (
-    ("q", "quit (a recording in progress is finished first)"),
+    ("q, ctrl+c", "quit (a recording in progress is finished first)"),
     ("space", "pause / resume the timeline (the capture, counts and recording go on)"),
     ("/", "filter the timeline (enter applies, escape closes, empty shows all)"),
     ("n / N", "next / previous packet with a finding"),

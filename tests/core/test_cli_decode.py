@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 from rs30x_sniff.cli import main
 from tests.conftest import CAPTURES
@@ -64,3 +65,14 @@ def test_errors_are_one_line_and_exit_2(tmp_path):
         assert p.returncode == 2, args
         assert p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, p.stderr
         assert p.stderr.startswith("rs30x-sniff: error: ")
+
+
+def test_decode_id_shows_only_that_servos_part_of_a_long_packet(capsys):
+    from rs30x_sniff.cli import main
+
+    path = str(Path(__file__).resolve().parents[2] / "captures" / "manual-examples.hex")
+    assert main(["decode", path, "--id", "5", "--no-lint"]) == 0
+    assert capsys.readouterr().out.split("host  ")[1].strip() == "LONG 5:goal_position=50.0deg"
+    assert main(["decode", path, "--id", "5", "--no-lint", "--format", "jsonl"]) == 0
+    obj = json.loads(capsys.readouterr().out.splitlines()[0])
+    assert obj["type"] == "long" and {f["id"] for f in obj["fields"]} == {5} and obj["vids"] == [1, 2, 5]

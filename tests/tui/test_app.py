@@ -78,11 +78,12 @@ async def test_f_resumes_follow_after_scrolling_up():
         assert "not following" not in header_text(app)
 
 
-async def test_q_quits():
+@pytest.mark.parametrize("key", ["q", "ctrl+c"])
+async def test_q_and_ctrl_c_quit(key):
     app = manual_app()
     async with app.run_test(size=SIZE) as pilot:
         await wait_done(pilot, app)
-        await pilot.press("q")
+        await pilot.press(key)
         await pilot.pause()
     assert app.return_code == 0 and not app.is_running
 
