@@ -8,6 +8,7 @@ from typing import Any
 
 from ..pipeline import DecodeOptions
 from .common import CliError, add_decode_options, add_lint_options, check_positive, lint_config, settings_for
+from .serve import add_foxglove_option, start_foxglove
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -24,6 +25,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--history", type=int, default=None, metavar="N",
                    help="records kept for scrolling back (default 1,000,000; older ones are dropped)")
     p.add_argument("--record-dir", default=".", metavar="DIR", help="where `r` writes MCAP recordings (default .)")
+    add_foxglove_option(p)
     add_lint_options(p)
     p.set_defaults(run=run)
 
@@ -89,5 +91,9 @@ def run(args: argparse.Namespace) -> int:
     from ..tui.app import make_app  # Textual is imported only when the screen is about to start
 
     app = make_app(source, opts, **config)
+    # Said before the screen takes the terminal; the feeder's pipeline closes it with its other sinks.
+    fox = start_foxglove(getattr(args, "foxglove", None), source=source.name, baud=opts.baud, models=opts.models)
+    if fox is not None:
+        app.feeder.pipeline.add(fox)
     app.run()
     return app.return_code or 0

@@ -15,6 +15,7 @@ from ..stats import RecentLoad
 from .common import (CliError, add_decode_options, add_lint_selection, check_positive, live_sinks, make_linter,
                      no_data, settings_for)
 from .outputs import check_output
+from .serve import add_foxglove_option, start_foxglove
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 FLUSH_INTERVAL = 1.0    # an idle bus still gets its open MCAP chunk written within about a second
@@ -37,6 +38,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="start a new numbered file (OUT-001.mcap, OUT-002.mcap, ...) after about MB megabytes")
     add_lint_selection(p)
     p.add_argument("--no-lint", action="store_true", help="do not run the linter while recording")
+    add_foxglove_option(p)
     p.set_defaults(run=run)
 
 
@@ -155,13 +157,21 @@ def run(args: argparse.Namespace) -> int:
         return McapSink(path, source=args.port, baud=opts.baud, time_base="wall", models=opts.models,
                         extra_metadata=extra)
 
+    fox = None
     try:
+        # Same log times as the file (wall clock), so the live view and the recording line up; started
+        # first, so a busy address leaves no empty file behind.
+        fox = start_foxglove(args.foxglove, source=args.port, baud=opts.baud, models=opts.models)
         files = _Files(args.output, split, make_sink, args.force)
     except BaseException:
         src.close()
+        if fox is not None:
+            fox.close()
         raise
     status = _Status(sys.stderr.isatty(), opts.baud, args.output)
     sinks: list[Sink] = [files, status, *live_sinks(settings, src, args.port)]
+    if fox is not None:
+        sinks.append(fox)
     if args.print_lines:
         # After the status line starts: on a terminal it routes stdout above itself.
         sinks.append(TextSink(sys.stdout, flush=True))

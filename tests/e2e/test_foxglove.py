@@ -66,9 +66,10 @@ class Client:
             end = time.monotonic() + seconds
             while not until(self) and time.monotonic() < end:
                 try:
-                    frame = await asyncio.wait_for(ws.recv(), max(0.05, end - time.monotonic()))
+                    # A short wait, so ``until`` is asked again while the bus is quiet.
+                    frame = await asyncio.wait_for(ws.recv(), 0.1)
                 except asyncio.TimeoutError:
-                    break
+                    continue
                 if isinstance(frame, bytes):
                     op, sub, log_time = struct.unpack_from("<BIQ", frame)
                     assert op == MESSAGE_DATA
@@ -200,3 +201,54 @@ def test_the_server_publishes_what_the_mcap_file_holds():
     assert any(t == "/rs30x/diagnostics" for t, _, _ in expected)
     assert published == expected
     assert fox.messages == len(expected)
+
+
+def test_record_with_foxglove_streams_what_it_writes(tmp_path):
+    """`record --foxglove`: a client sees the file's own messages (bodies and wall-clock log times) live."""
+    import threading
+
+    from mcap.reader import make_reader
+
+    from tests.e2e.helpers import Pty
+
+    pty = Pty()
+    out = tmp_path / "bus.mcap"
+    proc = cli("record", pty.path, "-o", str(out), "--foxglove", "127.0.0.1:0")
+    try:
+        line = proc.stderr.readline().decode()
+        m = SERVER_LINE.search(line)
+        assert m, line + proc.stderr.read().decode()
+        client = Client(m.group(1))
+        done = threading.Event()
+        thread = threading.Thread(target=lambda: asyncio.run(client.run(lambda c: done.is_set(), seconds=20)))
+        thread.start()
+        time.sleep(0.3)  # subscribed before the bus starts
+        pty.write_sim("hexapod", duration=1.0)
+        time.sleep(0.3)
+        done.set()
+        thread.join(timeout=20)
+        proc.send_signal(2)
+        _, err = proc.communicate(timeout=20)
+        assert proc.returncode == 0, err
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        pty.close()
+    _validate(client)
+    with open(out, "rb") as f:
+        written = {(c.topic, m.log_time, m.data) for _, c, m in make_reader(f).iter_messages()}
+    packets = [msg for msg in client.messages if msg[0] == "/rs30x/packets"]
+    # Subscribed before the bus started: every packet the file holds, and nothing it does not.
+    assert len(packets) == sum(1 for topic, _, _ in written if topic == "/rs30x/packets") > 0
+    assert all(msg in written for msg in client.messages)
+    assert packets[0][1] > 1_000_000_000 * 1_000_000_000  # wall clock, in ns since the epoch
+
+
+def test_monitor_takes_foxglove():
+    from rs30x_sniff.cli import build_parser
+
+    args = build_parser().parse_args(["monitor", "--simulate", "hexapod", "--foxglove", "0.0.0.0:9000"])
+    assert args.foxglove == ("0.0.0.0", 9000)
+    args = build_parser().parse_args(["record", "/dev/ttyUSB0", "-o", "x.mcap", "--foxglove", "9001"])
+    assert args.foxglove == ("127.0.0.1", 9001)
+    assert build_parser().parse_args(["record", "/dev/ttyUSB0", "-o", "x.mcap"]).foxglove is None
