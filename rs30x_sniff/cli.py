@@ -17,7 +17,7 @@ from .memmap import ModelError
 
 # Subcommands, in the order `--help` lists them; each is a module rs30x_sniff.commands.<name>
 # with add_parser(subparsers) and run(args) -> exit code.
-COMMANDS = ("decode", "lint", "rules", "info", "convert", "export", "record", "simulate", "monitor", "serve")
+COMMANDS = ("decode", "lint", "rules", "info", "convert", "export", "table", "record", "simulate", "monitor", "serve")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,93 @@
+"""`rs30x-sniff table`: servo states, transactions or lint findings of a capture as CSV or Parquet."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..io.captures import HEX, TIMESTAMPED
+from ..io.tables import CSV, KINDS, PARQUET, SINKS, TABLE_FORMATS, MissingPyarrow, open_table, require_pyarrow, \
+    table_format
+from ..memmap import default_registry
+from ..pipeline import Decoder, drive
+from .common import CliError, add_decode_options, add_lint_options, make_linter, no_data, open_input, settings_for
+from .outputs import STDOUT, check_output, output_path
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("table", help="servo states, transactions or findings as CSV or Parquet",
+                       description="Write one table of a capture for spreadsheets and dataframes (pandas, polars, "
+                                   "DuckDB): states (one row per servo whose registers a packet changes, every "
+                                   "register in engineering units), transactions (one row per request that expects "
+                                   "a reply) or findings (one row per lint finding). Times t are the capture's, in "
+                                   "seconds (a capture without timestamps: each byte's position at the baud rate); "
+                                   "wall_time is added when they are epoch times.")
+    p.add_argument("input", metavar="INPUT", help="capture file (.bin/.raw, .hex, timestamped hex, .mcap), - for stdin")
+    p.add_argument("--of", required=True, choices=KINDS, help="which table")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="table to write (.csv, .parquet); - writes CSV to stdout")
+    p.add_argument("--format", choices=TABLE_FORMATS, default=None,
+                   help="table format (default: from OUT's extension)")
+    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    add_decode_options(p)
+    add_lint_options(p)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    fmt = table_format(args.output, args.format)
+    if fmt is None:
+        raise CliError(f"{args.output}: cannot tell the table format from the extension (use .csv or .parquet, "
+                       "or --format)")
+    if fmt == PARQUET:
+        if args.output == STDOUT:
+            raise CliError("-o -: Parquet is written to a file (give -o OUT.parquet, or --format csv for stdout)")
+        try:
+            require_pyarrow()  # before any work: say so now, not after decoding the whole capture
+        except MissingPyarrow as e:
+            raise CliError(str(e)) from None
+    if args.of == "findings" and args.no_lint:
+        raise CliError("--of findings needs the linter (leave out --no-lint)")
+    check_output(args.output, args.force, (args.input,))
+    settings = settings_for(args, args.input)
+    opts = settings.decode_options()
+    # Only the findings table needs the rules run; the others read the records alone.
+    linter = make_linter(args, settings) if args.of == "findings" else None
+    chunks = open_input(args.input, args.input_format, settings)
+    decoder = Decoder(opts, linter)
+    kw: dict = {"baud": settings.baud}
+    if args.of == "states":
+        kw.update(registry=opts.registry or default_registry(), models=dict(settings.models))
+    elif args.of == "findings" and getattr(chunks, "format", None) in (HEX, TIMESTAMPED):
+        kw["locate"] = chunks.locate  # text captures: where each finding's byte is written
+
+    if args.output == STDOUT:
+        sink = SINKS[args.of](open_table(STDOUT, CSV, sys.stdout), **kw)
+        drive(chunks, decoder, sink)
+        no_data(args.input, decoder, chunks)
+        return 0
+    # Written beside OUT and renamed at the end: an input error leaves nothing behind, while a stop
+    # (Ctrl-C, SIGTERM) keeps the finished table of what was read so far.
+    stopped = None
+    sink = None
+    try:
+        with output_path(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as tmp:
+            try:
+                stream = open(tmp, "w", encoding="utf-8", newline="") if fmt == CSV else None
+            except OSError as e:
+                raise CliError(f"{args.output}: cannot write: {e.strerror}") from None
+            try:
+                sink = SINKS[args.of](open_table(tmp, fmt, stream), **kw)
+                drive(chunks, decoder, sink)
+            finally:
+                if stream is not None:
+                    stream.close()
+    except KeyboardInterrupt as e:
+        stopped = str(e) or "Ctrl-C"
+    no_data(args.input, decoder, chunks)
+    summary = f"{args.output}: {sink.rows if sink else 0} rows of {args.of}"
+    if stopped:
+        print(f"rs30x-sniff: stopped ({stopped}): {summary}", file=sys.stderr)
+        return 130
+    print(summary, file=sys.stderr)
+    return 0
