@@ -6,6 +6,7 @@ import json
 from typing import IO, Any, Callable
 
 from .bus import Record
+from .filters import Filter
 from .pipeline import Sink, Step
 from .render import record_json, text_line, verbose_lines
 
@@ -21,24 +22,27 @@ def involves(rec: Record, ids: set[int]) -> bool:
 class _LineSink(Sink):
     """One line per record (and one per finding only the end of input reveals), optionally one servo's."""
 
-    def __init__(self, out: IO[str], *, ids: set[int] | None = None, flush: bool = False) -> None:
+    def __init__(self, out: IO[str], *, ids: set[int] | None = None, flush: bool = False,
+                 filter: Filter | None = None) -> None:
         self.out = out
         self.ids = ids
+        self.filter = filter  # decode --filter: the monitor's filter language
         self.flush = flush  # a person or a pipe watches a live bus: show each batch as it comes
         self.records = 0
 
     def batch(self, step: Step) -> None:
         ids = self.ids
+        flt = self.filter
         write = self.out.write
         line = self.line
         for rec in step:
-            if ids is None or involves(rec, ids):
+            if (ids is None or involves(rec, ids)) and (flt is None or flt.matches(rec)):
                 write(line(rec))
                 self.records += 1
         # Findings only the end of input reveals belong to records already written: they come last,
-        # each naming its record's offset.
+        # each naming its record's offset. The filter judges them by what it can (id, sev, t, text).
         for f in step.late:
-            if ids is None or f.id in ids:
+            if (ids is None or f.id in ids) and (flt is None or flt.matches_finding(f)):
                 write(self.finding_line(f))
         if self.flush:
             self.out.flush()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..filters import FilterError, parse_filter
 from ..pipeline import Decoder, drive
 from ..sinks import JsonlSink, TextSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, is_live,
@@ -22,6 +23,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--format", choices=("text", "jsonl"), default="text", help="output format (default text)")
     p.add_argument("--id", type=int, action="append", default=None, metavar="N",
                    help="only events to or from servo N (repeatable)")
+    p.add_argument("--filter", metavar="EXPR",
+                   help="only events matching EXPR, the monitor's filter language (e.g. "
+                        "'id:1-6 present_temperature>40', 'latency>1ms', 't:1.5-3.0', 'sev>=warning')")
     p.add_argument("-v", "--verbose", action="store_true", help="add a field tree with each field's raw bytes")
     add_output_options(p)
     add_lint_selection(p)
@@ -33,6 +37,10 @@ def run(args: argparse.Namespace) -> int:
     check_positive("--duration", args.duration)
     settings = settings_for(args, args.input)
     opts = settings.decode_options()
+    try:  # before the input opens: a typo must not cost a serial port's session
+        flt = parse_filter(args.filter or "", opts.registry)
+    except FilterError as e:
+        raise CliError(f"--filter: {e}") from None
     linter = make_linter(args, settings)
     chunks = open_input(args.input, args.input_format, settings, duration=args.duration)
     ids = set(args.id) if args.id else None
@@ -41,9 +49,9 @@ def run(args: argparse.Namespace) -> int:
             raise CliError(f"--id {sid}: not a servo ID (1 to 127, table 4.6 No. 4; 255 is the broadcast)")
     with output_stream(args.output, force=args.force, inputs=(args.input,)) as out:
         if args.format == "jsonl":
-            sink = JsonlSink(out, ids=ids, flush=is_live(chunks))
+            sink = JsonlSink(out, ids=ids, filter=flt, flush=is_live(chunks))
         else:
-            sink = TextSink(out, ids=ids, flush=is_live(chunks), verbose=args.verbose)
+            sink = TextSink(out, ids=ids, filter=flt, flush=is_live(chunks), verbose=args.verbose)
         dec = drive(chunks, Decoder(opts, linter), sink, *live_sinks(settings, chunks, args.input))
     no_data(args.input, dec, chunks)
     return 1 if getattr(chunks, "lost", False) else 0  # a live port that failed (the source said why)

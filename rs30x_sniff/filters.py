@@ -1,0 +1,433 @@
+"""The filter language of the monitor and ``decode --filter`` (``id:1-6 reg:present_temperature>40 latency>1ms``)."""
+
+from __future__ import annotations
+
+import math
+import operator
+import re
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from .bus import Record
+from .events import LongPacket, ReturnPacket, ShortPacket
+from .memmap import Model, ModelRegistry, Register, default_registry
+from .render import direction, kind_word, summary
+
+SEVERITIES = ("info", "warning", "error")
+SEVERITY_RANK = {name: i for i, name in enumerate(SEVERITIES)}
+EVENT_KINDS = ("short", "long", "return", "ack", "nack", "garbage")
+# Besides the event kinds, a kind term may name what a request does (the word the timeline shows)
+# or which side sent it.
+OP_KINDS = ("write", "read", "write+read", "write+ack", "ping", "nop", "flash", "reboot", "init",
+            "request", "reply")
+KEYS = ("id", "kind", "reg", "sev", "latency", "t")
+COMPARISONS = (">", ">=", "<", "<=", "=", "!=")
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+
+# A term: optional negation, then a "quoted phrase" or a bare word.
+_TOKEN = re.compile(r'(?P<neg>[-!]?)(?:"(?P<quoted>[^"]*)"|(?P<word>\S+))')
+_TERM = re.compile(r"^(?P<key>[a-zA-Z_][a-zA-Z0-9_]*)(?P<op>>=|<=|!=|:|=|>|<)(?P<value>.*)$")
+_COMPARISON = re.compile(r"^(?P<name>[a-zA-Z_][a-zA-Z0-9_]*)(?P<op>>=|<=|!=|=|>|<)(?P<value>.*)$")
+_NUMBER = re.compile(r"^(?P<num>[-+]?(?:0[xX][0-9a-fA-F]+|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?))\s*(?P<unit>.*)$")
+
+
+class FilterError(ValueError):
+    """A filter expression that cannot be parsed; the message says why, in one line."""
+
+
+Predicate = Callable[[Record], bool]
+FindingPredicate = Callable[[Any], bool]
+
+
+@dataclass(frozen=True)
+class Filter:
+    """A parsed filter: every term must match (terms prefixed with ``-`` or ``!`` must not)."""
+
+    text: str
+    terms: tuple[Predicate, ...]
+    uses_text: bool = False  # free-text terms need the rendered summary (slower)
+    # The terms as tests of a lint finding shown apart from its record; None when a term cannot judge
+    # one (kind, reg, latency ask for packets of a sort, and such a finding is not one).
+    finding_terms: tuple[FindingPredicate, ...] | None = ()
+
+    def matches(self, rec: Record) -> bool:
+        for term in self.terms:
+            if not term(rec):
+                return False
+        return True
+
+    def matches_finding(self, finding: Any) -> bool:
+        """Whether a finding shown apart from its record (one only the end of input reveals) passes:
+        only a filter of id, sev, t and free-text terms passes any, by its id, severity, time and text."""
+        if self.finding_terms is None:
+            return False
+        for term in self.finding_terms:
+            if not term(finding):
+                return False
+        return True
+
+    def __call__(self, rec: Record) -> bool:
+        return self.matches(rec)
+
+
+def parse_filter(text: str, registry: ModelRegistry | None = None) -> Filter | None:
+    """Parse ``text``; None for an empty filter (show everything). Raises FilterError."""
+    text = text.strip()
+    if not text:
+        return None
+    registry = registry or default_registry()
+    known = _register_names(registry)
+    terms: list[Predicate] = []
+    finding_terms: list[FindingPredicate] | None = []
+    uses_text = False
+    for tok in _TOKEN.finditer(text):
+        quoted, word = tok["quoted"] is not None, tok["quoted"] if tok["quoted"] is not None else tok["word"]
+        negate = bool(tok["neg"])
+        if not quoted and '"' in word:
+            raise FilterError(f"unclosed quote in {tok.group(0)!r}")
+        if not word:
+            raise FilterError("empty quotes: nothing to search for")
+        m = None if quoted else _TERM.match(word)
+        key = m["key"].lower() if m else ""
+        fpred: FindingPredicate | None = None
+        if m and key in KEYS:
+            pred, fpred = _keyed(key, m["op"], m["value"], registry)
+        elif m and m["op"] != ":" and key in known:
+            # "present_temperature>40" needs no "reg:": a comparison on a register name is one.
+            pred = _compare_register(word, key, m["op"], m["value"], registry)
+        elif m and m["op"] != ":" and m["value"]:
+            # Free text cannot hold a comparison on a name we do not know: it is a typo far more often
+            # than a search (and a search can be quoted).
+            raise FilterError(f"{word}: no register or filter key {m['key']!r}{_hint(key, known)} "
+                              f"(quote free text)")
+        elif m and m["op"] == ":" and m["value"] and key in known:
+            raise FilterError(f"{word}: {key} is a register, not a key: compare it ({key}={m['value']}, "
+                              f"{key}>{m['value']}) or name it (reg:{key})")
+        elif m and m["op"] == ":" and m["value"]:
+            # "ids:3" is a keyed term with a typo, not text to search for; free text with a colon can be quoted.
+            raise FilterError(f"unknown filter key {m['key']!r} (keys: {', '.join(KEYS)}; quote free text)")
+        else:
+            pred, fpred = _text(word)
+            uses_text = True
+        if negate:
+            pred = _negate(pred)
+            fpred = None if fpred is None else _negate(fpred)
+        terms.append(pred)
+        if fpred is None:
+            finding_terms = None
+        elif finding_terms is not None:
+            finding_terms.append(fpred)
+    return Filter(text, tuple(terms), uses_text, None if finding_terms is None else tuple(finding_terms))
+
+
+def _negate(pred: Callable[[Any], bool]) -> Callable[[Any], bool]:
+    return lambda x: not pred(x)
+
+
+def _register_names(registry: ModelRegistry) -> frozenset[str]:
+    return frozenset(n for m in registry.models.values() for n in m.names)
+
+
+def _hint(name: str, known: frozenset[str]) -> str:
+    close = sorted(k for k in known if name.lower() in k)
+    return f" (did you mean {', '.join(close[:3])}?)" if close else ""
+
+
+def _keyed(key: str, op: str, value: str,
+           registry: ModelRegistry) -> tuple[Predicate, FindingPredicate | None]:
+    if not value:
+        raise FilterError(f"{key}{op} needs a value")
+    if key == "sev":
+        return _severity(op, value)
+    if key == "latency":
+        return _latency(op, value), None
+    if key == "t":
+        return _time(op, value)
+    if op not in (":", "="):
+        raise FilterError(f"{key} takes ':' (only sev, latency and t compare with {op!r})")
+    if key == "id":
+        return _ids(value)
+    if key == "kind":
+        return _kinds(value), None
+    m = _COMPARISON.match(value)
+    if m:
+        return _compare_register(f"{key}{op}{value}", m["name"].lower(), m["op"], m["value"], registry), None
+    return _registers(value, registry), None
+
+
+def _number(term: str, value: str) -> tuple[float, str]:
+    """A number and the unit after it (``40``, ``-1.5deg``, ``0x3030``, ``2ms``)."""
+    m = _NUMBER.match(value.strip())
+    if not m:
+        raise FilterError(f"{term}: {value!r} is not a number")
+    num = m["num"]
+    return (int(num, 16) if "x" in num.lower() else float(num)), m["unit"]
+
+
+def _numeric_test(op: str, x: float) -> Callable[[Any], bool]:
+    # "=" tolerates the last bits of a float: "goal_position=10.3" should find 103 / 10.
+    if op == "=":
+        return lambda v: v is not None and not isinstance(v, str) and math.isclose(v, x, rel_tol=1e-9, abs_tol=1e-12)
+    if op == "!=":
+        return lambda v: v is not None and not isinstance(v, str) and not math.isclose(v, x, rel_tol=1e-9,
+                                                                                       abs_tol=1e-12)
+    cmp = {">": operator.gt, ">=": operator.ge, "<": operator.lt, "<=": operator.le}[op]
+    return lambda v: v is not None and not isinstance(v, str) and cmp(v, x)
+
+
+def _duration(term: str, value: str) -> float:
+    """Seconds of ``2ms``, ``150us``, ``0.002`` (bare numbers are seconds)."""
+    num, unit = _number(term, value)
+    scale = TIME_UNITS.get(unit.lower() if unit != "µs" else unit) if unit else 1.0
+    if scale is None:
+        raise FilterError(f"{term}: unit {unit!r} is not a time unit (s, ms, us)")
+    return num * scale
+
+
+# ---- id ---------------------------------------------------------------------------------------
+def _ids(value: str) -> tuple[Predicate, FindingPredicate]:
+    wanted: set[int] = set()
+    for part in value.split(","):
+        lo, sep, hi = part.partition("-")
+        try:
+            a = int(lo, 0)
+            b = int(hi, 0) if sep else a
+        except ValueError:
+            raise FilterError(f"id:{value}: {part!r} is not an ID or a range like 1-6") from None
+        if not (0 <= a <= 255 and 0 <= b <= 255):
+            raise FilterError(f"id:{value}: IDs run from 0 to 255")
+        if a > b:
+            raise FilterError(f"id:{value}: range {part} runs backwards")
+        wanted.update(range(a, b + 1))
+    frozen = frozenset(wanted)
+
+    def match(rec: Record) -> bool:
+        ev = rec.event
+        if type(ev) is LongPacket:
+            # A long packet concerns every servo it carries a record for, and ID 0 itself.
+            return 0 in frozen or any(r.vid in frozen for r in ev.records)
+        return rec.id in frozen
+
+    return match, lambda f: f.id in frozen
+
+
+# ---- kind -------------------------------------------------------------------------------------
+def _kinds(value: str) -> Predicate:
+    kinds, ops = set(), set()
+    for part in value.lower().split(","):
+        if part in EVENT_KINDS:
+            kinds.add(part)
+        elif part in OP_KINDS:
+            ops.add(part)
+        else:
+            raise FilterError(f"kind:{part}: unknown kind (one of {', '.join(EVENT_KINDS + OP_KINDS)})")
+
+    def match(rec: Record) -> bool:
+        if rec.kind in kinds:
+            return True
+        if not ops:
+            return False
+        if ("request" in ops and rec.is_request) or ("reply" in ops and rec.is_reply):
+            return True
+        return kind_word(rec).split("(")[0].lower() in ops
+
+    return match
+
+
+# ---- reg --------------------------------------------------------------------------------------
+def _registers(value: str, registry: ModelRegistry) -> Predicate:
+    names = [n for n in value.split(",") if n]
+    known = _register_names(registry)
+    for n in names:
+        if n not in known:
+            raise FilterError(f"reg:{n}: no such register{_hint(n, known)}")
+    wanted = tuple(names)
+
+    def covers(model, address: int, length: int) -> bool:
+        for n in wanted:
+            try:
+                reg = model.register(n)
+            except KeyError:
+                continue
+            if address < reg.address + reg.size and reg.address < address + length:
+                return True
+        return False
+
+    def match(rec: Record) -> bool:
+        # By address ranges rather than decoded fields, so filtering a long history decodes nothing.
+        ev = rec.event
+        t = type(ev)
+        model = rec.model
+        if model is None:
+            return False
+        if t is ShortPacket:
+            if ev.data and covers(model, ev.address, len(ev.data)):
+                return True
+            rr = ev.read_range
+            return rr is not None and covers(model, *rr)
+        if t is ReturnPacket:
+            return covers(model, ev.address, len(ev.data))
+        if t is LongPacket:
+            return ev.length > 1 and covers(model, ev.address, ev.length - 1)
+        return False
+
+    return match
+
+
+def _raw_test(term: str, reg: Register, op: str, value: str) -> Callable[[int], bool]:
+    """A test of a register's raw value against ``value`` in engineering units (or an enum label)."""
+    name = reg.label
+    if not value:
+        raise FilterError(f"{term}: needs a value")
+    if reg.enum is not None and not _NUMBER.match(value):
+        labels = {str(v).lower(): k for k, v in reg.enum.items()}
+        if op not in ("=", "!="):
+            raise FilterError(f"{term}: {name} is one of {', '.join(map(str, reg.enum.values()))}; "
+                              f"compare it with = or !=")
+        code = labels.get(value.lower())
+        if code is None:
+            raise FilterError(f"{term}: {name} is one of {', '.join(map(str, reg.enum.values()))}")
+        return (lambda raw: raw == code) if op == "=" else (lambda raw: raw != code)
+    num, unit = _number(term, value)
+    if reg.enum is not None:  # a number for an enum register is its code
+        test = _numeric_test(op, num)
+        return lambda raw: test(raw)
+    if unit and unit.lower() != (reg.unit or "").lower():
+        if reg.unit in TIME_UNITS and unit.lower() in TIME_UNITS:
+            num = num * TIME_UNITS[unit.lower()] / TIME_UNITS[reg.unit]
+        elif reg.unit:
+            raise FilterError(f"{term}: {name} is in {reg.unit}, not {unit}")
+        else:
+            raise FilterError(f"{term}: {name} has no unit")
+    test = _numeric_test(op, num)
+    convert = reg.convert
+    return lambda raw: test(convert(raw))
+
+
+def _compare_register(term: str, name: str, op: str, value: str, registry: ModelRegistry) -> Predicate:
+    known = _register_names(registry)
+    if name not in known:
+        raise FilterError(f"{term}: no such register{_hint(name, known)}")
+
+    # One compiled check per model: (address, size, signed, test of the raw value). The register's
+    # bytes are read straight from the packet, so a scan over a long history decodes nothing else.
+    def compile_for(model: Model):
+        try:
+            reg = model.register(name)
+        except KeyError:
+            return None
+        return reg.address, reg.size, reg.signed, _raw_test(term, reg, op, value)
+
+    specs: dict[int, Any] = {}
+    for model in registry.models.values():  # every model now, so a bad value is an error at once
+        specs[id(model)] = compile_for(model)
+
+    def spec_of(model: Model):
+        key = id(model)
+        if key in specs:
+            return specs[key]
+        try:
+            s = compile_for(model)
+        except FilterError:
+            s = None
+        specs[key] = s
+        return s
+
+    def carries(spec, address: int, data: bytes) -> bool:
+        if spec is None:
+            return False
+        a, size, signed, test = spec
+        start = a - address
+        if start < 0 or start + size > len(data):
+            return False
+        return test(int.from_bytes(data[start:start + size], "little", signed=signed))
+
+    def match(rec: Record) -> bool:
+        ev = rec.event
+        t = type(ev)
+        model = rec.model
+        if model is None or not ev.checksum_ok:
+            return False  # bytes that failed their checksum are no servo's values
+        if t is ReturnPacket or t is ShortPacket:
+            data = ev.data
+            return bool(data) and carries(spec_of(model), ev.address, data)
+        if t is LongPacket:
+            vm = rec.vid_models
+            if vm is None:
+                spec = spec_of(model)
+                return any(carries(spec, ev.address, r.data) for r in ev.records)
+            return any(carries(spec_of(m), ev.address, r.data) for m, r in zip(vm, ev.records))
+        return False
+
+    return match
+
+
+# ---- latency ----------------------------------------------------------------------------------
+def _latency(op: str, value: str) -> Predicate:
+    term = f"latency{op}{value}"
+    if op not in COMPARISONS:
+        raise FilterError(f"{term}: latency compares with {' '.join(COMPARISONS)} (latency>1ms)")
+    test = _numeric_test(op, _duration(term, value))
+
+    def match(rec: Record) -> bool:
+        # A reply's: the time from the end of its request to its start.
+        lat = rec.latency
+        return lat is not None and test(lat)
+
+    return match
+
+
+# ---- t ----------------------------------------------------------------------------------------
+def _time(op: str, value: str) -> tuple[Predicate, FindingPredicate]:
+    term = f"t{op}{value}"
+    if op in (":", "="):
+        lo_text, sep, hi_text = value.partition("-")
+        if not sep:
+            raise FilterError(f"{term}: t takes a range like t:1.5-3.0 (or t:1.5-, t:-3)")
+        lo = _duration(term, lo_text) if lo_text.strip() else -math.inf
+        hi = _duration(term, hi_text) if hi_text.strip() else math.inf
+        if lo > hi:
+            raise FilterError(f"{term}: range runs backwards")
+
+        def test(t: float | None) -> bool:
+            return t is not None and lo <= t <= hi
+    elif op == "!=":
+        raise FilterError(f"{term}: t takes a range (t:1.5-3.0) or compares with > >= < <=")
+    else:
+        test = _numeric_test(op, _duration(term, value))  # type: ignore[assignment]
+
+    return (lambda rec: test(rec.event.t_start)), (lambda f: test(f.t))
+
+
+# ---- sev --------------------------------------------------------------------------------------
+def _severity(op: str, value: str) -> tuple[Predicate, FindingPredicate]:
+    v = value.lower()
+    aliases = {"warn": "warning", "err": "error", "any": "info"}
+    v = aliases.get(v, v)
+    if v not in SEVERITY_RANK:
+        raise FilterError(f"sev{op}{value}: unknown severity (one of {', '.join(SEVERITIES)})")
+    r = SEVERITY_RANK[v]
+    test: Callable[[int], bool] = {
+        ":": lambda k: k == r, "=": lambda k: k == r, ">=": lambda k: k >= r, ">": lambda k: k > r,
+        "<=": lambda k: k <= r, "<": lambda k: k < r, "!=": lambda k: k != r,
+    }[op]
+
+    def match(rec: Record) -> bool:
+        return any(test(SEVERITY_RANK.get(f.severity, 0)) for f in rec.findings)
+
+    return match, lambda f: test(SEVERITY_RANK.get(f.severity, 0))
+
+
+# ---- free text --------------------------------------------------------------------------------
+def record_text(rec: Record) -> str:
+    """What free text is matched against: direction, summary and finding codes and names."""
+    # keep=False: a search through a long history must not leave every record's fields in memory.
+    text = f"{direction(rec)} {summary(rec, keep=False)} @{rec.offset}"
+    if rec.findings:
+        text += " " + " ".join(f"{f.code} {f.name}" for f in rec.findings)
+    return text.lower()
+
+
+def _text(word: str) -> tuple[Predicate, FindingPredicate]:
+    needle = word.lower()
+    return (lambda rec: needle in record_text(rec)), (lambda f: needle in f"{f.code} {f.name} {f.message}".lower())
