@@ -128,3 +128,13 @@ def test_return_carrying_part_of_a_register_is_matched_by_range():
                        (encode_return(1, 43, b"\x03"), 0.0005),
                        (encode_long(30, [(1, b"\x00\x00")]), 0.002)])
     assert [r.kind for r in recs if parse_filter("reg:present_position").matches(r)] == ["short", "return"]
+
+
+def test_the_monitor_shares_decodes_filter_language(recs):
+    from rs30x_sniff import filters
+    assert parse_filter is filters.parse_filter and FilterError is filters.FilterError
+    # The manual's return @227 answers the read @219 with present_position=90.0deg.
+    assert offsets(recs, "present_position>80") == [227]
+    assert offsets(recs, "reg:present_position=90") == [227]
+    assert offsets(recs, "goal_position=10 kind:long") == [42]
+    assert offsets(recs, "kind:return -present_position>80") == []
