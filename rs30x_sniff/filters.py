@@ -36,6 +36,7 @@ class FilterError(ValueError):
 
 
 Predicate = Callable[[Record], bool]
+_UNSEEN = object()
 FindingPredicate = Callable[[Any], bool]
 
 
@@ -311,27 +312,43 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
 
     # One compiled check per model: (address, size, signed, test of the raw value). The register's
     # bytes are read straight from the packet, so a scan over a long history decodes nothing else.
+    tables: list[tuple[Register, Any]] = []
+
     def compile_for(model: Model):
         try:
             reg = model.register(name)
         except KeyError:
             return None
-        return reg.address, reg.size, reg.signed, _raw_test(term, reg, op, value)
+        test = _raw_test(term, reg, op, value)
+        if reg.size > 2:
+            return reg.address, reg.size, reg.signed, test
+        # Every raw value of a 1- or 2-byte register judged once (the same register in another model
+        # shares the table): a scan of a million records then looks bytes up instead of converting them.
+        for r, table in tables:
+            if r == reg:
+                break
+        else:
+            bits = 8 * reg.size
+            half = 1 << (bits - 1)
+            table = bytes(bool(test(u - (1 << bits) if reg.signed and u >= half else u)) for u in range(1 << bits))
+            tables.append((reg, table))
+        return reg.address, reg.size, False, table.__getitem__
 
     specs: dict[int, Any] = {}
     for model in registry.models.values():  # every model now, so a bad value is an error at once
         specs[id(model)] = compile_for(model)
 
     def spec_of(model: Model):
-        key = id(model)
-        if key in specs:
-            return specs[key]
         try:
             s = compile_for(model)
-        except FilterError:
+        except FilterError:  # a model outside the registry that takes the value otherwise: no match
             s = None
-        specs[key] = s
+        specs[id(model)] = s
         return s
+
+    def spec_for(model: Model):
+        spec = specs.get(id(model), _UNSEEN)
+        return spec_of(model) if spec is _UNSEEN else spec
 
     def carries(spec, address: int, data: bytes) -> bool:
         if spec is None:
@@ -345,19 +362,31 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
     def match(rec: Record) -> bool:
         ev = rec.event
         t = type(ev)
+        if t is not ReturnPacket and t is not ShortPacket and t is not LongPacket:
+            return False
         model = rec.model
         if model is None or not ev.checksum_ok:
             return False  # bytes that failed their checksum are no servo's values
-        if t is ReturnPacket or t is ShortPacket:
-            data = ev.data
-            return bool(data) and carries(spec_of(model), ev.address, data)
-        if t is LongPacket:
-            vm = rec.vid_models
-            if vm is None:
-                spec = spec_of(model)
-                return any(carries(spec, ev.address, r.data) for r in ev.records)
-            return any(carries(spec_of(m), ev.address, r.data) for m, r in zip(vm, ev.records))
-        return False
+        if t is not LongPacket:
+            return bool(ev.data) and carries(spec_for(model), ev.address, ev.data)
+        vm = rec.vid_models
+        address = ev.address
+        if vm is None:
+            spec = spec_for(model)
+            if spec is None:
+                return False
+            # One model for every servo (the common case): one bounds check, then each servo's bytes.
+            a, size, signed, test = spec
+            start = a - address
+            if start < 0:
+                return False
+            end = start + size
+            for r in ev.records:
+                d = r.data
+                if end <= len(d) and test(int.from_bytes(d[start:end], "little", signed=signed)):
+                    return True
+            return False
+        return any(carries(spec_for(m), address, r.data) for m, r in zip(vm, ev.records))
 
     return match
 
