@@ -297,6 +297,12 @@ class TransactionsSink(TableSink):
 
     kind = "transactions"
 
+    def __init__(self, table: CsvTable | ParquetTable, *, baud: int) -> None:
+        super().__init__(table, baud=baud)
+        # One list per (model, read range), shared by its rows: a batch of buffered Parquet rows
+        # would otherwise hold a fresh copy of the same names for every request.
+        self._names: dict[tuple, list[str] | None] = {}
+
     def columns(self) -> list[Column]:
         return [("offset", INT), ("id", INT), ("op", STR), ("expects", STR), ("read_address", INT),
                 ("read_length", INT), ("read_names", STRS), ("status", STR), ("reply_type", STR),
@@ -310,12 +316,16 @@ class TransactionsSink(TableSink):
             tj = transaction_json(rec)
             ev = rec.event
             rr = ev.read_range
+            key = (rec.model.name if rec.model is not None else None, rr)
+            names = self._names.get(key)
+            if names is None:
+                names = self._names[key] = tj["read"] or None
             t_reply = tj["t_reply"]
             if t_reply is None and tj["reply_offset"] is not None:
                 t_reply = self._time(None, tj["reply_offset"])
             self._row(self._time(ev.t_start, ev.offset), (
                 ev.offset, tj["id"], tj["op"], tj["expects"], rr[0] if rr else None, rr[1] if rr else None,
-                tj["read"] or None, tj["status"], tj["reply_type"], tj["reply_offset"], t_reply, tj["latency_s"],
+                names, tj["status"], tj["reply_type"], tj["reply_offset"], t_reply, tj["latency_s"],
                 tj["reply_checksum_ok"], tj["request_raw"], tj["reply_raw"]))
 
 

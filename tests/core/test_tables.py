@@ -232,3 +232,38 @@ def test_missing_pyarrow_is_one_line(tmp_path, capsys, monkeypatch):
     assert not out.exists()
     # CSV needs no pyarrow.
     assert main(["table", str(SESSION), "--of", "states", "-o", str(tmp_path / "s.csv")]) == 0
+
+
+def _mcap_counts(path) -> tuple[Counter, int]:
+    states: Counter = Counter()
+    transactions = 0
+    with open(path, "rb") as f:
+        for _, channel, _ in make_reader(f).iter_messages():
+            if channel.topic.startswith("/rs30x/servo/"):
+                states[channel.topic] += 1
+            elif channel.topic == "/rs30x/transactions":
+                transactions += 1
+    return states, transactions
+
+
+@pytest.mark.parametrize("capture", sorted(CAPTURES.glob("**/*hex")), ids=lambda p: p.name)
+def test_every_capture_matches_its_mcap(tmp_path, capture):
+    """States and transactions rows are the MCAP's state and transaction messages, capture by capture
+    (the lint examples hold ACK requests, NACKs, broadcasts and long packets)."""
+    assert main(["convert", str(capture), "-o", str(tmp_path / "c.mcap"), "--no-lint"]) == 0
+    states, transactions = _mcap_counts(tmp_path / "c.mcap")
+    for kind in ("states", "transactions"):
+        assert main(["table", str(capture), "--of", kind, "-o", str(tmp_path / f"{kind}.csv")]) == 0
+    rows = read_csv(tmp_path / "states.csv")
+    assert Counter(f"/rs30x/servo/{r['id']}/state" for r in rows) == states
+    assert len(read_csv(tmp_path / "transactions.csv")) == transactions
+
+
+def test_register_columns_are_the_union_of_the_models():
+    from rs30x_sniff.io.tables import FLOAT, INT, STR, register_columns
+
+    registry = default_registry()
+    columns = dict(register_columns(registry))
+    names = {r.name for m in registry.models.values() for r in m.registers if r.name}
+    assert set(columns) == names
+    assert columns["present_position"] == FLOAT and columns["servo_id"] == INT and columns["torque_enable"] == STR
