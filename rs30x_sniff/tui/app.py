@@ -32,6 +32,10 @@ from .store import DEFAULT_HISTORY, PLOT_REGISTERS, Store
 from .timeline import Timeline
 
 FILTER_STEP = 20_000  # records a filter scan checks between screen updates
+NARROW_WIDTH = 120    # columns under which the detail pane hides and the bottom panes take turns
+WIDE_WIDTH = 160      # columns under which the findings and the plot take turns beside the servos
+SHORT_HEIGHT = 32     # rows under which the bottom panes get fewer rows
+BOTTOM_PANES = ("servos", "findings", "plot")
 
 
 class BatchArrived(Message):
@@ -77,6 +81,8 @@ class MonitorApp(App):
         Binding("r", "toggle_record", "Record"),
         Binding("g", "goto_pair", "Pair"),
         Binding("p", "next_plot", "Plot"),
+        Binding("d", "toggle_detail", "Detail"),
+        Binding("b", "next_pane", "Pane"),
         Binding("question_mark", "help", "Help", key_display="?"),
     ]
 
@@ -322,6 +328,40 @@ class MonitorApp(App):
     def action_goto_pair(self) -> None:
         if not self.detail.goto_pair():
             self.notify("this packet has no reply or request", timeout=2)
+
+    # ---- a layout for the terminal's size -------------------------------------------------------------
+    def on_resize(self, event) -> None:
+        self._fit(event.size.width, event.size.height)
+
+    def _fit(self, width: int, height: int) -> None:
+        """Under 120 columns the detail pane hides behind `d` and one bottom pane shows at a time (`b`
+        cycles them); under 160 the findings and the plot take turns beside the servos (`b`); under 32
+        rows the bottom panes get fewer rows (app.tcss)."""
+        self.set_class(width < NARROW_WIDTH, "-narrow")
+        self.set_class(NARROW_WIDTH <= width < WIDE_WIDTH, "-medium")
+        self.set_class(height < SHORT_HEIGHT, "-short")
+        if not any(self.has_class(f"-bottom-{p}") for p in BOTTOM_PANES):
+            self.add_class(f"-bottom-{BOTTOM_PANES[0]}")
+
+    def action_toggle_detail(self) -> None:
+        if not self.has_class("-narrow"):
+            self.notify("the detail pane is always shown at this width", timeout=2)
+            return
+        self.toggle_class("-with-detail")
+        if self.has_class("-with-detail"):
+            self.detail.show(self.store.get(self.timeline.cursor_seq) if self.timeline.cursor_seq is not None
+                             else None)
+
+    def action_next_pane(self) -> None:
+        if self.has_class("-medium"):
+            self.toggle_class("-side-plot")  # the servos stay; findings and the plot take turns
+            return
+        if not self.has_class("-narrow"):
+            self.notify("every pane is shown at this width", timeout=2)
+            return
+        now = next((k for k, p in enumerate(BOTTOM_PANES) if self.has_class(f"-bottom-{p}")), 0)
+        self.remove_class(f"-bottom-{BOTTOM_PANES[now]}")
+        self.add_class(f"-bottom-{BOTTOM_PANES[(now + 1) % len(BOTTOM_PANES)]}")
 
     def action_next_plot(self) -> None:
         store = self.store

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -114,11 +116,13 @@ class DetailPane(Vertical):
         self._add_header(tree.root, rec)
         self._add_fields(tree.root, rec)
         self._add_pair(tree.root, rec)
+        width = max(24, self.size.width - 8)  # the tree's guides and the border
         for f in rec.findings:
-            line = Text()
-            line.append(f"! {f.code} {f.name}", SEVERITY_STYLES.get(f.severity, ""))
-            line.append(f": {clean(f.message)}")
-            tree.root.add_leaf(line, data=None)
+            # Whole, never cut: the message wraps onto the lines of an expanded node.
+            node = tree.root.add(Text(f"! {f.code} {f.name}", SEVERITY_STYLES.get(f.severity, "")), data=None,
+                                 expand=True)
+            for piece in textwrap.wrap(clean(f.message), width) or [""]:
+                node.add_leaf(Text(piece), data=None)
         tree.root.expand()
         hexw.update(hex_dump(ev.raw))
 

@@ -17,6 +17,8 @@ KEYS = (
     ("n / N", "next / previous packet with a finding"),
     ("f, End", "follow the newest packet (scrolling up stops following)"),
     ("c", "clear the history, counts and findings"),
+    ("d", "narrow terminal: show the detail pane instead of the timeline, and back"),
+    ("b", "under 160 columns: the next bottom pane (servos, findings, plot)"),
     ("r", "start / stop recording to an MCAP file"),
     ("g", "go to the selected packet's reply or request"),
     ("p", "plot the next register (the servo is the one selected in the servos pane)"),

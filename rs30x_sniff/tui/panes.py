@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from typing import Any, Callable
 
 from rich.text import Text
@@ -126,22 +127,32 @@ class FindingsPane(DataTable):
         self._shown: list = []
 
     def on_mount(self) -> None:
-        for name in ("sev", "code", "@offset", "ID", "message", "name"):
+        for name in ("sev", "code", "ID", "message"):
             self.add_column(name, key=name)
+        self._width = self.size.width
+
+    def on_resize(self) -> None:
+        if self.size.width != self._width:
+            self._width = self.size.width
+            self._fill()
 
     def update_from(self, store: Store) -> None:
         if store.findings_total == self._total:
             return
         self._total = store.findings_total
         self._shown = list(store.findings)[-FINDINGS_SHOWN:][::-1]
+        self._fill()
+        self.border_title = f"findings ({store.findings_total})"
+
+    def _fill(self) -> None:
+        # Messages wrap to the pane's width (a row grows to their lines) rather than being cut off.
+        width = max(20, self.size.width - 22)  # sev, code, ID, the cell padding and a scrollbar
         self.clear()
         for i, f in enumerate(self._shown):
             style = SEVERITY_STYLES.get(f.severity, "")
-            self.add_row(Text(SEVERITY_MARKS.get(f.severity, "?"), style), Text(f.code, style), Text(str(f.offset)),
-                         Text("-" if f.id is None else str(f.id)), Text(clean(f.message)),
-                         Text(clean(f.name), "grey70"),
-                         key=str(i))
-        self.border_title = f"findings ({store.findings_total})"
+            message = "\n".join(textwrap.wrap(clean(f"{f.name}: {f.message}"), width)) or "-"
+            self.add_row(Text(SEVERITY_MARKS.get(f.severity, "?"), style), Text(f.code, style),
+                         Text("-" if f.id is None else str(f.id)), Text(message), key=str(i), height=None)
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
         event.stop()

@@ -30,6 +30,9 @@ SEVERITY_MARKS = {"error": "E", "warning": "W", "info": "i"}
 ARROWS = {"host": "→", "servo": "←", "?": "?"}
 
 COLUMNS = f"  {'time(s)':>11} {'delta(ms)':>10} {'dir':^3} {'ID':>3} {'kind':<12} {'latency':>9} summary"
+# A narrow terminal (80 columns) keeps time, direction, ID, kind and the summary: delta and latency go.
+COMPACT_COLUMNS = f"  {'time(s)':>11} {'dir':^3} {'ID':>3} {'kind':<12} summary"
+COMPACT_BELOW = 110  # timeline widths under this many cells use the compact columns
 
 
 def worst_severity(rec: Record) -> str | None:
@@ -51,8 +54,9 @@ def short_summary(rec: Record) -> str:
     return clean(summary(rec, bare=True, keep=False))
 
 
-def row_text(rec: Record, prev_t: float | None) -> Text:
-    """One timeline row: severity mark, time, delta, direction, ID, kind, latency, summary."""
+def row_text(rec: Record, prev_t: float | None, compact: bool = False) -> Text:
+    """One timeline row: severity mark, time, delta, direction, ID, kind, latency, summary (``compact``:
+    without delta and latency, for narrow terminals)."""
     ev = rec.event
     text = Text(no_wrap=True, overflow="ellipsis")
     sev = worst_severity(rec)
@@ -60,10 +64,11 @@ def row_text(rec: Record, prev_t: float | None) -> Text:
     t = ev.t_start
     if t is not None:
         text.append(f" {t:11.6f}", "grey70")
-        delta = f"{(t - prev_t) * 1e3:+10.3f}" if prev_t is not None else " " * 10
-        text.append(f" {delta}", "grey50")
+        if not compact:
+            delta = f"{(t - prev_t) * 1e3:+10.3f}" if prev_t is not None else " " * 10
+            text.append(f" {delta}", "grey50")
     else:
-        text.append(f" {'@' + str(ev.offset):>11} {'':10}", "grey50")
+        text.append(f" {'@' + str(ev.offset):>11}" + ("" if compact else f" {'':10}"), "grey50")
     who = direction(rec)
     text.append(f" {ARROWS[who]:^3}", "bold" if who == "host" else "")
     sid = rec.id
@@ -73,7 +78,10 @@ def row_text(rec: Record, prev_t: float | None) -> Text:
     if bad:
         word += "!SUM"
     text.append(f" {word:<12}", "bold red" if bad else kind_style(word))
-    if rec.latency is not None:
+    if compact:
+        if rec.status == "missing":
+            text.append(" no reply", "red")
+    elif rec.latency is not None:
         text.append(f" {rec.latency * 1e3:7.3f}ms", "grey70")
     elif rec.status == "missing":
         text.append(" no reply ", "red")

@@ -12,7 +12,7 @@ from textual.reactive import reactive
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
-from .rows import COLUMNS, row_text
+from .rows import COLUMNS, COMPACT_BELOW, COMPACT_COLUMNS, row_text
 from .store import Store
 
 ROW_WIDTH = 400  # virtual width: summaries of long packets run far to the right (scroll with shift+wheel)
@@ -189,8 +189,10 @@ class Timeline(ScrollView, can_focus=True):
     def render_line(self, y: int) -> Strip:
         width = self.size.width
         scroll_x = int(self.scroll_x)
+        compact = width < COMPACT_BELOW
         if y == 0:
-            header = Strip([Segment(COLUMNS, self.get_component_rich_style("timeline--header"))])
+            columns = COMPACT_COLUMNS if compact else COLUMNS
+            header = Strip([Segment(columns, self.get_component_rich_style("timeline--header"))])
             return header.crop_extend(scroll_x, scroll_x + width, self.rich_style)
         row = int(self.scroll_y) + y - 1
         seq = self.store.view_seq(row) if row < self._rows else None
@@ -198,11 +200,11 @@ class Timeline(ScrollView, can_focus=True):
         if rec is None:
             return Strip.blank(width, self.rich_style)
         cursor = seq == self.cursor_seq
-        key = (seq, len(rec.findings), cursor, self.has_focus, rec.latency, rec.status)
+        key = (seq, len(rec.findings), cursor, self.has_focus, rec.latency, rec.status, compact)
         strip = self._cache.get(key)
         if strip is None:
             prev = self.store.get(seq - 1)
-            text = row_text(rec, prev.event.t_start if prev is not None else None)
+            text = row_text(rec, prev.event.t_start if prev is not None else None, compact)
             base: Style = self.rich_style
             if cursor:
                 base = base + self.get_component_rich_style("timeline--cursor")

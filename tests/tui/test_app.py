@@ -469,3 +469,24 @@ async def test_the_mouse_wheel_scrolls_back_and_leaves_follow_mode(tmp_path):
         assert not tl.follow and tl.scroll_y < bottom
         await pilot.click(tl, offset=(20, 5))
         assert tl.cursor_seq == int(tl.scroll_y) + 4
+
+
+async def test_a_narrow_terminal_swaps_panes_with_d_and_b():
+    app = manual_app()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_done(pilot, app)
+        assert app.has_class("-narrow") and not app.detail.display and app.timeline.display
+        assert app.servos.display and not app.findings.display and not app.plot.display
+        await pilot.press("b")
+        assert app.findings.display and not app.servos.display
+        await pilot.press("b", "b")
+        assert app.servos.display
+        await pilot.press("d")
+        assert app.detail.display and not app.timeline.display
+        await pilot.press("d")
+        assert app.timeline.display and not app.detail.display
+    app = manual_app()
+    async with app.run_test(size=(160, 48)) as pilot:
+        await wait_done(pilot, app)
+        assert not app.has_class("-narrow")
+        assert app.detail.display and app.servos.display and app.findings.display and app.plot.display

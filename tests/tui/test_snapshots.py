@@ -6,6 +6,10 @@ look at the SVGs under tests/tui/__snapshots__ before committing.
 
 from __future__ import annotations
 
+import os
+import re
+from pathlib import Path
+
 import pytest
 
 from rs30x_sniff.lint import Linter
@@ -49,3 +53,52 @@ def test_detail_pane_with_a_field_selected(snap_compare):
 
 def test_help_screen(snap_compare):
     assert snap_compare(manual_app(), terminal_size=SIZE, press=["question_mark"], run_before=loaded)
+
+
+# Screens at common terminal sizes, as SVG snapshots compared after the screenshot's id (a hash over
+# the rendered segments, which carry per-run handler metadata at these sizes) is taken out. Update with
+# RS30X_UPDATE_SNAPSHOTS=1 and look at the SVGs under tests/tui/__snapshots__/sizes before committing.
+SIZES_DIR = Path(__file__).parent / "__snapshots__" / "sizes"
+
+
+async def settled(pilot):
+    """Loaded, and the layout done with its resize (the panes refill for their new widths)."""
+    await loaded(pilot)
+    for _ in range(3):
+        await pilot.pause(0.1)
+    await pilot.wait_for_scheduled_animations()
+
+
+def _normal(svg: str) -> str:
+    return re.sub(r"terminal-\d+", "terminal", svg)
+
+
+async def _compare(name: str, size: tuple[int, int], *keys: str) -> None:
+    app = manual_app()
+    async with app.run_test(size=size) as pilot:
+        await settled(pilot)
+        if keys:
+            await pilot.press(*keys)
+            await settled(pilot)
+        svg = _normal(app.export_screenshot())
+    path = SIZES_DIR / f"{name}.svg"
+    if os.environ.get("RS30X_UPDATE_SNAPSHOTS"):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(svg)
+    assert path.exists(), f"no snapshot {path.name}: run with RS30X_UPDATE_SNAPSHOTS=1"
+    assert svg == path.read_text(), f"{path.name} differs: look at it, then RS30X_UPDATE_SNAPSHOTS=1"
+
+
+@pytest.mark.parametrize("size", [(80, 24), (120, 30), (160, 48)], ids=["80x24", "120x30", "160x48"])
+async def test_main_screen_fits_common_terminal_sizes(size):
+    """At 80x24 the timeline keeps time, direction, ID, kind and summary (the detail pane behind `d`, one
+    bottom pane at a time); at 120x30 the findings and plot take turns beside the servos."""
+    await _compare(f"main-{size[0]}x{size[1]}", size)
+
+
+async def test_findings_wrap_at_80x24():
+    await _compare("findings-80x24", (80, 24), "b")  # servos -> findings: messages wrap, never cut
+
+
+async def test_detail_pane_at_80x24():
+    await _compare("detail-80x24", (80, 24), "up", "up", "d")  # the detail pane in the timeline's place
