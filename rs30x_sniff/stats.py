@@ -1,4 +1,4 @@
-"""Capture statistics (duration, traffic by type, per-servo polls and latencies, bus load); pure, no I/O.
+"""Capture statistics (traffic, per-servo polls, latencies, bus load, health, what happened); pure, no I/O.
 
 The one definition of these figures: ``info``, the MCAP metadata and the monitor all read them here.
 """
@@ -10,13 +10,19 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
-from .events import LongPacket, ShortPacket
+from .events import Ack, Garbage, LongPacket, ReturnPacket, ShortPacket
+from .health import HealthRecorder, servo_health, timer, what_happened
 from .pipeline import Sink, Step
 from .wire import BITS_PER_BYTE, byte_time
 
 # Latencies are counted in 1 us bins: exact enough for percentiles of a bus whose return delay
 # steps by 50 us (table 4.6 No. 7), with memory bounded by the spread, not by the capture length.
 _LATENCY_BIN = 1e-6
+# The peak bus load is the busiest of these windows from the capture start: long enough to hold many
+# poll cycles, short enough that a burst is not averaged away over a long capture.
+_LOAD_WINDOW = 1.0
+# (flag, carries data) -> (op word, asks for a return): both follow from those two alone (table 4.2, 4.3).
+_OPS: dict[tuple[int, bool], tuple[str, bool]] = {}
 
 
 @dataclass
@@ -33,6 +39,7 @@ class ServoStats:
     missing: int = 0           # requests whose reply never came
     first_read_t: float | None = None
     last_read_t: float | None = None
+    first_missing: tuple[float | None, int] | None = None  # (t, offset) of the first unanswered request
 
     @property
     def poll_rate(self) -> float | None:
@@ -94,6 +101,14 @@ class CaptureStats(Sink):
         self.first_t: float | None = None
         self.last_t: float | None = None
         self.timed = False
+        self.health = HealthRecorder()          # per-servo register ranges, status flags, findings
+        self.bad_by: Counter = Counter()        # (kind, the ID it claims) of packets with a bad Sum
+        self.first_bad: tuple[float | None, int] | None = None
+        self.first_garbage: tuple[float | None, int] | None = None
+        self._win_start: float | None = None    # the current bus-load window (see _LOAD_WINDOW)
+        self._win_end = float("-inf")
+        self._win_bytes = 0
+        self._peak: tuple[float, float] | None = None  # (load, window start) of the busiest full window
 
     # ---- as a sink ---------------------------------------------------------------------------------
     def chunk(self, data: bytes, t: float | None) -> None:
@@ -116,60 +131,107 @@ class CaptureStats(Sink):
         return st
 
     def add(self, rec: Any) -> None:
+        # Per record on captures of millions of frames: events are read by index, not by property.
         ev = rec.event
         self.records += 1
-        kind = ev.kind
+        t = type(ev)
+        kind = t.kind
         self.by_kind[kind] += 1
-        self.bytes = max(self.bytes, ev.offset + len(ev.raw))
-        if ev.t_start is not None:
+        raw = ev[1]
+        end_offset = ev[0] + len(raw)
+        if end_offset > self.bytes:
+            self.bytes = end_offset
+        ts = ev[2]
+        if ts is not None:
             self.timed = True
             if self.first_t is None:
-                self.first_t = ev.t_start
-            end = ev.t_end if ev.t_end is not None else ev.t_start
+                self.first_t = ts
+            end = ev[3]
+            if end is None:
+                end = ts
             if self.last_t is None or end > self.last_t:
                 self.last_t = end
-        if kind == "garbage":
-            self.garbage_bytes += len(ev.raw)
+            if ts >= self._win_end:
+                self._roll(ts)
+            self._win_bytes += len(raw)
+        if t is Garbage:
+            self.garbage_bytes += len(raw)
+            if self.first_garbage is None:
+                self.first_garbage = (ts, ev[0])
             return
         if not ev.checksum_ok:
             # Its ID, VIDs and op cannot be trusted: a bad checksum, not traffic of the servos it names.
+            # The ID it claims is kept apart, as a hint for the summary ("bad returns from ID 3").
             self.bad_checksums += 1
+            self.bad_by[kind, getattr(ev, "id", None)] += 1
+            if self.first_bad is None:
+                self.first_bad = (ts, ev[0])
             return
-        t = type(ev)
         if t is ShortPacket:
-            self.by_op[ev.op] += 1
-            if ev.id != 0xFF:
-                st = self.servo(ev.id)
+            data = ev[9]
+            key = (ev[5], bool(data))
+            op = _OPS.get(key)
+            if op is None:  # the op and whether it reads depend on the flag and on data being there
+                op = _OPS[key] = (ev.op, ev.read_range is not None)
+            self.by_op[op[0]] += 1
+            sid = ev[4]
+            if sid != 0xFF:
+                st = self.servos.get(sid) or self.servo(sid)
                 st.requests += 1
-                if ev.read_range is not None:
+                if st.requests == 1:  # the model it is decoded as, even if it never answers
+                    self.health.servo(sid).model = rec.model
+                if op[1]:
                     st.reads += 1
-                    if ev.t_start is not None:
+                    if ts is not None:
                         if st.first_read_t is None:
-                            st.first_read_t = ev.t_start
-                        st.last_read_t = ev.t_start
+                            st.first_read_t = ts
+                        st.last_read_t = ts
                 if rec.status == "missing":
                     st.missing += 1
+                    if st.first_missing is None:
+                        st.first_missing = (ts, ev[0])
+                if data:
+                    self.health.written(rec, ev, sid)
         elif t is LongPacket:
             self.by_op["long-write"] += 1
-            for r in ev.records:
-                self.servo(r.vid).long_writes += 1
-        elif rec.is_reply:
-            sid = rec.id
+            servos = self.servos
+            for r in ev[8]:
+                st = servos.get(r[0]) or self.servo(r[0])
+                st.long_writes += 1
+            self.health.long_written(rec, ev)
+        else:  # a reply: return, ACK or NACK
+            sid = ev[4] if t is ReturnPacket else rec.id
             if sid is not None:
-                st = self.servo(sid)
-                if kind == "return":
+                st = self.servos.get(sid) or self.servo(sid)
+                if t is ReturnPacket:
                     st.returns += 1
-                elif kind == "ack":
+                    self.health.returned(rec, ev, sid)
+                elif t is Ack:
                     st.acks += 1
                 else:
                     st.nacks += 1
-            if rec.latency is not None and rec.status == "paired":
-                self.latency.add(rec.latency)
+            lat = rec.latency
+            if lat is not None and rec.status == "paired":
+                self.latency.add(lat)
 
     def add_findings(self, findings: Iterable[Any]) -> None:
+        findings = list(findings)
         for f in findings:
             self.findings[f.severity] += 1
             self.finding_codes[f"{f.code} {f.name}"] += 1
+        self.health.findings(findings)
+
+    def _roll(self, ts: float) -> None:
+        """Close the bus-load window(s) before ``ts`` and open the one holding it."""
+        if self._win_start is None:
+            self._win_start = ts
+        else:
+            load = min(1.0, self._win_bytes * byte_time(self.baud) / _LOAD_WINDOW)
+            if self._peak is None or load > self._peak[0]:
+                self._peak = (load, self._win_start)
+            self._win_start += (ts - self._win_start) // _LOAD_WINDOW * _LOAD_WINDOW
+        self._win_end = self._win_start + _LOAD_WINDOW
+        self._win_bytes = 0
 
     def set_bytes(self, n: int) -> None:
         """The input's total byte count (the records may end before trailing bytes of a cut frame)."""
@@ -195,6 +257,27 @@ class CaptureStats(Sink):
             return None
         d = self.duration
         return min(1.0, self.line_time / d) if d > 0 else None
+
+    @property
+    def load_peak(self) -> tuple[float, float] | None:
+        """(load, start time) of the busiest second of a timed capture (None for a shorter one).
+
+        The last window counts over its own span once that is half a window (shorter, one packet
+        would look like a full bus); and no second is quieter than the whole capture's average says
+        the busiest must be.
+        """
+        if not self.timed or self._win_start is None or self.duration < _LOAD_WINDOW:
+            return None
+        best = self._peak
+        span = (self.last_t or self._win_start) - self._win_start
+        if span >= _LOAD_WINDOW / 2:
+            load = min(1.0, self._win_bytes * byte_time(self.baud) / min(span, _LOAD_WINDOW))
+            if best is None or load > best[0]:
+                best = (load, self._win_start)
+        avg = self.bus_load
+        if avg is not None and self.first_t is not None and (best is None or avg > best[0]):
+            best = (avg, self.first_t)
+        return best
 
     @property
     def packets(self) -> int:
@@ -224,6 +307,25 @@ class CaptureStats(Sink):
             },
             "findings": {sev: self.findings.get(sev, 0) for sev in ("error", "warning", "info")},
             "findings_by_rule": dict(self.finding_codes.most_common()),
+            **self.health_dict(),
+        }
+
+    def health_dict(self) -> dict[str, Any]:
+        """Per-servo health, the busiest second and the "what happened" lines (keys of :meth:`as_dict`)."""
+        self.health.flush()
+        when = timer(self.first_t, self.timed, byte_time(self.baud))
+        hs = self.health.servos
+        # The servos of the traffic table, and any whose registers were seen; not IDs only a finding
+        # named (a damaged packet's ID is no servo).
+        ids = set(self.servos) | {sid for sid, h in hs.items() if h.lo or h.flags}
+        health = {str(sid): servo_health(hs.get(sid), when) for sid in sorted(ids)}
+        peak = self.load_peak
+        t, wall = when(peak[1], 0) if peak else (None, None)
+        return {
+            "health": health,
+            "bus_load_peak": None if peak is None else {"load": peak[0], "t": t, "wall": wall,
+                                                        "window_s": _LOAD_WINDOW},
+            "what_happened": what_happened(self, health, when),
         }
 
 

@@ -1,4 +1,4 @@
-"""`rs30x-sniff info`: what a capture holds: duration, traffic by type, per-servo polls, latencies, bus load."""
+"""`rs30x-sniff info`: what a capture holds: traffic, polls, latencies, bus load, per-servo health, what happened."""
 
 from __future__ import annotations
 
@@ -92,3 +92,65 @@ def _print_text(out: Any, name: str, s: CaptureStats, linted: bool, time_ref: An
                                                       "missing")), rate)
         con.print()
         con.print(table)
+    _print_health(con, d, linted)
+
+
+# Health table columns: (register, heading); the unit comes from the register map via the JSON.
+_HEALTH_COLUMNS = (("present_position", "position"), ("present_speed", "speed"), ("present_current", "current"),
+                   ("present_temperature", "temp"), ("present_voltage", "voltage"), ("goal_position", "goal"))
+
+
+def _range(r: dict[str, Any] | None) -> str:
+    if r is None:
+        return "-"
+    lo, hi = f"{r['min']:g}", f"{r['max']:g}"
+    return lo if lo == hi else f"{lo}..{hi}"
+
+
+def _print_health(con: Any, d: dict[str, Any], linted: bool) -> None:
+    """The per-servo health table, the flags and findings per servo, and the "what happened" lines."""
+    from rich.table import Table
+
+    health = d["health"]
+    if health:
+        units: dict[str, str] = {}
+        for h in health.values():
+            for name, r in h["registers"].items():
+                units.setdefault(name, r["unit"] or "")
+        shown = [(name, head) for name, head in _HEALTH_COLUMNS if name in units]
+        table = Table(title=None, box=None, pad_edge=False, padding=(0, 2, 0, 0))
+        table.add_column("id", justify="right")
+        table.add_column("model")
+        for name, head in shown:
+            table.add_column(f"{head} {units[name]}".rstrip(), justify="right")
+        for sid, h in health.items():
+            table.add_row(sid, h["model"] or "-", *(_range(h["registers"].get(name)) for name, _ in shown))
+        con.print()
+        con.print("[bold]health[/bold] (min..max from the returns; goal from the writes)")
+        con.print(table)
+        for sid, h in health.items():
+            parts = [f"{name} {v['count']}x, first at {v['first_t']:.2f} s" if v["first_t"] is not None
+                     else f"{name} {v['count']}x" for name, v in h["flags"].items()]
+            if h["findings"]:
+                parts.append("findings " + ", ".join(f"{code} {n}" for code, n in h["findings"].items()))
+            if parts:
+                _wrapped(con, f"  ID {sid:<4} ", "; ".join(parts))
+    con.print()
+    con.print("[bold]what happened[/bold]" + ("" if linted else " (not linted: from the figures alone)"))
+    colour = {"error": "red", "warning": "yellow"}
+    for item in d["what_happened"]:
+        sev = item["severity"]
+        _wrapped(con, f"  {sev:<9}", item["text"], colour.get(sev))
+
+
+def _wrapped(con: Any, head: str, text: str, style: str | None = None) -> None:
+    """``head`` then ``text`` wrapped under itself (a rich grid would pad every line to the width)."""
+    import textwrap
+
+    from rich.markup import escape
+
+    lines = textwrap.wrap(text, width=max(40, con.width - len(head)), break_on_hyphens=False) or [""]
+    first = f"[{style}]{escape(head)}[/{style}]" if style else escape(head)
+    con.print(first + escape(lines[0]))
+    for line in lines[1:]:
+        con.print(" " * len(head) + escape(line))
