@@ -81,6 +81,12 @@ class MonitorApp(App):
         Binding("r", "toggle_record", "Record"),
         Binding("g", "goto_pair", "Pair"),
         Binding("p", "next_plot", "Plot"),
+        Binding("a", "plot_all", "All servos", show=False),
+        Binding("z", "plot_zoom(0.5)", "Zoom in", show=False),
+        Binding("Z", "plot_zoom(2.0)", "Zoom out", show=False, key_display="Z"),
+        Binding("left_square_bracket", "plot_pan(-0.25)", "Pan back", show=False, key_display="["),
+        Binding("right_square_bracket", "plot_pan(0.25)", "Pan on", show=False, key_display="]"),
+        Binding("0", "plot_reset", "Whole plot", show=False),
         Binding("d", "toggle_detail", "Detail"),
         Binding("b", "next_pane", "Pane"),
         Binding("question_mark", "help", "Help", key_display="?"),
@@ -362,6 +368,23 @@ class MonitorApp(App):
         now = next((k for k, p in enumerate(BOTTOM_PANES) if self.has_class(f"-bottom-{p}")), 0)
         self.remove_class(f"-bottom-{BOTTOM_PANES[now]}")
         self.add_class(f"-bottom-{BOTTOM_PANES[(now + 1) % len(BOTTOM_PANES)]}")
+
+    def action_plot_all(self) -> None:
+        store = self.store
+        store.set_plot(store.plot_id, all_servos=not store.plot_all)
+        self.plot.update_from(store)
+
+    def action_plot_zoom(self, factor: float) -> None:
+        self.plot.zoom(self.store, factor)
+        self.plot.update_from(self.store)
+
+    def action_plot_pan(self, fraction: float) -> None:
+        self.plot.pan(self.store, fraction)
+        self.plot.update_from(self.store)
+
+    def action_plot_reset(self) -> None:
+        self.plot.reset()
+        self.plot.update_from(self.store)
 
     def action_next_plot(self) -> None:
         store = self.store

@@ -9,9 +9,10 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.message import Message
-from textual.widgets import DataTable, Label, Sparkline
+from textual.widgets import DataTable, Label, Static
 
 from .rows import SEVERITY_MARKS, SEVERITY_STYLES, clean
+from .plot import COLOURS, Window, render
 from .store import SERVO_COLUMNS, ServoRow, Store
 
 FLASH_SECONDS = 1.0  # how long a changed value stays highlighted
@@ -162,24 +163,57 @@ class FindingsPane(DataTable):
 
 
 class PlotPane(Vertical):
-    """A sparkline of one register of one servo over its recent values."""
+    """One register over time: the selected servo (and with `a` every servo), each column's min to max;
+    `z`/`Z` zoom the time axis in and out, `[`/`]` pan, `0` shows it all again (following the newest)."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.window = Window()
 
     def compose(self) -> ComposeResult:
         yield Label(Text("plot: no servo yet"), id="plot-title")
-        yield Sparkline([], id="plot-line")
+        yield Static(Text(""), id="plot-line")
         yield Label(Text(""), id="plot-range")
 
+    def bounds(self, store: Store) -> tuple[float, float] | None:
+        times = [t for ts, _ in store.plot_series.values() if ts for t in (ts[0], ts[-1])]
+        return (min(times), max(times)) if times else None
+
+    def zoom(self, store: Store, factor: float) -> None:
+        b = self.bounds(store)
+        if b is not None:
+            self.window.zoom(factor, *b)
+
+    def pan(self, store: Store, fraction: float) -> None:
+        b = self.bounds(store)
+        if b is not None:
+            self.window.pan(fraction, *b)
+
+    def reset(self) -> None:
+        self.window = Window()
+
     def update_from(self, store: Store) -> None:
-        data = list(store.plot)
         title = Text("plot: ")
         if store.plot_id is None:
             title.append("no servo yet")
         else:
-            title.append(f"ID {store.plot_id} ", "bold")
-            title.append(store.plot_register, "cyan")
+            ids = list(store.plot_series)
+            for n, sid in enumerate(ids):
+                title.append(f"{'' if n == 0 else ' '}{sid}", COLOURS[n % len(COLOURS)] + (" bold" if n == 0 else ""))
+            title.append(" " + store.plot_register, "cyan")
         self.query_one("#plot-title", Label).update(title)
-        self.query_one("#plot-line", Sparkline).data = data
-        rng = Text(f"{len(data)} samples", "grey70")
-        if data:
-            rng = Text(f"last {data[-1]:g}  min {min(data):g}  max {max(data):g}  n={len(data)}", "grey70")
+        line = self.query_one("#plot-line", Static)
+        width, height = max(1, line.size.width or self.size.width - 2), max(1, line.size.height or 6)
+        b = self.bounds(store)
+        if b is None:
+            line.update(Text(""))
+            self.query_one("#plot-range", Label).update(Text("no samples", "grey70"))
+            return
+        t0, t1 = self.window.bounds(*b)
+        rows, vmin, vmax = render(list(store.plot_series.values()), width, height, t0, t1)
+        line.update(Text("\n").join(rows))
+        shown = "all" if self.window.span is None else f"{t1 - t0:.3g} s"
+        rng = Text(f"{t0:.2f}-{t1:.2f} s ({shown})", "grey70")
+        if vmin is not None:
+            rng.append(f"  {vmin:g}..{vmax:g}", "grey70")
         self.query_one("#plot-range", Label).update(rng)

@@ -15,7 +15,7 @@ from ..stats import RecentLoad
 from .filter import SEVERITY_RANK, Filter
 
 DEFAULT_HISTORY = 1_000_000
-PLOT_POINTS = 512
+PLOT_POINTS = 4096  # samples kept per plotted servo (drawn binned by time, so a long capture stays readable)
 LOAD_WINDOW = 1.0  # seconds of capture time the bus load is measured over
 # Registers the plot can show, in the order `p` cycles through them.
 PLOT_REGISTERS = ("present_position", "present_speed", "present_current", "present_temperature",
@@ -159,6 +159,7 @@ class Store:
         self.plot_points = plot_points
         self.plot_id: int | None = None
         self.plot_register = PLOT_REGISTERS[0]
+        self.plot_all = False
         self.bytes_in = 0
         self.servos: dict[int, ServoRow] = {}
         self.clear()
@@ -177,7 +178,9 @@ class Store:
         self.servos = {}
         self.capture_stats: dict[str, Any] = {}  # the feeder's CaptureStats.as_dict(): info's figures
         self.recent_load = RecentLoad(self.baud, LOAD_WINDOW)
-        self.plot: deque[float] = deque(maxlen=self.plot_points)
+        self.plot_series: dict[int, tuple[deque[float], deque[float]]] = {}  # servo -> (times, values)
+        if self.plot_id is not None:
+            self.set_plot(self.plot_id)
         self.filter: Filter | None = None
         self.view: array | None = None  # seqs that pass the filter; None when there is no filter
         self._scan_seq: int | None = None  # where a filter scan resumes; None when it is complete
@@ -208,7 +211,8 @@ class Store:
         memory = 0
         loads: list[tuple[float, int]] = []
         load = loads.append
-        plot_id, plot_reg, plot = self.plot_id, self.plot_register, self.plot
+        series, plot_reg = self.plot_series, self.plot_register
+        byte_seconds = 10 / self.baud  # a capture without times is plotted against line time
         # This loop runs on the screen's thread for every record: keep it lean.
         missing = 0
         first_t = stats.first_t
@@ -226,10 +230,21 @@ class Store:
                     first_t = t
                 last_t = t
                 load((t, len(ev.raw)))
-            if plot_id is not None and (getattr(ev, "id", None) == plot_id or type(ev) is LongPacket):
-                v = register_value(rec, plot_id, plot_reg)
-                if isinstance(v, (int, float)):
-                    plot.append(float(v))
+            if series:
+                if type(ev) is LongPacket:
+                    for sid, (ts, vs) in series.items():
+                        v = register_value(rec, sid, plot_reg)
+                        if isinstance(v, (int, float)):
+                            ts.append(ev.offset * byte_seconds if t is None else t)
+                            vs.append(float(v))
+                else:
+                    sid = getattr(ev, "id", None)
+                    if sid in series:
+                        v = register_value(rec, sid, plot_reg)
+                        if isinstance(v, (int, float)):
+                            ts, vs = series[sid]
+                            ts.append(ev.offset * byte_seconds if t is None else t)
+                            vs.append(float(v))
             if flt is not None and flt.matches(rec):
                 view.append(seq)
             seq += 1
@@ -405,19 +420,41 @@ class Store:
         return None
 
     # ---- plot ------------------------------------------------------------------------------------
-    def set_plot(self, servo_id: int | None, register: str | None = None) -> None:
-        """Plot another servo or register: refill the series from the held history."""
+    @property
+    def plot(self) -> deque[float]:
+        """The plotted servo's values, oldest first."""
+        pair = self.plot_series.get(self.plot_id) if self.plot_id is not None else None
+        return pair[1] if pair is not None else deque()
+
+    def set_plot(self, servo_id: int | None, register: str | None = None, *, all_servos: bool | None = None) -> None:
+        """Plot another servo or register (``all_servos``: every servo's series beside the selected one):
+        refill the series from the held history."""
         if register is not None:
             self.plot_register = register
+        if all_servos is not None:
+            self.plot_all = all_servos
         self.plot_id = servo_id
-        self.plot = deque(maxlen=self.plot_points)
+        self.plot_series = {}
         if servo_id is None:
             return
-        found: list[float] = []
+        ids = [servo_id] + ([i for i in sorted(self.servos) if i != servo_id] if self.plot_all else [])
+        found: dict[int, tuple[list[float], list[float]]] = {i: ([], []) for i in ids}
+        full: set[int] = set()
+        byte_seconds = 10 / self.baud
         for rec in reversed(self.rows):
-            v = register_value(rec, servo_id, self.plot_register)
-            if isinstance(v, (int, float)):
-                found.append(float(v))
-                if len(found) >= self.plot_points:
-                    break
-        self.plot.extend(reversed(found))
+            ev = rec.event
+            for sid in ids if type(ev) is LongPacket else ((ev.id,) if getattr(ev, "id", None) in found else ()):
+                if sid in full:
+                    continue
+                v = register_value(rec, sid, self.plot_register)
+                if isinstance(v, (int, float)):
+                    ts, vs = found[sid]
+                    ts.append(ev.offset * byte_seconds if ev.t_start is None else ev.t_start)
+                    vs.append(float(v))
+                    if len(vs) >= self.plot_points:
+                        full.add(sid)
+            if len(full) == len(ids):
+                break
+        for sid, (ts, vs) in found.items():
+            self.plot_series[sid] = (deque(reversed(ts), maxlen=self.plot_points),
+                                     deque(reversed(vs), maxlen=self.plot_points))

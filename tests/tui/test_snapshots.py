@@ -1,7 +1,9 @@
-"""Snapshots of the monitor at a fixed terminal size: the main screen, the detail pane, and the help.
+"""Snapshots of the monitor: the main screen at 80x24, 120x30 and 160x48, panes, the detail pane, the help.
 
-Update them after an intended change with ``pytest tests/tui/test_snapshots.py --snapshot-update`` and
-look at the SVGs under tests/tui/__snapshots__ before committing.
+The SVGs are compared after the screenshot's id (a hash over the rendered segments, which carry per-run
+handler metadata) is taken out, so the same screen always compares equal. After an intended change,
+run ``RS30X_UPDATE_SNAPSHOTS=1 pytest tests/tui/test_snapshots.py`` and look at the SVGs under
+tests/tui/__snapshots__/screens before committing.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from rs30x_sniff.tui.sources import FileSource
 
 from .helpers import ROOT, SIZE, FrozenClock, wait_done
 
+SCREENS = Path(__file__).parent / "__snapshots__" / "screens"
+
 
 @pytest.fixture(autouse=True)
 def _in_the_repository(monkeypatch):
@@ -32,38 +36,9 @@ def manual_app():
                     linter_factory=Linter, tick_interval=3600)
 
 
-async def loaded(pilot):
-    await wait_done(pilot, pilot.app)
-
-
-def test_main_screen(snap_compare):
-    assert snap_compare(manual_app(), terminal_size=SIZE, run_before=loaded)
-
-
-def test_detail_pane_with_a_field_selected(snap_compare):
-    async def select_field(pilot):
-        await loaded(pilot)
-        # The long packet at @42: its second servo's goal_position bytes light up in the hex dump.
-        await pilot.press("home", "down", "down", "down", "down", "down", "tab")
-        await pilot.press("down", "down", "down", "down")
-        await pilot.pause()
-
-    assert snap_compare(manual_app(), terminal_size=SIZE, run_before=select_field)
-
-
-def test_help_screen(snap_compare):
-    assert snap_compare(manual_app(), terminal_size=SIZE, press=["question_mark"], run_before=loaded)
-
-
-# Screens at common terminal sizes, as SVG snapshots compared after the screenshot's id (a hash over
-# the rendered segments, which carry per-run handler metadata at these sizes) is taken out. Update with
-# RS30X_UPDATE_SNAPSHOTS=1 and look at the SVGs under tests/tui/__snapshots__/sizes before committing.
-SIZES_DIR = Path(__file__).parent / "__snapshots__" / "sizes"
-
-
 async def settled(pilot):
     """Loaded, and the layout done with its resize (the panes refill for their new widths)."""
-    await loaded(pilot)
+    await wait_done(pilot, pilot.app)
     for _ in range(3):
         await pilot.pause(0.1)
     await pilot.wait_for_scheduled_animations()
@@ -81,7 +56,7 @@ async def _compare(name: str, size: tuple[int, int], *keys: str) -> None:
             await pilot.press(*keys)
             await settled(pilot)
         svg = _normal(app.export_screenshot())
-    path = SIZES_DIR / f"{name}.svg"
+    path = SCREENS / f"{name}.svg"
     if os.environ.get("RS30X_UPDATE_SNAPSHOTS"):
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(svg)
@@ -89,11 +64,22 @@ async def _compare(name: str, size: tuple[int, int], *keys: str) -> None:
     assert svg == path.read_text(), f"{path.name} differs: look at it, then RS30X_UPDATE_SNAPSHOTS=1"
 
 
-@pytest.mark.parametrize("size", [(80, 24), (120, 30), (160, 48)], ids=["80x24", "120x30", "160x48"])
+@pytest.mark.parametrize("size", [(80, 24), (120, 30), SIZE], ids=["80x24", "120x30", "160x48"])
 async def test_main_screen_fits_common_terminal_sizes(size):
     """At 80x24 the timeline keeps time, direction, ID, kind and summary (the detail pane behind `d`, one
-    bottom pane at a time); at 120x30 the findings and plot take turns beside the servos."""
+    bottom pane at a time); at 120x30 the findings and plot take turns beside the servos; at 160x48
+    everything shows."""
     await _compare(f"main-{size[0]}x{size[1]}", size)
+
+
+async def test_detail_pane_with_a_field_selected():
+    # The long packet at @42: its second servo's goal_position bytes light up in the hex dump.
+    await _compare("detail-field-160x48", SIZE, "home", "down", "down", "down", "down", "down", "tab",
+                   "down", "down", "down", "down")
+
+
+async def test_help_screen():
+    await _compare("help-160x48", SIZE, "question_mark")
 
 
 async def test_findings_wrap_at_80x24():
@@ -102,3 +88,7 @@ async def test_findings_wrap_at_80x24():
 
 async def test_detail_pane_at_80x24():
     await _compare("detail-80x24", (80, 24), "up", "up", "d")  # the detail pane in the timeline's place
+
+
+async def test_plot_of_every_servo_zoomed():
+    await _compare("plot-all-zoomed-160x48", SIZE, "a", "z")
