@@ -6,13 +6,14 @@ import csv
 from datetime import datetime, timezone
 from typing import IO, Any, Callable, Iterable
 
-from ..events import Garbage
+from ..events import Garbage, LongPacket, ReturnPacket, ShortPacket
 from ..memmap import ModelRegistry
 from ..pipeline import Sink, Step
+from ..render import direction, summary
 from ..wire import BROADCAST_ID, byte_time
 from .mcap_sink import transaction_json
 
-KINDS = ("states", "transactions", "findings")
+KINDS = ("states", "transactions", "findings", "packets")
 CSV, PARQUET = "csv", "parquet"
 TABLE_FORMATS = (CSV, PARQUET)
 EXTENSIONS = {".csv": CSV, ".parquet": PARQUET, ".pq": PARQUET}
@@ -361,4 +362,27 @@ class FindingsSink(TableSink):
             self._row(self._time(f.t, f.offset), rest)
 
 
-SINKS = {"states": StatesSink, "transactions": TransactionsSink, "findings": FindingsSink}
+class PacketsSink(TableSink):
+    """One row per event (every packet, ACK/NACK and garbage run), as `decode` lists them."""
+
+    kind = "packets"
+
+    def columns(self) -> list[Column]:
+        return [("offset", INT), ("type", STR), ("direction", STR), ("id", INT), ("op", STR), ("flag", INT),
+                ("address", INT), ("length", INT), ("count", INT), ("checksum_ok", BOOL), ("status", STR),
+                ("reply_to", INT), ("latency_s", FLOAT), ("summary", STR), ("findings", STRS), ("raw", STR)]
+
+    def batch(self, step: Step) -> None:
+        for rec in step:
+            ev = rec.event
+            t = type(ev)
+            header = (ev.id, ev.flag if t is not ReturnPacket else ev.flags, ev.address, ev.length, ev.count) \
+                if t is ShortPacket or t is LongPacket or t is ReturnPacket else (rec.id, None, None, None, None)
+            self._row(self._time(ev.t_start, ev.offset), (
+                ev.offset, ev.kind, direction(rec), header[0], ev.op if t is ShortPacket else
+                ("write" if t is LongPacket else None), *header[1:], ev.checksum_ok, rec.status,
+                rec.request.offset if rec.request is not None else None, rec.latency,
+                summary(rec, bare=False, keep=False), [f.code for f in rec.findings] or None, ev.raw.hex()))
+
+
+SINKS = {"states": StatesSink, "transactions": TransactionsSink, "findings": FindingsSink, "packets": PacketsSink}
