@@ -92,20 +92,7 @@ class FoxgloveSink(JsonChannels):
         cid.log(data, log_time=log_time)
         self.messages += 1
 
-    # ---- as a sink of the drive loop (rs30x_sniff.pipeline) ----------------------------------------
-    def chunk(self, data: bytes, t: float | None) -> None:
-        self.raw(data, t)
-
-    def batch(self, step: Any) -> None:
-        record = self.record
-        for rec in step:
-            record(rec)
-        if step.findings:
-            self.findings(step.findings)
-
-    def idle(self) -> None:
-        pass
-
+    # chunk, batch and idle (the drive loop's sink protocol) are JsonChannels'.
     def close(self) -> None:
         """Stop the server (clients see it close); idempotent."""
         if self._closed:

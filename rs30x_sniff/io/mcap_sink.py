@@ -152,6 +152,20 @@ class JsonChannels:
                    "name": f"{f.code} {f.name}", "file": self.source, "line": f.offset}
             self._write(self._channel(DIAGNOSTICS_TOPIC, "foxglove.Log"), ns, _encode(msg).encode())
 
+    # ---- as a sink of the drive loop (rs30x_sniff.pipeline) ----------------------------------------
+    def chunk(self, data: bytes, t: float | None) -> None:
+        self.raw(data, t)
+
+    def batch(self, step: Any) -> None:
+        record = self.record
+        for rec in step:
+            record(rec)
+        if step.findings:
+            self.findings(step.findings)
+
+    def idle(self) -> None:
+        pass
+
 
 class McapSink(JsonChannels):
     """Writes one MCAP file: register each schema and channel once (lazily), chunks cut by size and
@@ -242,21 +256,14 @@ class McapSink(JsonChannels):
         self._chunk_start = None
         self._chunk_bytes = 0
 
-    # ---- as a sink of the drive loop (rs30x_sniff.pipeline) ----------------------------------------
+    # ---- as a sink: JsonChannels' protocol, and the statistics of what passed through ------------
     def chunk(self, data: bytes, t: float | None) -> None:
-        self.raw(data, t)
+        super().chunk(data, t)
         self.stats.chunk(data, t)
 
     def batch(self, step: Any) -> None:
-        record = self.record
-        for rec in step:
-            record(rec)
-        if step.findings:
-            self.findings(step.findings)
+        super().batch(step)
         self.stats.batch(step)
-
-    def idle(self) -> None:
-        pass
 
     def close(self) -> None:
         self.finish()
