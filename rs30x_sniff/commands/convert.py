@@ -14,7 +14,7 @@ from ..pipeline import Decoder, drive
 from ..settings import Settings
 from ..sinks import ProgressSink
 from .common import CliError, add_decode_options, add_lint_options, make_linter, open_input, settings_for
-from .outputs import check_output, output_path
+from .outputs import check_output, output_path, report_end
 
 
 # A file is converted in chunks of up to 1 MiB (still cut at 1 s of log time): the summary lists every
@@ -112,8 +112,4 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as e:
         stopped = str(e) or "Ctrl-C"  # the log of what was read so far is finished and kept
     summary = f"{args.output}: {decoder.bytes_in} bytes, {sink.messages} messages, {sink.bytes_written} bytes written"
-    if stopped:
-        print(f"rs30x-sniff: stopped ({stopped}): {summary}", file=sys.stderr)
-        return 130
-    print(summary, file=sys.stderr)
-    return 0
+    return report_end(summary, stopped)

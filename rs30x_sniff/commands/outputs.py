@@ -108,6 +108,15 @@ def write_stream(out: IO[bytes], chunks: Iterable[tuple[bytes, float | None]], f
     return total
 
 
+def report_end(summary: str, stopped: str | None) -> int:
+    """The last line of a command that wrote a file: its summary, and how it was stopped (exit 130)."""
+    if stopped:
+        print(f"rs30x-sniff: stopped ({stopped}): {summary}", file=sys.stderr)
+        return 130
+    print(summary, file=sys.stderr)
+    return 0
+
+
 def _discard(tmp: str) -> None:
     try:
         os.unlink(tmp)

@@ -11,7 +11,7 @@ from ..io.tables import CSV, KINDS, PARQUET, SINKS, TABLE_FORMATS, MissingPyarro
 from ..memmap import default_registry
 from ..pipeline import Decoder, drive
 from .common import CliError, add_decode_options, add_lint_options, make_linter, no_data, open_input, settings_for
-from .outputs import STDOUT, check_output, output_path
+from .outputs import STDOUT, check_output, output_path, report_end
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -86,8 +86,4 @@ def run(args: argparse.Namespace) -> int:
         stopped = str(e) or "Ctrl-C"
     no_data(args.input, decoder, chunks)
     summary = f"{args.output}: {sink.rows if sink else 0} rows of {args.of}"
-    if stopped:
-        print(f"rs30x-sniff: stopped ({stopped}): {summary}", file=sys.stderr)
-        return 130
-    print(summary, file=sys.stderr)
-    return 0
+    return report_end(summary, stopped)

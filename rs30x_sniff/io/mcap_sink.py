@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import base64
 import json
-from typing import IO, Any, Callable, Iterable
+from typing import IO, Any, Iterable
 
 from mcap.writer import CompressionType, Writer
 

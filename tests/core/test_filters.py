@@ -11,7 +11,7 @@ from rs30x_sniff.cli import main
 from rs30x_sniff.filters import FilterError, parse_filter
 from rs30x_sniff.io.captures import read_capture
 from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.wire import encode_long, encode_return, encode_short
+from rs30x_sniff.wire import encode_long, encode_return
 from tests.conftest import CAPTURES, h
 
 SESSION = str(CAPTURES / "session-mixed.thex")

@@ -2,7 +2,7 @@
 
 from rs30x_sniff.lint import LintConfig, Linter
 from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.wire import encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.wire import encode_long, encode_read, encode_return
 from tests.conftest import h
 
 

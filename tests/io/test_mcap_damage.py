@@ -10,7 +10,7 @@ from mcap.reader import make_reader
 from rs30x_sniff.io.captures import CaptureError, CaptureWarning, read_capture
 from rs30x_sniff.io.mcap_source import McapRawReader
 
-from .conftest import frames, make_mcap
+from .conftest import make_mcap
 
 
 def _read(path, warnings: list | None = None) -> tuple[list, McapRawReader]:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import pytest
 
 from rs30x_sniff.tui.plot import Window, columns, render
 
