@@ -81,9 +81,9 @@ def test_duration_and_split_size_rotate_complete_files(pty, tmp_path):
 
 def test_decode_streams_lines_from_a_port_while_it_runs(pty):
     proc = cli("decode", pty.path, "--duration", "6", "--no-lint")
-    time.sleep(1.0)  # the port is open (and its input flushed) well before this
+    time.sleep(2.0)  # the port is open (and its input flushed) well before this, even on a loaded machine
     pty.write_sim("setup", duration=None)
-    readable, _, _ = select.select([proc.stdout], [], [], 3.0)
+    readable, _, _ = select.select([proc.stdout], [], [], 5.0)
     assert readable and proc.poll() is None  # a line while decode is still running
     first = os.read(proc.stdout.fileno(), 1 << 16).decode()  # unbuffered: communicate() reads the rest
     assert "PING id=1" in first.splitlines()[0]
