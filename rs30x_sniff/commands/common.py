@@ -230,10 +230,12 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
     return settings
 
 
-def is_port_path(path: str) -> bool:
+def is_port_path(path: str, *, unplugged: bool = False) -> bool:
+    """A serial port (a device or a pyserial URL) rather than a capture file; with ``unplugged``, a /dev
+    path that does not exist counts too (an adapter not plugged in: the monitor says so as a port)."""
     from ..io.serial_tap import is_port  # no pyserial import unless INPUT is a port
 
-    return is_port(path)
+    return is_port(path) or (unplugged and path.startswith("/dev/") and not os.path.exists(path))
 
 
 def _scan(port: str, settings: Settings) -> Settings:
@@ -312,14 +314,11 @@ def open_input(path: str, fmt: str | None, settings: Settings, *, duration: floa
     the returned source then has ``live = True`` and, after iteration, ``lost`` tells whether the
     port failed. A timestamped capture's times are read by the settings' time reference.
     """
-    if fmt is None:
-        from ..io.serial_tap import is_port  # no pyserial import unless INPUT is a port
+    if fmt is None and is_port_path(path):
+        from ..io.serial_tap import LiveSource
 
-        if is_port(path):
-            from ..io.serial_tap import LiveSource
-
-            check_positive("--duration", duration)
-            return LiveSource(path, settings.baud, duration=duration).start()
+        check_positive("--duration", duration)
+        return LiveSource(path, settings.baud, duration=duration).start()
     return read_input(path, fmt, baud=settings.baud, time_ref=settings.time_ref)
 
 

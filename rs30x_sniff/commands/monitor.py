@@ -7,7 +7,8 @@ import os
 from typing import Any
 
 from ..pipeline import DecodeOptions
-from .common import CliError, add_decode_options, add_lint_options, check_positive, lint_config, settings_for
+from ..settings import Settings
+from .common import CliError, add_decode_options, add_lint_options, check_positive, is_port_path, lint_config, settings_for
 from .serve import add_foxglove_option, start_foxglove
 
 
@@ -30,30 +31,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def _is_port(path: str) -> bool:
-    """A serial port rather than a capture file (a /dev path that does not exist is taken for an unplugged port)."""
-    from ..io.serial_tap import is_port
-
-    return is_port(path) or (path.startswith("/dev/") and not os.path.exists(path))
-
-
-def make_source(args: argparse.Namespace, baud: int):
+def make_source(args: argparse.Namespace, settings: Settings):
     """The source the command line asks for, opened now so a bad one fails before the screen starts."""
     from ..tui.sources import FileSource, PortSource, ReplaySource, SimulatorSource
 
     if args.simulate:
         if args.input:
             raise CliError("give either INPUT or --simulate SCENARIO, not both")
-        return SimulatorSource(args.simulate, baud, speed=args.speed)
+        return SimulatorSource(args.simulate, settings.baud, speed=args.speed)
     if not args.input:
         raise CliError("monitor needs INPUT (a capture file or a serial port) or --simulate SCENARIO")
-    if _is_port(args.input):
+    if is_port_path(args.input, unplugged=True):
         if args.replay:
             raise CliError("--replay plays a capture file; a port is live already")
-        return PortSource(args.input, baud)
+        return PortSource(args.input, settings.baud)
     if args.replay:
-        return ReplaySource(args.input, args.input_format, speed=args.speed, baud=baud)
-    return FileSource(args.input, args.input_format)
+        return ReplaySource(args.input, args.input_format, speed=args.speed, baud=settings.baud,
+                            time_ref=settings.time_ref)
+    return FileSource(args.input, args.input_format, baud=settings.baud, time_ref=settings.time_ref)
 
 
 def prepare(args: argparse.Namespace) -> tuple[Any, DecodeOptions, dict[str, Any]]:
@@ -80,7 +75,7 @@ def prepare(args: argparse.Namespace) -> tuple[Any, DecodeOptions, dict[str, Any
     if args.history is not None:
         config["history"] = args.history
     try:
-        source = make_source(args, opts.baud)
+        source = make_source(args, settings)
     except OSError as e:
         raise CliError(f"{args.input}: {e.strerror or e}") from None
     return source, opts, config

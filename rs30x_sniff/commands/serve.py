@@ -8,8 +8,8 @@ import threading
 from typing import Any
 
 from ..pipeline import Decoder, Pipeline
-from .common import CliError, add_decode_options, add_lint_options, check_positive, live_sinks, make_linter, \
-    settings_for
+from .common import (CliError, add_decode_options, add_lint_options, check_positive, is_port_path, live_sinks,
+                     make_linter, settings_for)
 
 
 def foxglove_address(text: str) -> tuple[str, int]:
@@ -67,7 +67,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .monitor import _is_port, make_source
+    from .monitor import make_source
 
     if not args.input and not args.simulate:
         raise CliError("serve needs INPUT (a serial port or a capture file) or --simulate SCENARIO")
@@ -75,10 +75,10 @@ def run(args: argparse.Namespace) -> int:
     opts = settings.decode_options()
     check_positive("--speed", args.speed)
     linter = make_linter(args, settings)
-    if args.input and not args.simulate and not _is_port(args.input):
+    if args.input and not args.simulate and not is_port_path(args.input, unplugged=True):
         args.replay = True
     try:
-        source = make_source(args, opts.baud)
+        source = make_source(args, settings)
     except OSError as e:
         raise CliError(f"{args.input}: {e.strerror or e}") from None
     stop = threading.Event()

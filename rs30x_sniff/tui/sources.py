@@ -6,8 +6,9 @@ import threading
 import time
 from typing import Callable, Iterable, Iterator, Protocol
 
-from ..io.captures import CaptureError, read_capture
-from ..wire import byte_time
+from ..io.captures import CaptureError
+from ..io.inputs import read_input
+from ..wire import DEFAULT_BAUD, byte_time
 
 Chunk = tuple[bytes, "float | None"]
 REPLAY_SLICE = 64        # bytes per step when replaying a capture that has no timestamps
@@ -64,13 +65,16 @@ class FileSource:
 
     kind = "file"
 
-    def __init__(self, path: str, fmt: str | None = None) -> None:
+    def __init__(self, path: str, fmt: str | None = None, *, baud: int = DEFAULT_BAUD,
+                 time_ref: str | None = None) -> None:
         self.path = path
         self.name = path
         self.fmt = fmt
         self.time_base = "capture"
         self.warnings: list[str] = []  # what the reader worked around (a damaged MCAP), for the screen
-        self._it = read_capture(path, fmt, warn=self.warnings.append)
+        # The one way a file is read (io.inputs): arrival-stamped logs are laid back to the first byte
+        # here as in every other command, so the monitor's latencies are info's.
+        self._it = read_input(path, fmt, baud=baud, time_ref=time_ref, warn=self.warnings.append)
         self._first = next(self._it, None)  # reads the head now, so a bad file fails before the screen starts
 
     def _all(self) -> Iterator[Chunk]:
@@ -95,11 +99,11 @@ class ReplaySource(FileSource):
 
     kind = "replay"
 
-    def __init__(self, path: str, fmt: str | None = None, *, speed: float = 1.0, baud: int = 115200,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, path: str, fmt: str | None = None, *, speed: float = 1.0, baud: int = DEFAULT_BAUD,
+                 time_ref: str | None = None, clock: Callable[[], float] = time.monotonic) -> None:
         if not speed > 0:
             raise ValueError("speed must be positive")
-        super().__init__(path, fmt)
+        super().__init__(path, fmt, baud=baud, time_ref=time_ref)
         self.speed = speed
         self.byte_seconds = byte_time(baud)
         self.clock = clock

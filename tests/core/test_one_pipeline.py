@@ -98,7 +98,7 @@ def check_agreement(capsys, path: Path, opts: list[str], tmp_path: Path) -> Coun
     figures = {k: v for k, v in info.items() if k not in ("input", "linted", "settings")}
     assert mcap_stats == figures
     stats = store.capture_stats
-    assert stats["bus_load"] == info["bus_load"]
+    assert stats["bus_load"] == info["bus_load"] and stats["latency_s"] == info["latency_s"]
     assert {k: v["poll_rate_hz"] for k, v in stats["servos"].items()} == \
         {k: v["poll_rate_hz"] for k, v in info["servos"].items()}
     return linted
@@ -139,6 +139,20 @@ def test_simulated_scenarios_agree(capsys, tmp_path, simulated, name, baud):
     # The MCAP records its baud: no --baud needed, and the answer is the same.
     from_mcap = check_agreement(capsys, mcap, ["--isolated"], tmp_path)
     assert from_mcap == from_text
+
+
+def test_a_loggers_arrival_stamped_capture_agrees_everywhere(capsys, tmp_path, simulated):
+    """Stamped at arrival (as serial loggers stamp reads): every command, the monitor included, lays the
+    times back to the first byte the same way, so findings and latencies agree."""
+    from rs30x_sniff.io.captures import read_capture, write_capture
+    from rs30x_sniff.wire import byte_time
+
+    bt = byte_time(9600)
+    chunks = [(d, t + len(d) * bt) for d, t in read_capture(str(simulated[("setup", 9600, "thex")]))]
+    path = tmp_path / "logger.thex"
+    write_capture(path, chunks, "timestamped")
+    check_agreement(capsys, path, ["--isolated"], tmp_path)
+    assert via_info(capsys, path, ["--isolated"])["settings"]["time_ref"] == "arrival"
 
 
 def test_a_9600_log_lints_at_its_own_baud(capsys, simulated):
