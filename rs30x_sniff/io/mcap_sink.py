@@ -12,8 +12,9 @@ from .. import __version__
 from ..events import Garbage, ShortPacket
 from ..render import record_json
 from ..schemas import schema_bytes
+from .servo_states import ServoStates
 from ..stats import CaptureStats
-from ..wire import BROADCAST_ID, byte_time
+from ..wire import byte_time
 
 RAW_TOPIC = "/rs30x/raw"
 PACKETS_TOPIC = "/rs30x/packets"
@@ -57,7 +58,8 @@ class JsonChannels:
         self._byte_time = byte_time(baud)
         self._origin = start_time or 0.0
         self._raw_offset = 0                   # stream offset of the next raw byte
-        self._models: dict[int, str] = dict(models or {})
+        self._servos = ServoStates(models)
+        self._models = self._servos.models     # servo -> model name, for the metadata too
         self._states: dict[int, dict[str, str]] = {}  # servo -> register name -> '"name":value'
         self._state_channels: dict[int, Any] = {}
 
@@ -99,42 +101,30 @@ class JsonChannels:
         self._write(self._channel(PACKETS_TOPIC, "rs30x.Packet"), log_time, _encode(record_json(rec)).encode())
         if type(ev) is Garbage:
             return
-        sid = rec.id
-        if sid is not None and sid != 0 and sid != BROADCAST_ID and rec.model is not None:
-            self._models[sid] = rec.model.name
-        if ev.checksum_ok and (rec.is_request or ev.kind == "return"):
-            self._update_state(rec, log_time)
+        changed = self._servos.changes(rec)
+        if changed:
+            self._update_state(rec, changed, log_time)
         if rec.expects is not None:
             self._write(self._channel(TRANSACTIONS_TOPIC, "rs30x.Transaction"), log_time,
                         _encode(transaction_json(rec)).encode())
 
-    def _update_state(self, rec: Any, log_time: int) -> None:
+    def _update_state(self, rec: Any, changed: dict[int, list[tuple[str, Any]]], log_time: int) -> None:
         # Each servo's state is kept as its JSON fragments ('"name":value'), so a packet that changes
         # two registers re-encodes two values, not the whole object (a long packet changes 18 servos).
-        changed: dict[int, dict[str, str]] = {}
         states = self._states
-        for f in rec.fields:
-            name = f.register.name
-            if name is None or f.partial:
-                continue
-            sid = f.id
-            frag = _fragment(name, f.value)
-            for tid in (list(states) if sid == BROADCAST_ID else (sid,)):
-                st = changed.get(tid)
-                if st is None:
-                    st = states.get(tid)
-                    if st is None:
-                        st = states[tid] = {}
-                    changed[tid] = st
-                st[name] = frag
-        if not changed:
-            return
+        for tid, pairs in changed.items():
+            st = states.get(tid)
+            if st is None:
+                st = states[tid] = {}
+            for name, value in pairs:
+                st[name] = _fragment(name, value)
         ev = rec.event
         tail = f',"t":{"null" if ev.t_start is None else repr(ev.t_start)},"offset":{ev.offset},'
         fallback = rec.model.name if rec.model is not None else ""
         models = self._models
         channels = self._state_channels
-        for tid, st in changed.items():
+        for tid in changed:
+            st = states[tid]
             cid = channels.get(tid)
             if cid is None:
                 cid = channels[tid] = self._channel(STATE_TOPIC.format(id=tid), "rs30x.ServoState")

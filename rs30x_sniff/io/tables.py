@@ -6,12 +6,13 @@ import csv
 from datetime import datetime, timezone
 from typing import IO, Any, Callable, Iterable
 
-from ..events import Garbage, LongPacket, ReturnPacket, ShortPacket
+from ..events import LongPacket, ReturnPacket, ShortPacket
 from ..memmap import ModelRegistry
 from ..pipeline import Sink, Step
 from ..render import direction, summary
-from ..wire import BROADCAST_ID, byte_time
+from ..wire import byte_time
 from .mcap_sink import transaction_json
+from .servo_states import ServoStates
 
 KINDS = ("states", "transactions", "findings", "packets")
 CSV, PARQUET = "csv", "parquet"
@@ -243,54 +244,45 @@ class StatesSink(TableSink):
         self.registers = register_columns(registry)
         self._index = {name: i for i, (name, _) in enumerate(self.registers)}
         self._text = {i for i, (_, kind) in enumerate(self.registers) if kind == STR}
-        self._models: dict[int, str] = dict(models or {})
+        self._servos = ServoStates(models)
         self._states: dict[int, list] = {}  # servo -> value per register column
 
     def columns(self) -> list[Column]:
         return [("offset", INT), ("id", INT), ("model", STR), *self.registers]
 
     def batch(self, step: Step) -> None:
+        changes = self._servos.changes
         for rec in step:
-            ev = rec.event
-            if type(ev) is Garbage:
-                continue
-            sid = rec.id
-            if sid is not None and sid != 0 and sid != BROADCAST_ID and rec.model is not None:
-                self._models[sid] = rec.model.name
-            if ev.checksum_ok and (rec.is_request or ev.kind == "return"):
-                self._update(rec)
+            changed = changes(rec)
+            if changed:
+                self._update(rec, changed)
 
-    def _update(self, rec: Any) -> None:
-        changed: dict[int, list] = {}
+    def _update(self, rec: Any, changed: dict[int, list[tuple[str, Any]]]) -> None:
         states = self._states
         index = self._index
         width = len(self.registers)
-        for f in rec.fields:
-            name = f.register.name
-            if name is None or f.partial:
-                continue
-            i = index.get(name)
-            if i is None:
-                continue
-            v = f.value
-            if i in self._text and v is not None and type(v) is not str:
-                v = str(v)
-            sid = f.id
-            for tid in (list(states) if sid == BROADCAST_ID else (sid,)):
-                st = changed.get(tid)
-                if st is None:
-                    st = states.get(tid)
-                    if st is None:
-                        st = states[tid] = [None] * width
-                    changed[tid] = st
+        rows = []
+        for tid, pairs in changed.items():
+            st = states.get(tid)
+            if st is None:
+                st = states[tid] = [None] * width
+            hit = False
+            for name, v in pairs:
+                i = index.get(name)
+                if i is None:
+                    continue
+                if i in self._text and v is not None and type(v) is not str:
+                    v = str(v)
                 st[i] = v
-        if not changed:
-            return
+                hit = True
+            if hit:
+                rows.append((tid, st))
         ev = rec.event
         t = self._time(ev.t_start, ev.offset)
         fallback = rec.model.name if rec.model is not None else None
-        for tid, st in changed.items():
-            self._row(t, (ev.offset, tid, self._models.get(tid) or fallback, *st))
+        models = self._servos.models
+        for tid, st in rows:
+            self._row(t, (ev.offset, tid, models.get(tid) or fallback, *st))
 
 
 class TransactionsSink(TableSink):
