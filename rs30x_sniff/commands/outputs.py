@@ -77,15 +77,14 @@ def output_path(path: str, *, force: bool = False, inputs: tuple[str, ...] = (),
 
 
 @contextmanager
-def output_stream(path: str | None, *, force: bool = False, inputs: tuple[str, ...] = (),
-                  binary: bool = False) -> Iterator[IO]:
-    """stdout (no path, or ``-``), or a text (``binary``: bytes) file written through :func:`output_path`."""
+def output_stream(path: str | None, *, force: bool = False, inputs: tuple[str, ...] = ()) -> Iterator[IO[str]]:
+    """stdout (no path, or ``-``), or a text file written through :func:`output_path`."""
     if not path or path == STDOUT:
-        yield sys.stdout.buffer if binary else sys.stdout
+        yield sys.stdout
         return
     with output_path(path, force=force, inputs=inputs) as tmp:
         try:
-            f = open(tmp, "wb") if binary else open(tmp, "w", encoding="utf-8")
+            f = open(tmp, "w", encoding="utf-8")
         except OSError as e:
             raise CliError(f"{path}: cannot write: {e.strerror}") from None
         with f:
