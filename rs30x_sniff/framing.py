@@ -104,6 +104,33 @@ class FrameDecoder:
             raise RuntimeError("feed() after close()")
         if not data:
             return []
+        self._add(data, t)
+        return self._parse(final=False)
+
+    def feed_fault(self, data: bytes, t: float | None, reason: str) -> list[AnyEvent]:
+        """Add bytes the capturing UART flagged (``reason``: a framing or parity error, rs30x_sniff.chunks).
+
+        Their values cannot be trusted, so no frame is made of them: whatever was pending ends here as
+        if the input had (a frame in progress is cut short), and the flagged bytes become garbage with
+        ``reason``, in pieces of at most GARBAGE_PIECE bytes. Returns those events.
+        """
+        if self.closed:
+            raise RuntimeError("feed_fault() after close()")
+        if not data:
+            return []
+        out = self._parse(final=True)  # leaves the buffer empty
+        self._add(data, t)
+        self._start = 0
+        while self._start < len(data):
+            self._garbage_reason = reason
+            self._emit_garbage(out, min(self._start + GARBAGE_PIECE, len(data)))
+        del self._buf[:]
+        self._base += len(data)
+        self._scan = 0
+        return out
+
+    def _add(self, data: bytes, t: float | None) -> None:
+        """Append a chunk to the buffer, placing it in time (clock faults held monotonic, idle gaps noted)."""
         start = self.offset
         stamped = t
         if t is not None and self._last_t is not None:
@@ -133,7 +160,6 @@ class FrameDecoder:
             self._chunk_times.append(t)
             self._last_t = None if t is None else t + (len(data) - 1) * self.byte_time
         self._buf += data
-        return self._parse(final=False)
 
     def close(self) -> list[AnyEvent]:
         """End of input: whatever is still pending becomes truncated frames or garbage."""

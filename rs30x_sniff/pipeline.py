@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable, Iterator
 
 from .bus import DEFAULT_REPLY_TIMEOUT, BusTracker, Record
+from .chunks import Marked, SenderMap
 from .framing import DEFAULT_GAP_BYTES, FrameDecoder
 from .memmap import ModelRegistry, default_registry
 from .wire import DEFAULT_BAUD
@@ -51,6 +52,11 @@ class Decoder:
         self.frames = FrameDecoder(o.baud, gap_bytes=o.gap_bytes)
         self.bus = BusTracker(o.registry or default_registry(), o.models, o.reply_timeout, o.default_model)
         self.linter = linter
+        # Who sent which bytes, where the capture says so (a serial logger's TX/RX): the linter checks
+        # the decoder's own reading of each packet against it.
+        self.senders = SenderMap()
+        if linter is not None:
+            linter.senders = self.senders
         self.bytes_in = 0
         self.late_findings: list = []  # after close(): findings only the end of input revealed
         self._seen = 0  # findings of linter.findings already handed out
@@ -63,10 +69,18 @@ class Decoder:
         self._seen = len(found)
         return new
 
-    def feed(self, data: bytes, t: float | None = None) -> Step:
-        """Decode one chunk (its first byte at capture time ``t``); the records it completes."""
+    def feed(self, data: bytes, t: float | None = None, sender: str | None = None,
+             error: str | None = None) -> Step:
+        """Decode one chunk (its first byte at capture time ``t``); the records it completes.
+
+        ``sender`` is who the capture says sent these bytes, ``error`` a UART fault it flagged on them
+        (rs30x_sniff.chunks): flagged bytes become garbage with that reason.
+        """
+        if sender is not None or self.senders:
+            self.senders.note(self.bytes_in, sender)
         self.bytes_in += len(data)
-        out = self.bus.feed_many(self.frames.feed(data, t), Step())
+        events = self.frames.feed(data, t) if error is None else self.frames.feed_fault(data, t, error)
+        out = self.bus.feed_many(events, Step())
         linter = self.linter
         if linter is not None and out:
             lint = linter.feed
@@ -126,7 +140,8 @@ class Pipeline:
     def remove(self, sink: Sink) -> None:
         self.sinks = tuple(s for s in self.sinks if s is not sink)
 
-    def feed(self, data: bytes, t: float | None = None) -> Step:
+    def feed(self, data: bytes, t: float | None = None, sender: str | None = None,
+             error: str | None = None) -> Step:
         """One chunk through the decoder into every sink; an empty chunk means the source is idle."""
         sinks = self.sinks
         if not data:
@@ -135,7 +150,7 @@ class Pipeline:
             return Step()
         for s in sinks:
             s.chunk(data, t)
-        step = self.decoder.feed(data, t)
+        step = self.decoder.feed(data, t, sender, error)
         if step or step.findings:
             for s in sinks:
                 s.batch(step)
@@ -165,8 +180,12 @@ class Pipeline:
         """Feed every chunk, then close. The sinks are closed even when the source fails midway (a
         corrupt file, a lost port), so what was read is written; the source's error is raised after."""
         try:
-            for data, t in chunks:
-                self.feed(data, t)
+            feed = self.feed
+            for chunk in chunks:
+                if type(chunk) is Marked:
+                    feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+                else:
+                    feed(*chunk)
         except BaseException:
             try:
                 self.close()
@@ -186,6 +205,9 @@ def decode_records(chunks: Iterable[tuple[bytes, float | None]], options: Decode
                    decoder: Decoder | None = None) -> Iterator[Record]:
     """Stream records from chunks (a generator over the same decoder, for library use)."""
     dec = decoder or Decoder(options)
-    for data, t in chunks:
-        yield from dec.feed(data, t)
+    for chunk in chunks:
+        if type(chunk) is Marked:
+            yield from dec.feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+        else:
+            yield from dec.feed(*chunk)
     yield from dec.close()

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Iterable, Iterator
 
+from .chunks import remark
 from .wire import byte_time
 
 FIRST = "first"      # t is when the chunk's first byte started (our .thex, MCAP raw, the live tap)
@@ -60,8 +61,9 @@ def judge(chunks: list[Chunk], baud: int) -> TimeRef:
 def to_first_byte(chunks: Iterable[Chunk], baud: int) -> Iterator[Chunk]:
     """Arrival times laid back to each chunk's first byte at the baud rate (t - n x byte time)."""
     bt = byte_time(baud)
-    for data, t in chunks:
-        yield data, (None if t is None else t - len(data) * bt)
+    for chunk in chunks:
+        data, t = chunk
+        yield remark(chunk, data, None if t is None else t - len(data) * bt)
 
 
 class TimedSource:

@@ -9,7 +9,7 @@ import os
 import sys
 from typing import Any, Iterator
 
-from ..io.captures import FORMATS, MCAP, MCAP_MAGIC, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture
+from ..io.captures import MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture
 from ..io.inputs import read_input
 from ..timebase import TIME_REFS
 from ..wire import DEFAULT_BAUD
@@ -33,7 +33,7 @@ def add_decode_options(p: argparse.ArgumentParser) -> None:
                         "by its metadata or timestamps (default: what the capture shows, else 115200)")
     p.add_argument("--baud-any", action="store_true", default=None,
                    help="accept a --baud that is not one of the manual's rates")
-    p.add_argument("--input-format", choices=FORMATS, default=None,
+    p.add_argument("--input-format", choices=input_formats(), default=None,
                    help="capture format, when the extension and content do not tell")
     p.add_argument("--gap-bytes", type=float, default=None, metavar="N",
                    help="idle byte times inside a frame that end it as truncated (default 20; 0 turns it off)")

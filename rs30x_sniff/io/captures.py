@@ -12,6 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, Callable, Iterable, Iterator
 
+from . import foreign
+
 Chunk = tuple[bytes, float | None]
 
 BINARY, HEX, TIMESTAMPED, MCAP = "bin", "hex", "timestamped", "mcap"
@@ -202,6 +204,9 @@ def _detect(path: str, opened: _Opened) -> str:
         return _EXTENSIONS[ext]
     if head.startswith(MCAP_MAGIC):
         return MCAP
+    other = foreign.by_extension(ext) or foreign.sniff(head)
+    if other is not None:
+        return other.name
     if not head and ext not in _TEXT_EXTENSIONS:
         return BINARY  # nothing to read either way
     text_kind = _sniff_text(head, opened.complete)
@@ -213,7 +218,7 @@ def _detect(path: str, opened: _Opened) -> str:
     if b"\xfa\xaf" in head or b"\xfd\xdf" in head or not opened.seekable:
         # stdin was always raw bytes, and a pipe's head may be one short read: not text is binary.
         return BINARY
-    raise CaptureError(f"{path}: unknown capture format (use --input-format {'|'.join(FORMATS)})")
+    raise CaptureError(f"{path}: unknown capture format (use --input-format {'|'.join(input_formats())})")
 
 
 def _data_lines(head: bytes, complete: bool) -> list[list[bytes]]:
@@ -267,8 +272,14 @@ def _first_line_kind(head: bytes) -> str | None:
 
 
 # ---- reading -------------------------------------------------------------------------------------
+def input_formats() -> tuple[str, ...]:
+    """Every format name ``--input-format`` takes: ours, then other tools' (rs30x_sniff.io.foreign)."""
+    return (*FORMATS, *foreign.formats())
+
+
 def read_capture(path: str, fmt: str | None = None, *,
-                 warn: Callable[[str], None] | None = stderr_warning) -> CaptureReader:
+                 warn: Callable[[str], None] | None = stderr_warning,
+                 options: dict | None = None) -> CaptureReader:
     """Stream a capture as (bytes, t) chunks; ``t`` is the capture time of the chunk's first byte.
 
     ``path`` may be a file, a pipe or FIFO (``/dev/fd/N``), or ``-`` for stdin: each is opened once and
@@ -277,9 +288,9 @@ def read_capture(path: str, fmt: str | None = None, *,
     the reader works around (a damaged MCAP) go to ``warn`` as one line each, and stay in the
     returned reader's ``warnings`` as :class:`CaptureWarning` objects.
     """
-    if fmt is not None and fmt not in FORMATS:
-        raise CaptureError(f"{path}: unknown input format {fmt!r} (use one of {', '.join(FORMATS)})")
-    reader = CaptureReader(path, fmt, warn)
+    if fmt is not None and fmt not in input_formats():
+        raise CaptureError(f"{path}: unknown input format {fmt!r} (use one of {', '.join(input_formats())})")
+    reader = CaptureReader(path, fmt, warn, options)
     if fmt is None:
         reader._start()
     return reader
@@ -296,9 +307,12 @@ class CaptureReader:
     ``warnings`` lists the :class:`CaptureWarning` objects of the problems worked around so far.
     """
 
-    def __init__(self, path: str, fmt: str | None, warn: Callable[[str], None] | None) -> None:
+    def __init__(self, path: str, fmt: str | None, warn: Callable[[str], None] | None,
+                 options: dict | None = None) -> None:
         self.path = path
         self.format = fmt
+        # What another tool's reader was given (--channel, --baud) and learned (a found baud rate).
+        self.context = foreign.ReadContext(path, dict(options or {}), warn)
         self.warnings: list[CaptureWarning] = []
         self._warn = warn
         self._gen: Iterator[Chunk] | None = None
@@ -317,6 +331,13 @@ class CaptureReader:
                 self._gen = self._mcap(opened.seekable)
             elif fmt == BINARY:
                 self._gen = _read_binary(opened.stream)
+            elif fmt not in FORMATS:
+                other = foreign.get(fmt)
+                if other.needs_seek and not opened.seekable:
+                    opened.stream.close()
+                    raise CaptureError(f"{path}: a {fmt} capture needs a seekable file, not a pipe "
+                                       "(save it to a file first)")
+                self._gen = _closing(other.read(opened.stream, self.context), opened.stream)
             else:
                 self._lines = _LineIndex()
                 self._gen = _read_text(opened.stream, path, fmt == TIMESTAMPED, self._lines)
@@ -387,6 +408,14 @@ def open_capture(path: str) -> BinaryIO:
         raise CaptureError(f"{path}: is a directory, not a capture") from None
     except OSError as e:
         raise CaptureError(f"{path}: cannot read: {e.strerror}") from None
+
+
+def _closing(chunks: Iterator[Chunk], f: BinaryIO) -> Iterator[Chunk]:
+    """A foreign reader's chunks, closing the file when they end or the reader is closed."""
+    try:
+        yield from chunks
+    finally:
+        f.close()
 
 
 def _read_binary(f: BinaryIO) -> Iterator[Chunk]:

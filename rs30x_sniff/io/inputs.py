@@ -7,13 +7,15 @@ import os
 from typing import Callable, Iterator
 
 from ..timebase import FIRST, SAMPLE_CHUNKS, TimedSource, TimeRef, judge
+from . import foreign
 from .captures import MCAP, TIMESTAMPED, Chunk, read_capture, stderr_warning
 
 RECORDED = TimeRef(FIRST, "each chunk's first byte, as the log records it")
 
 
 def read_input(path: str, fmt: str | None = None, *, baud: int, time_ref: str | None = None,
-               warn: Callable[[str], None] | None = stderr_warning) -> Iterator[Chunk]:
+               warn: Callable[[str], None] | None = stderr_warning,
+               options: dict | None = None) -> Iterator[Chunk]:
     """The chunks of a capture file (or ``-``/a pipe), their times meaning each chunk's first byte.
 
     Timestamped hex from another tool's logger is often stamped at arrival (the end of the read):
@@ -21,8 +23,16 @@ def read_input(path: str, fmt: str | None = None, *, baud: int, time_ref: str | 
     of its own first lines; a pipe cannot be read ahead, so its times are taken as first-byte times
     unless ``time_ref`` says otherwise. The source's ``time_ref`` says which reading and why.
     """
-    src = read_capture(path, fmt, warn=warn)
+    src = read_capture(path, fmt, warn=warn, options=options)
     kind = getattr(src, "format", fmt)
+    other = foreign.get(kind)
+    if other is not None:
+        # Another tool's format says what its times mean (a logic analyzer stamps each byte's start
+        # bit, a serial logger each read's return); --time-ref still overrides it.
+        if time_ref is None:
+            return TimedSource(src, baud, other.time_ref,
+                               TimeRef(other.time_ref, f"as the {other.name} format stamps them"))
+        return TimedSource(src, baud, time_ref)
     if kind == TIMESTAMPED:
         if time_ref is None:
             judged = _judge_file(path, baud)

@@ -6,6 +6,7 @@ import threading
 import time
 from typing import Callable, Iterable, Iterator, Protocol
 
+from ..chunks import remark
 from ..io.captures import CaptureError
 from ..io.inputs import read_input
 from ..wire import DEFAULT_BAUD, byte_time
@@ -41,7 +42,8 @@ def paced(chunks: Iterable[Chunk], stop: threading.Event, *, speed: float, byte_
     start = clock()
     t0: float | None = None
     sent = 0
-    for data, t in chunks:
+    for chunk in chunks:
+        data, t = chunk
         pieces = [(data, t)] if t is not None else [
             (data[i:i + REPLAY_SLICE], None) for i in range(0, len(data), REPLAY_SLICE)]
         for piece, pt in pieces:
@@ -57,7 +59,7 @@ def paced(chunks: Iterable[Chunk], stop: threading.Event, *, speed: float, byte_
             if stop.is_set():
                 return
             sent += len(piece)
-            yield piece, pt
+            yield remark(chunk, piece, pt)
 
 
 class FileSource:
@@ -81,10 +83,10 @@ class FileSource:
         return _rest(self)
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
-        for data, t in self._all():
-            if t is None:
+        for chunk in self._all():
+            if chunk[1] is None:
                 self.time_base = "synthetic"
-            yield data, t
+            yield chunk  # as read: a foreign log's marks (who sent it, UART errors) go on to the decoder
             if stop.is_set():
                 return
 
