@@ -1,0 +1,1 @@
+"""Direction rules (F): packets whose sender, as the capture records it, is not who sends such packets."""
