@@ -155,6 +155,17 @@ class Record:
             return tuple(v for sub, d, _ in lay for v in sub.values(d))
         return lay.values(data)
 
+    def fields_json(self, only: set[int] | None = None, compact: bool = False) -> str:
+        """The JSON text of the fields' objects (``render.field_json``), without the brackets, written
+        from per-layout templates: no Field objects or dicts are built (``only``: those servo IDs)."""
+        lay, data = self._layout()
+        if lay is None:
+            return ""
+        if isinstance(lay, list):
+            parts = [sub.fields_json(d, sub.values(d), vid, only, compact) for sub, d, vid in lay]
+            return ("," if compact else ", ").join(p for p in parts if p)
+        return lay.fields_json(data, self.values, self.event.id, only, compact)
+
     @property
     def read_names(self) -> list[str]:
         """For a read request: the registers it asks for."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import struct
 import tomllib
@@ -192,7 +193,11 @@ class Model:
 
     def names_in(self, address: int, length: int) -> list[str]:
         """Register labels a read of ``length`` bytes at ``address`` covers."""
-        return [reg.label for _, _, reg, _ in self.layout(address, length).parts]
+        key = (address, length, "names")
+        names = self._layouts.get(key)
+        if names is None:
+            names = self._layouts[key] = tuple(reg.label for _, _, reg, _ in self.layout(address, length).parts)
+        return list(names)
 
 
 class Layout:
@@ -205,7 +210,7 @@ class Layout:
     With ``records`` > 0 it is a long packet's data: that many repeats of VID + ``length`` bytes.
     """
 
-    __slots__ = ("parts", "size", "records", "values", "unpack_raw")
+    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_json")
 
     def __init__(self, model: Model, address: int, length: int, records: int = 0) -> None:
         parts = []
@@ -234,6 +239,7 @@ class Layout:
                     codes.append("h" if reg.signed else "H")
                 exprs.append(_conversion(reg, partial, f"r[{k}]", env, j))
                 k += 1
+        self._json: tuple[tuple[str, ...], ...] | None = None  # fields_json's templates (spaced, compact)
         unpack = self.unpack_raw = struct.Struct("<" + "".join(codes)).unpack
         if all(e == f"r[{i}]" for i, e in enumerate(exprs)):
             self.values = unpack
@@ -264,6 +270,110 @@ class Layout:
                 out.append(Field(vid, reg.address if not partial else reg.address + (partial == "high"),
                                  reg, raw, rv, values[rec * n + j], partial))
         return out
+
+
+    def _compile_json(self, compact: bool) -> tuple[tuple[str, ...], Any]:
+        """fields_json's templates: one per part, and for the whole layout one ``%`` format with a
+        generated function filling it in (the hex of the data sliced per field, values by their kind)."""
+        tmpl = tuple(_field_template(reg, partial, compact) for _, _, reg, partial in self.parts)
+        args = []
+        if not self.records:
+            for j, (start, size, reg, partial) in enumerate(self.parts):
+                args += ["s", f"h[{2 * start}:{2 * (start + size)}]", _JSON_OF[_value_kind(reg, partial)].format(f"v[{j}]")]
+            fmt = ("," if compact else ", ").join(tmpl)
+        else:
+            stride, n = self.size + 1, len(self.parts)
+            for rec in range(self.records):
+                base = rec * stride + 1
+                for j, (start, size, reg, partial) in enumerate(self.parts):
+                    args += [f"str(d[{base - 1}])", f"h[{2 * (base + start)}:{2 * (base + start + size)}]",
+                             _JSON_OF[_value_kind(reg, partial)].format(f"v[{rec * n + j}]")]
+            fmt = ("," if compact else ", ").join(tmpl * self.records)
+        if not args:
+            return tmpl, lambda d, h, v, s: ""
+        src = f"lambda d, h, v, s: F % ({', '.join(args)},)"
+        return tmpl, eval(src, {"F": fmt, "J": _json_scalar})  # noqa: S307 - generated from the validated memory map
+
+    def fields_json(self, data: bytes, values: tuple, servo_id: int | None = None,
+                    only: set[int] | None = None, compact: bool = False) -> str:
+        """The JSON text of :meth:`fields` (without the brackets), exactly as ``json.dumps`` writes the
+        objects of ``rs30x_sniff.render.field_json``: the same keys, order, spacing and rounding.
+
+        One ``%`` template per part, made once per layout, so ``decode --format jsonl`` builds no Field
+        objects or dicts; ``only`` keeps the fields of those servo IDs alone.
+        """
+        cache = self._json
+        if cache is None:
+            cache = self._json = (self._compile_json(False), self._compile_json(True))
+        tmpl, whole = cache[compact]
+        if only is None:
+            return whole(data, data.hex(), values, "null" if servo_id is None else str(servo_id))
+        sep = "," if compact else ", "
+        parts = self.parts
+        out = []
+        if not self.records:
+            if only is not None and servo_id not in only:
+                return ""
+            sid = "null" if servo_id is None else str(servo_id)
+            for (start, size, _, _), t, v in zip(parts, tmpl, values):
+                out.append(t % (sid, data[start:start + size].hex(), _json_scalar(v)))
+            return sep.join(out)
+        stride = self.size + 1
+        n = len(parts)
+        for rec in range(self.records):
+            base = rec * stride
+            vid = data[base]
+            if only is not None and vid not in only:
+                continue
+            sid = str(vid)
+            base += 1
+            for j, ((start, size, _, _), t) in enumerate(zip(parts, tmpl)):
+                out.append(t % (sid, data[base + start:base + start + size].hex(), _json_scalar(values[rec * n + j])))
+        return sep.join(out)
+
+
+def _value_kind(reg: Register, partial: str | None) -> str:
+    """What type a part's engineering value always has: "int", "float", or "any" (enums, tables)."""
+    if partial or reg.name is None:
+        return "int"
+    if reg.enum is not None or reg.table is not None:
+        return "any"
+    if reg.scale == 1 and isinstance(reg.scale, int) and isinstance(reg.offset, int):
+        return "int"
+    return "float" if isinstance(reg.offset, float) or reg.scale != 1 else "any"
+
+
+_JSON_OF = {"int": "str({})", "float": "repr(round({}, 6))", "any": "J({})"}
+
+
+def _field_template(reg: Register, partial: str | None, compact: bool) -> str:
+    """``%`` template of one field's JSON object (``compact``: no spaces after , and :); id, raw and
+    value are filled in per packet."""
+    address = reg.address if not partial else reg.address + (partial == "high")
+    unit = None if partial else reg.unit
+    c, k = (",", ":") if compact else (", ", ": ")
+
+    def lit(x: Any) -> str:
+        return json.dumps(x).replace("%", "%%")
+
+    tail = f'{c}"partial"{k}{lit(partial)}' if partial else ""
+    return (f'{{"id"{k}%s{c}"address"{k}{address}{c}"name"{k}{lit(reg.name)}{c}"raw"{k}"%s"{c}'
+            f'"value"{k}%s{c}"unit"{k}{lit(unit)}{tail}}}')
+
+
+_INF = float("inf")
+
+
+def _json_scalar(v: Any) -> str:
+    """``json.dumps`` of a field value after ``render.json_value`` (floats rounded to 6 places)."""
+    t = type(v)
+    if t is float:
+        if v != v or v == _INF or v == -_INF:
+            return json.dumps(v)
+        return repr(round(v, 6))
+    if t is int:
+        return repr(v)
+    return json.dumps(round(v, 6) if isinstance(v, float) else v)
 
 
 def _conversion(reg: Register, partial: str | None, ref: str, env: dict, j: int) -> str:

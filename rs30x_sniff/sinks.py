@@ -8,7 +8,7 @@ from typing import IO, Any, Callable
 from .bus import Record
 from .filters import Filter
 from .pipeline import Sink, Step
-from .render import record_json, text_line, verbose_lines
+from .render import record_json_text, text_line, verbose_lines
 
 
 def involves(rec: Record, ids: set[int]) -> bool:
@@ -75,7 +75,7 @@ class JsonlSink(_LineSink):
     """``decode --format jsonl``: one JSON object per event, end-of-input findings as diagnostics."""
 
     def line(self, rec: Record) -> str:
-        return json.dumps(record_json(rec, self.ids)) + "\n"
+        return record_json_text(rec, self.ids) + "\n"
 
     def finding_line(self, f: Any) -> str:
         return json.dumps({"type": "diagnostic", **f.as_json()}) + "\n"
