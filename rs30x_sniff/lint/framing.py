@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..chunks import UART_ERRORS
 from ..wire import encode_short
 from .registry import example, rule
 
@@ -47,11 +48,12 @@ servo's own parser and cost the next command.
 {example(bytes.fromhex("123456"), _GOAL, note="three stray bytes before a goal_position write:")}
 """, kinds=("garbage",))
 def garbage_bytes(lint, rec, ev):
-    if ev.reason == "truncated":
+    # Cut-short frames are F003's, and bytes the capturing UART flagged are F008's (rs30x_sniff.chunks).
+    if ev.reason == "truncated" or ev.reason in UART_ERRORS:
         return
     prev = lint.prev
     if prev is not None and prev.event.kind == "garbage" and prev.event.end_offset == ev.offset \
-            and prev.event.reason != "truncated":
+            and prev.event.reason != "truncated" and prev.event.reason not in UART_ERRORS:
         return  # the next piece of a long run (the decoder hands runs out in pieces): said once
     what = "no frame header" if ev.reason == "noise" else "a header whose length cannot be a frame"
     lint.emit("F002", rec, f"{len(ev.raw)} byte(s) with {what}")
