@@ -20,6 +20,7 @@ from .events import (
     ReturnPacket,
     ShortPacket,
 )
+from .framing_kernel import scan_regular
 from .wire import ACK, DEFAULT_BAUD, FLAG_WANTS_ACK, NACK, byte_time
 
 _FA, _AF, _FD, _DF = 0xFA, 0xAF, 0xFD, 0xDF
@@ -33,6 +34,10 @@ DEFAULT_GAP_BYTES = 20.0
 # pieces do not depend on chunking): a bus read at the wrong baud rate is all garbage and has neither
 # frames nor idle gaps to end a run, and a live display must show it within a second or two.
 GARBAGE_PIECE = 128
+
+# The numpy kernel is tried on windows of this many buffered bytes (growing while runs fill them); a
+# window holds at least a few frames, so a per-frame chunk never pays for a kernel call.
+_KERNEL_MIN, _KERNEL_START, _KERNEL_MAX = 256, 4096, 1 << 16
 
 # Faults of a capture's clock (the bytes themselves may be fine): a chunk stamped before the previous
 # one, or after it but before its bytes could have gone over the wire at the baud rate.
@@ -69,7 +74,7 @@ class FrameDecoder:
     """
 
     def __init__(self, baud: int = DEFAULT_BAUD, gap_bytes: float | None = DEFAULT_GAP_BYTES,
-                 max_data: int = DEFAULT_MAX_DATA) -> None:
+                 max_data: int = DEFAULT_MAX_DATA, kernel: bool = True) -> None:
         self.baud = baud
         self.byte_time = byte_time(baud)
         self.gap_bytes = gap_bytes
@@ -91,6 +96,11 @@ class FrameDecoder:
         # latency is ever negative (the linter reports these as F005/F006).
         self.time_faults: dict[str, TimeFault] = {}
         self.closed = False
+        # The numpy kernel (rs30x_sniff.framing_kernel) for long clean runs; kernel=False is the plain
+        # state machine, which the differential tests compare it with.
+        self.kernel = kernel
+        self._kernel_window = _KERNEL_START
+        self._kernel_rest = 0  # stream offset before which the kernel is not tried again
 
     @property
     def offset(self) -> int:
@@ -275,6 +285,7 @@ class FrameDecoder:
         n = len(buf)
         self._start = 0   # buffer index of the first byte not yet in an event
         i = self._scan
+        kernel = self.kernel
         while i < n:
             while i - self._start >= GARBAGE_PIECE:  # [start, i) is garbage already
                 self._emit_garbage(out, self._start + GARBAGE_PIECE)
@@ -287,6 +298,12 @@ class FrameDecoder:
                 # Garbage runs end at idle gaps, so a live display sees them promptly.
                 if i > start and br and br[0] == base + i:
                     self._emit_garbage(out, i)
+                    continue
+            if i == start and not br and n - i >= _KERNEL_MIN and kernel and not self._ack_pending \
+                    and base + i >= self._kernel_rest:
+                j = self._run_kernel(out, i)
+                if j > i:
+                    i = j
                     continue
             c = buf[i]
             if self._ack_pending:
@@ -393,18 +410,60 @@ class FrameDecoder:
 
     def _emit_frame(self, out: list[AnyEvent], end: int, ok: bool) -> None:
         off, raw, t0, t1 = self._take(end)
-        sid, flag, address, length, count = raw[2], raw[3], raw[4], raw[5], raw[6]
-        data = raw[7:-1]
-        self._ack_pending = False
-        if raw[0] == _FD:
-            out.append(tuple.__new__(ReturnPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok)))
-        elif sid == 0:
-            records = tuple([tuple.__new__(LongRecord, (data[k], data[k + 1:k + length]))
-                             for k in range(0, len(data), length)]) if length else ()
-            out.append(tuple.__new__(LongPacket, (off, raw, t0, t1, flag, address, length, count, records, ok)))
-        else:
-            out.append(tuple.__new__(ShortPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok)))
-            self._ack_pending = FLAG_WANTS_ACK[flag]  # return mode 0001 (table 4.3)
+        ev = _frame_event(off, raw, t0, t1, ok)
+        out.append(ev)
+        # Only the byte right after a request in return mode 0001 may be its ACK/NACK (table 4.3).
+        self._ack_pending = type(ev) is ShortPacket and FLAG_WANTS_ACK[raw[3]]
+
+    def _run_kernel(self, out: list[AnyEvent], i: int) -> int:
+        """At a clean boundary (nothing pending, no idle gap, no ACK due): emit the run of back-to-back
+        intact frames the numpy kernel finds from buffer index i; returns where the run stopped.
+
+        The kernel takes exactly the frames the state machine's fast path would, so the events are the
+        same either way; the window grows while runs fill it and shrinks (and rests a while) when they
+        do not, so noisy input pays little for the attempts.
+        """
+        window = self._kernel_window
+        starts, ends, more = scan_regular(bytes(self._buf[i:i + window]), self.max_data)
+        covered = ends[-1] if ends else 0
+        if not more:
+            # An irregularity: let the state machine have the next stretch before trying again.
+            self._kernel_window = max(window // 2, _KERNEL_MIN)
+            self._kernel_rest = self._base + i + covered + 4 * self._kernel_window
+        elif covered * 2 >= window:
+            self._kernel_window = min(window * 2, _KERNEL_MAX)
+        if not ends:
+            return i
+        buf_base = self._base
+        blob = bytes(self._buf[i:i + covered])
+        base = buf_base + i
+        timed = bool(self._chunk_offsets)
+        times = self._times
+        event = _frame_event
+        append = out.append
+        t0 = t1 = None
+        for s, e in zip(starts, ends):
+            off = base + s
+            if timed:
+                t0, t1 = times(off, base + e)
+            append(event(off, blob[s:e], t0, t1, True))
+        last = out[-1]
+        self._ack_pending = type(last) is ShortPacket and FLAG_WANTS_ACK[last[5]]
+        self._start = i + covered
+        return i + covered
+
+
+def _frame_event(off: int, raw: bytes, t0: float | None, t1: float | None, ok: bool) -> AnyEvent:
+    """The event of one whole frame ``raw`` (FA AF or FD DF, header and Sum included)."""
+    sid, flag, address, length, count = raw[2], raw[3], raw[4], raw[5], raw[6]
+    data = raw[7:-1]
+    if raw[0] == _FD:
+        return tuple.__new__(ReturnPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok))
+    if sid == 0:
+        records = tuple([tuple.__new__(LongRecord, (data[k], data[k + 1:k + length]))
+                         for k in range(0, len(data), length)]) if length else ()
+        return tuple.__new__(LongPacket, (off, raw, t0, t1, flag, address, length, count, records, ok))
+    return tuple.__new__(ShortPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok))
 
 
 def decode_all(chunks, baud: int = DEFAULT_BAUD, **kw) -> list[AnyEvent]:
