@@ -88,6 +88,12 @@ def _models(v: Any) -> str | None:
     return None if isinstance(v, dict) else "expected a table of ID = MODEL"
 
 
+def _channel(v: Any) -> str | None:
+    if isinstance(v, int) and not isinstance(v, bool):
+        return None if v >= 0 else "must be a channel name or an index from 0"
+    return None if isinstance(v, str) and v.strip() else "expected a channel name or an index from 0"
+
+
 @dataclass(frozen=True)
 class Key:
     """One setting: how to check a value, and its name on the command line."""
@@ -105,6 +111,7 @@ KEYS: dict[str, Key] = {
     "gap_bytes": Key(_not_negative, "--gap-bytes", "idle byte times that end a frame (0: off)"),
     "reply_timeout": Key(_positive, "--reply-timeout", "seconds before a reply counts as missing"),
     "time_ref": Key(_one_of(TIME_REFS), "--time-ref", "what timestamped hex times mark: first byte or arrival"),
+    "channel": Key(_channel, "--channel", "the logic capture's channel to decode: a name or an index from 0"),
     "select": Key(_rules, "--select", "rules to run"),
     "ignore": Key(_rules, "--ignore", "rules to skip"),
     "severity": Key(_severity, "--severity", "severity per rule"),
@@ -229,6 +236,7 @@ class Settings:
     gap_bytes: float | None = DEFAULT_GAP_BYTES   # None: gap detection off
     reply_timeout: float = DEFAULT_REPLY_TIMEOUT
     time_ref: str | None = None                    # None: told by the content (rs30x_sniff.timebase)
+    channel: str | None = None                     # a logic capture's channel (name or index); None: its reader picks
     baud_auto: bool = False                        # --baud auto: a port is scanned, a capture's times tell
     lint: Mapping[str, Any] = field(default_factory=dict)  # select, ignore, severity, fail_on, thresholds
     report_format: str | None = None
@@ -261,7 +269,7 @@ class Settings:
         return {"baud": self.baud, "default_model": self.default_model,
                 "models": {str(k): v for k, v in sorted(self.models.items())}, "gap_bytes": self.gap_bytes,
                 "reply_timeout": self.reply_timeout, "time_ref": self.time_ref, "origin": dict(self.origin),
-                "config": self.config_path}
+                "config": self.config_path, **({"channel": self.channel} if self.channel is not None else {})}
 
 
 def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, Any] | None = None,
@@ -280,14 +288,15 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     cap_origin = cap.pop("origin", {})  # why the capture says what it says (its metadata, its timestamps)
     layers = [(CAPTURE, cap), (where_conf, conf), (COMMAND_LINE, cli)]
     values: dict[str, Any] = {"baud": DEFAULT_BAUD, "model": None, "gap_bytes": DEFAULT_GAP_BYTES,
-                              "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False, "time_ref": None}
+                              "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False, "time_ref": None,
+                              "channel": None}
     origin = {k: DEFAULTS for k in ("baud", "model", "gap_bytes", "reply_timeout")}
     models: dict[int, str] = {}
     lint: dict[str, Any] = {}
     ignore: list[str] = []
     severity: dict[str, str] = {}
     for where, layer in layers:
-        for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any", "time_ref"):
+        for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any", "time_ref", "channel"):
             if key in layer:
                 values[key] = layer[key]
                 origin[key] = cap_origin.get(key, where) if layer is cap else where
@@ -321,5 +330,6 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     return Settings(baud=baud, baud_auto=baud_auto, default_model=values["model"], models=models,
                     gap_bytes=values["gap_bytes"] or None, reply_timeout=values["reply_timeout"],
                     time_ref=values["time_ref"], lint=lint,
+                    channel=None if values["channel"] is None else str(values["channel"]).strip(),
                     report_format=fmt, origin=origin,
                     config_path=where_conf if config else None)

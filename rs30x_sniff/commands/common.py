@@ -9,12 +9,13 @@ import os
 import sys
 from typing import Any, Iterator
 
+from ..io import foreign
 from ..io.captures import MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture
 from ..io.inputs import read_input
 from ..timebase import TIME_REFS
 from ..wire import DEFAULT_BAUD
 from ..pipeline import Sink, Step
-from ..settings import Settings, SettingsError, find_config, load_config, resolve
+from ..settings import DEFAULTS, Settings, SettingsError, find_config, load_config, resolve
 
 
 TIMESTAMP_SAMPLE = 2000  # chunks of a timestamped capture read ahead to tell its baud rate
@@ -42,6 +43,9 @@ def add_decode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--time-ref", choices=TIME_REFS, default=None,
                    help="what a timestamped hex capture's times mark: each line's first byte, or its arrival "
                         "(the end of its last byte, as serial loggers stamp reads); default: told by the content")
+    p.add_argument("--channel", default=None, metavar="NAME|INDEX",
+                   help="a logic capture's channel to decode (.sr): its name (D0, RX) or its index from 0 "
+                        "(default: the only channel, else the first that toggles)")
 
 
 def baud_arg(text: str) -> int | str:
@@ -97,7 +101,7 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
             out.setdefault("models", {})[key.strip()] = name.strip()
         else:
             out["model"] = spec.strip()
-    for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on", "time_ref"):
+    for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on", "time_ref", "channel"):
         v = getattr(args, key, None)
         if v is not None:
             out[key] = v
@@ -129,9 +133,11 @@ def config_layer(args: argparse.Namespace) -> dict[str, Any]:
         raise CliError(str(e)) from None
 
 
-def capture_layer(path: str | None, fmt: str | None = None) -> dict[str, Any]:
+def capture_layer(path: str | None, fmt: str | None = None, options: dict[str, Any] | None = None) -> dict[str, Any]:
     """What a capture says about how it was made: an MCAP of ours its baud and models, a timestamped
-    capture the rate its back-to-back frames show; {} otherwise (``origin`` says where each came from)."""
+    capture the rate its back-to-back frames show, another tool's format what its ``probe`` finds (a
+    logic capture the rate its samples show; ``options`` are the reader's, e.g. the channel); {}
+    otherwise (``origin`` says where each came from)."""
     if not path or path == "-" or not os.path.isfile(path):
         return {}
     if fmt is None:
@@ -150,7 +156,22 @@ def capture_layer(path: str | None, fmt: str | None = None) -> dict[str, Any]:
         return _mcap_layer(path)
     if fmt == TIMESTAMPED:
         return _timestamps_layer(path)
+    other = foreign.get(fmt)
+    if other is not None and other.probe is not None:
+        return _probe_layer(path, other, options or {})
     return {}
+
+
+def _probe_layer(path: str, other: foreign.ForeignFormat, options: dict[str, Any]) -> dict[str, Any]:
+    """What another tool's capture records or shows (its ``probe``), as the capture layer."""
+    try:
+        found = other.probe(path, options)  # type: ignore[misc]
+    except CaptureError:
+        return {}  # the reading command says why
+    if not found.get("baud"):
+        return {}
+    note = found.get("baud_note") or f"recorded in the {other.name} capture"
+    return {"baud": found["baud"], "origin": {"baud": f"capture ({note})"}, "note": note}
 
 
 def _mcap_layer(path: str) -> dict[str, Any]:
@@ -210,14 +231,24 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
     command line nor a config file gives one, and a rate they give that the timestamps contradict
     is warned about.
     """
-    capture = capture_layer(path, getattr(args, "input_format", None))
+    cli = command_line_layer(args)
+    conf = config_layer(args) if config is None else config
+    # A logic capture's probe decodes its samples to find the rate: it needs the channel, and can skip
+    # the search when the rate is given (the layers' own precedence, before they are checked).
+    given = next((layer["baud"] for layer in (cli, conf) if "baud" in layer), None)
+    capture = capture_layer(path, getattr(args, "input_format", None),
+                            {"channel": cli.get("channel", conf.get("channel")),
+                             "baud": given if isinstance(given, int) else None})
     estimate = capture.pop("estimate", None)
+    note = capture.pop("note", None)
     try:
-        settings = resolve(command_line_layer(args), config_layer(args) if config is None else config, capture)
+        settings = resolve(cli, conf, capture)
     except SettingsError as e:
         raise CliError(str(e)) from None
     if settings.baud_auto and path and is_port_path(path):
         settings = _scan(path, settings)
+    elif note is not None and settings.origin["baud"] == capture["origin"]["baud"]:
+        print(f"rs30x-sniff: {path}: {settings.baud} bit/s, {note} (--baud to say otherwise)", file=sys.stderr)
     elif "baud" in capture and settings.origin["baud"] == capture["origin"]["baud"] and settings.baud != DEFAULT_BAUD:
         print(f"rs30x-sniff: {path}: {settings.baud} bit/s, from its timestamps (--baud to say otherwise)",
               file=sys.stderr)
@@ -319,7 +350,14 @@ def open_input(path: str, fmt: str | None, settings: Settings, *, duration: floa
 
         check_positive("--duration", duration)
         return LiveSource(path, settings.baud, duration=duration).start()
-    return read_input(path, fmt, baud=settings.baud, time_ref=settings.time_ref)
+    return read_input(path, fmt, baud=settings.baud, time_ref=settings.time_ref, options=input_options(settings))
+
+
+def input_options(settings: Settings) -> dict[str, Any]:
+    """What another tool's reader is told: the channel, and the baud rate unless it is only the default
+    (None: a logic capture finds it in its samples)."""
+    known = not str(settings.origin.get("baud", DEFAULTS)).startswith(DEFAULTS)
+    return {"channel": settings.channel, "baud": settings.baud if known else None}
 
 
 def is_live(chunks: object) -> bool:

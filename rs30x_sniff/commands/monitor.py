@@ -8,7 +8,8 @@ from typing import Any
 
 from ..pipeline import DecodeOptions
 from ..settings import Settings
-from .common import CliError, add_decode_options, add_lint_options, check_positive, is_port_path, lint_config, settings_for
+from .common import (CliError, add_decode_options, add_lint_options, check_positive, input_options, is_port_path, lint_config,
+                     settings_for)
 from .serve import add_foxglove_option, start_foxglove
 
 
@@ -47,8 +48,9 @@ def make_source(args: argparse.Namespace, settings: Settings):
         return PortSource(args.input, settings.baud)
     if args.replay:
         return ReplaySource(args.input, args.input_format, speed=args.speed, baud=settings.baud,
-                            time_ref=settings.time_ref)
-    return FileSource(args.input, args.input_format, baud=settings.baud, time_ref=settings.time_ref)
+                            time_ref=settings.time_ref, options=input_options(settings))
+    return FileSource(args.input, args.input_format, baud=settings.baud, time_ref=settings.time_ref,
+                      options=input_options(settings))
 
 
 def prepare(args: argparse.Namespace) -> tuple[Any, DecodeOptions, dict[str, Any]]:

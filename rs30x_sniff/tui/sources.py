@@ -68,7 +68,7 @@ class FileSource:
     kind = "file"
 
     def __init__(self, path: str, fmt: str | None = None, *, baud: int = DEFAULT_BAUD,
-                 time_ref: str | None = None) -> None:
+                 time_ref: str | None = None, options: dict | None = None) -> None:
         self.path = path
         self.name = path
         self.fmt = fmt
@@ -76,7 +76,8 @@ class FileSource:
         self.warnings: list[str] = []  # what the reader worked around (a damaged MCAP), for the screen
         # The one way a file is read (io.inputs): arrival-stamped logs are laid back to the first byte
         # here as in every other command, so the monitor's latencies are info's.
-        self._it = read_input(path, fmt, baud=baud, time_ref=time_ref, warn=self.warnings.append)
+        # ``options`` go to another tool's reader (a logic capture's channel and rate).
+        self._it = read_input(path, fmt, baud=baud, time_ref=time_ref, warn=self.warnings.append, options=options)
         self._first = next(self._it, None)  # reads the head now, so a bad file fails before the screen starts
 
     def _all(self) -> Iterator[Chunk]:
@@ -102,10 +103,11 @@ class ReplaySource(FileSource):
     kind = "replay"
 
     def __init__(self, path: str, fmt: str | None = None, *, speed: float = 1.0, baud: int = DEFAULT_BAUD,
-                 time_ref: str | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+                 time_ref: str | None = None, clock: Callable[[], float] = time.monotonic,
+                 options: dict | None = None) -> None:
         if not speed > 0:
             raise ValueError("speed must be positive")
-        super().__init__(path, fmt, baud=baud, time_ref=time_ref)
+        super().__init__(path, fmt, baud=baud, time_ref=time_ref, options=options)
         self.speed = speed
         self.byte_seconds = byte_time(baud)
         self.clock = clock
