@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import stat
 import sys
 import tempfile
 from contextlib import contextmanager
@@ -28,8 +29,8 @@ def check_output(path: str, force: bool, inputs: tuple[str, ...] = ()) -> None:
         return
     if os.path.isdir(path):
         raise CliError(f"{path}: is a directory")
-    if not os.path.lexists(path):
-        return
+    if not os.path.lexists(path) or _is_special(path):
+        return  # a device or a pipe (/dev/null, a FIFO) is written to, never replaced
     for i in inputs:
         if i and i != STDOUT:
             try:
@@ -52,6 +53,11 @@ def output_path(path: str, *, force: bool = False, inputs: tuple[str, ...] = (),
     stopped conversion is data, not a failed run.
     """
     check_output(path, force, inputs)
+    if _is_special(path):
+        # A character device or FIFO (/dev/null, /dev/stdout, a named pipe) is written in place: a
+        # temporary file renamed over it would replace the device node itself.
+        yield path
+        return
     folder = os.path.dirname(os.path.abspath(path))
     try:
         fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
@@ -114,6 +120,15 @@ def report_end(summary: str, stopped: str | None) -> int:
         return 130
     print(summary, file=sys.stderr)
     return 0
+
+
+def _is_special(path: str) -> bool:
+    """Whether ``path`` exists and is neither a regular file nor a directory (a device, a FIFO, a socket)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
 def _discard(tmp: str) -> None:

@@ -160,3 +160,25 @@ def test_simulate_o_dash_writes_stdout(tmp_path):
                            "-o", "-", "--output-format", "hex"], cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("FA AF") and not (tmp_path / "-").exists()
+
+
+@pytest.mark.parametrize("argv", [["decode", "{cap}", "--format", "jsonl"], ["convert", "{cap}"], ["lint", "{cap}"]])
+def test_a_device_or_fifo_is_written_in_place_never_replaced(capsys, tmp_path, argv):
+    import os
+    import stat
+    import threading
+
+    cap = str(Path(__file__).resolve().parents[2] / "captures" / "session-mixed.thex")
+    fifo = tmp_path / "out.fifo"
+    os.mkfifo(fifo)
+    got = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()))
+    reader.start()
+    args = [a.format(cap=cap) for a in argv]
+    assert main([*args, "-o", str(fifo)]) in (0, 1)  # lint exits 1 on its findings
+    reader.join(10)
+    assert got and got[0] and stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.fifo"]  # no temporary file beside it
+    # /dev/null too, without --force, and it stays the device it was (a rename once replaced it).
+    assert main([*args, "-o", os.devnull]) in (0, 1)
+    assert stat.S_ISCHR(os.stat(os.devnull).st_mode)
