@@ -17,6 +17,9 @@ from .store import ServoRow, servo_snapshot
 
 POST_INTERVAL = 0.25    # seconds between batches: a few screen updates a second are plenty
 MAX_BATCH = 50_000      # records per batch, so one batch never stalls the screen for long
+# While a file loads, the screen is told less often: each redraw holds the GIL the decoding thread
+# needs, and a file is not live (the first batches still come at once, so the screen fills quickly).
+LOAD_INTERVAL = 1.0
 
 
 @dataclass
@@ -118,6 +121,7 @@ class Feeder:
         self._sink: _Recording | None = None
         self._note: str | None = None
         self._last_post = 0.0
+        self._posts = 0
 
     # ---- commands from the screen (any thread) ---------------------------------------------------
     def stop(self) -> None:
@@ -142,6 +146,7 @@ class Feeder:
         """The source's chunks, with the screen's commands applied and batches posted between them."""
         self._last_post = self.clock()
         warnings = getattr(self.source, "warnings", None)
+        loading = getattr(self.source, "kind", None) == "file"
         for chunk in self.source.chunks(self.stop_event):
             self._apply_commands()
             yield chunk
@@ -150,7 +155,8 @@ class Feeder:
                 warnings.clear()
             now = self.clock()
             n = len(self._collect.records)
-            if n and (now - self._last_post >= self.interval or n >= self.max_batch) or self._note is not None:
+            interval = self.interval if not loading or self._posts < 2 else max(self.interval, LOAD_INTERVAL)
+            if n and (now - self._last_post >= interval or n >= self.max_batch) or self._note is not None:
                 self._post()
                 self._last_post = now
             if self.stop_event.is_set():
@@ -183,6 +189,7 @@ class Feeder:
     def _post(self, done: bool = False, error: str | None = None) -> None:
         note, self._note = self._note, None
         records, findings = self._collect.take()
+        self._posts += 1
         self.post(Batch(records, findings, servo_snapshot(self.decoder.bus), self.decoder.bytes_in,
                         stats=self.stats.as_dict(), done=done, error=error, recording=self.recording, note=note))
 
