@@ -83,6 +83,14 @@ def test_golden_sample(name):
         assert times == [None] * len(recs)
 
 
+def test_swapped_sample_gives_f009_once():
+    recs, dec = decode(FOREIGN / "spy-swapped.log")
+    assert [(r.event.kind, r.event.id) for r in recs] == GOLDEN
+    found = [(f.code, f.offset) for f in dec.linter.findings]
+    assert found == [("F009", 0)]
+    assert "every packet checked" in dec.linter.findings[0].message
+
+
 @pytest.mark.parametrize("name", ["socat", "jpnevulator"])
 def test_wall_clock_start(name):
     reader = read_capture(str(SAMPLES[name]))
@@ -103,7 +111,7 @@ def test_slsnif_start_is_its_first_stamp_to_the_second():
 
 # ---- detection: strict, and never another format ------------------------------------------------------
 def _others() -> list[Path]:
-    mine = set(SAMPLES.values()) | {FOREIGN / "spy-swapped.log"}  # the direction check's sample
+    mine = set(SAMPLES.values()) | {FOREIGN / "spy-swapped.log"}
     return [p for p in sorted(CAPTURES.rglob("*")) if p.is_file() and p not in mine and p.suffix != ".md"]
 
 
@@ -356,6 +364,13 @@ def test_monitor_replay_keeps_bytes_and_senders(name):
     want = w.simulated()
     assert b"".join(c[0] for c in chunks) == b"".join(d for d, _, _ in want)
     assert [marks(c)[0] for c in chunks for _ in c[0]] == [who for d, _, who in want for _ in d]
+
+
+def test_cli_lint_of_the_swapped_sample_warns(capsys):
+    assert main(["lint", str(FOREIGN / "spy-swapped.log")]) == 0  # a warning: below --fail-on error
+    out = capsys.readouterr().out
+    assert "F009 sender-mismatch: every packet checked" in out and "1 finding (1 warning)" in out
+    assert main(["lint", str(FOREIGN / "spy-swapped.log"), "--fail-on", "warning"]) == 1
 
 
 def test_cli_bad_line_is_one_line_and_exit_2(tmp_path, capsys):
