@@ -439,9 +439,15 @@ def _ict_char_ok(shown: bytes, b: int) -> bool:
     return (b == 32 and shown == b"' '") or (b == 127 and shown == b"[DEL]")
 
 
+_ICT_START = re.compile(rb"(?:\[\d\d:\d\d \d\d\.\d{6}\]| {17})?(?:< |> ?\t)0x[0-9a-f]{2}(?: \(|$)")
+
+
 def _sniff_interceptty(head: bytes) -> bool:
-    lines = [ln for ln in _head_lines(head) if ln.strip()]
-    return bool(lines) and _ICT.fullmatch(lines[0]) is not None
+    # The first line's start: a pipe's head stops at the first byte above 0xF7, and builds that show
+    # every byte's character print it raw, so the line may be cut inside its " (c)".
+    text = head[len(_BOM):] if head.startswith(_BOM) else head
+    first = next((ln.rstrip(b"\r") for ln in text.split(b"\n") if ln.strip()), b"")
+    return _ICT_START.match(first) is not None
 
 
 def _read_interceptty(stream: BinaryIO, ctx: ReadContext) -> Iterator[Chunk]:
