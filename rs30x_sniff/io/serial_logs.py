@@ -177,8 +177,11 @@ class _Sides:
         return [Marked(data, t, sender=SERVO)]
 
 
-def _wall(y: int, mo: int, d: int, h: int, mi: int, s: int) -> int:
-    """Seconds of a wall-clock time on a uniform scale (differences are wall-clock differences)."""
+def _wall(y: int, mo: int, d: int, h: int, mi: int, s: int) -> int | None:
+    """Seconds of a wall-clock time on a uniform scale (differences are wall-clock differences), None
+    if it is no time (a leap second's :60 is taken as it comes)."""
+    if not (1 <= mo <= 12 and 1 <= d <= calendar.monthrange(y, mo)[1] and h <= 23 and mi <= 59 and s <= 60):
+        return None
     return calendar.timegm((y, mo, d, h, mi, s, 0, 0, 0))
 
 
@@ -375,6 +378,8 @@ def _read_socat(stream: BinaryIO, ctx: ReadContext) -> Iterator[Chunk]:
                                            f"to={nxt[side] - 1}: a block is missing from the log", line)
             nxt[side] = to + 1
             wall = _wall(y, mo, d, h, mi, s)
+            if wall is None:
+                raise _error(path, lineno, "not a valid date and time", line)
             frac = _socat_fraction(m.group(8))
             if first is None:
                 _start(ctx, y, mo, d, h, mi, s, round(frac * 1e6) % 1_000_000, path, lineno)
@@ -569,8 +574,8 @@ def _read_jpnevulator(stream: BinaryIO, ctx: ReadContext, split: bool = True) ->
         if m is not None:
             yield from done()
             y, mo, d, h, mi, s, us = (int(x) for x in m.group(1, 2, 3, 4, 5, 6, 7))
-            wall = _wall(y, mo, d, h, mi, s) if 1 <= mo <= 12 and 1 <= d <= 31 else None
-            if wall is None or h > 23 or mi > 59 or s > 60:
+            wall = _wall(y, mo, d, h, mi, s)
+            if wall is None:
                 raise _error(path, lineno, "not a valid date and time", line)
             if first is None:
                 _start(ctx, y, mo, d, h, mi, s, us, path, lineno)
@@ -687,7 +692,7 @@ def _read_slsnif(stream: BinaryIO, ctx: ReadContext) -> Iterator[Chunk]:
         stamp = _SLS_TIME.fullmatch(line)
         if stamp is not None and "start_time" not in ctx.found:
             mon, d, h, mi, s, y = stamp.groups()
-            if mon not in _MONTHS:
+            if mon not in _MONTHS or _wall(int(y), _MONTHS[mon], int(d), int(h), int(mi), int(s)) is None:
                 raise _error(path, lineno, "not a valid date and time", line)
             _start(ctx, int(y), _MONTHS[mon], int(d), int(h), int(mi), int(s), 0, path, lineno)
     yield from sides.finish()

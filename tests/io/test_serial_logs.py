@@ -136,6 +136,26 @@ def test_a_pipe_head_cut_at_a_raw_byte_is_still_recognised(name):
     assert foreign.get(name).sniff(data[:data.index(b"\xfa") + 1])
 
 
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(chunks=st.lists(st.tuples(st.binary(min_size=1, max_size=24), st.floats(0, 1e6)), min_size=1, max_size=40),
+       fmt=st.sampled_from(["hex", "timestamped"]))
+def test_our_own_text_captures_are_never_a_serial_log(tmp_path, chunks, fmt):
+    from rs30x_sniff.io.captures import write_capture
+
+    path = tmp_path / "own.txt"
+    write_capture(path, sorted(chunks, key=lambda c: c[1]), fmt)
+    head = path.read_bytes()[:4096]
+    assert not [name for name in NAMES if foreign.get(name).sniff(head)]
+
+
+def test_a_date_that_is_not_one_is_named(tmp_path):
+    lines = w.socat_log(_SMALL, 115200).splitlines()
+    k = max(i for i, ln in enumerate(lines) if ln.startswith(("<", ">")))
+    lines[k] = lines[k].replace("/11/22 ", "/02/30 ")
+    with pytest.raises(CaptureError, match=f":{k + 1}: not a valid date and time"):
+        list(read_capture(str(_write(tmp_path, "\n".join(lines) + "\n"))))
+
+
 def test_our_timestamped_hex_with_three_decimals_is_not_spy(tmp_path):
     p = tmp_path / "a.log"
     p.write_text("000123.500 FA AF 01 00 1E 02 01 84 03 9B\n000124.000 07\n")
