@@ -85,8 +85,8 @@ def _sender_mismatch_report(st, lint):
         return
     offset, t, sid, kind, sent = st.first
     n, of = st.wrong, st.checked
-    how = "every packet checked" if n == of else f"{n} of {of} packets checked"
+    how = ("every packet checked disagrees" if n == of else f"{n} of {of} packets checked disagree") + \
+        " with the capture about who sent it"
     hint = (": the capture's directions are the wrong way round (was the logger on the servo's side, or "
             "RX and TX swapped?)" if n == of and n > 1 else "")
-    lint.emit_at("F009", offset, t, f"{how} came from the other side than the capture says; first here, "
-                                    f"{_WHAT[kind]} the capture says the {sent} sent{hint}", sid)
+    lint.emit_at("F009", offset, t, f"{how}; first here, {_WHAT[kind]} the capture says the {sent} sent{hint}", sid)

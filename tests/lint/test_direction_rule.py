@@ -44,7 +44,7 @@ def test_a_whole_capture_the_wrong_way_round_is_one_finding():
     linter, _ = lint([Marked(READ, 0.0, sender=SERVO), Marked(RET, 0.001, sender=HOST)] * 5)
     (f,) = f009(linter)
     assert f.offset == 0 and f.t == 0.0 and f.id == 1 and f.severity == "warning"
-    assert f.message.startswith("every packet checked came from the other side")
+    assert f.message.startswith("every packet checked disagrees with the capture about who sent it;")
     assert "a request (FA AF) the capture says the servo sent" in f.message and "wrong way round" in f.message
 
 
