@@ -15,7 +15,10 @@ from .helpers import CAPTURES, found, lint_chunks, lint_text, parse
 FILES = sorted((CAPTURES / "lint").glob("*.*hex"))
 # Rules about what hex text cannot say (a byte the capturing UART flagged): their capture is a sample
 # of another tool's format, whose findings the rule's own test checks.
-ELSEWHERE = {"F008": CAPTURES / "foreign" / "saleae-logic2-iso.csv"}  # tests/lint/test_uart_rule.py
+ELSEWHERE = {
+    "F008": CAPTURES / "foreign" / "saleae-logic2-iso.csv",  # tests/lint/test_uart_rule.py
+    "F009": CAPTURES / "foreign" / "spy-swapped.log",        # tests/lint/test_direction_rule.py
+}
 
 
 def test_every_rule_has_a_capture():
