@@ -2,9 +2,14 @@
 
 Run: python bench/foxglove_sdk.py [--frames N]
 Writers: the messages `convert` writes for N hexapod frames, pre-encoded, through the bare mcap Writer
-and through foxglove.open_mcap (zstd both, 256 KiB chunks); messages/s, best of 3.
-Server: the drive loop (its thread's CPU time) with a FoxgloveSink, with no client, and with a client that subscribed to
-everything and then stopped reading (its messages are dropped; the loop must not wait for it).
+and through foxglove.open_mcap (zstd both, convert's 1 MiB chunks), the SDK two ways: its defaults
+with the Channel wrapper's log(), and as McapSink uses it (the channel's own log(), appending through
+_SdkFile, no compression thread pool, chunks cut by McapSink every CHUNK_SIZE); messages/s, best of 3.
+(McapSink writes through the SDK since this measure: bench/convert.py times the whole conversion.)
+Server: the drive loop (its thread's CPU time) with a FoxgloveSink, with no client (nothing is
+encoded), and with a client that subscribed to every channel advertised when it connected (raw,
+packets, transactions, diagnostics) and then stopped reading (its messages are dropped; the loop
+must not wait for it).
 """
 
 from __future__ import annotations
@@ -66,6 +71,32 @@ def bare_writer(plan: list, channels: dict, path: str) -> float:
     return time.perf_counter() - t0
 
 
+def sdk_as_mcap_sink(plan: list, channels: dict, path: str) -> float:
+    """The SDK's writer with McapSink's options and calls, on the same messages (its own chunk cuts by
+    size only: the plan's log times are those of a capture, so time cuts would be the same)."""
+    from rs30x_sniff.io.mcap_sink import _SdkFile
+
+    gc.collect()
+    t0 = time.perf_counter()
+    ctx = foxglove.Context()
+    with open(path, "wb") as f:
+        out = _SdkFile(f, library="rs30x-sniff bench")
+        writer = foxglove.open_mcap(out, context=ctx, writer_options=MCAPWriteOptions(
+            chunk_size=None, disable_seeking=True, calculate_data_section_crc=False, compression_threads=0))
+        logs = {cid: foxglove.Channel(topic, schema=foxglove.Schema(name=name, encoding="jsonschema", data=data),
+                                      message_encoding="json", context=ctx).base.log
+                for cid, (topic, name, data) in channels.items()}
+        size = 0
+        for cid, log_time, data in plan:
+            logs[cid](data, log_time)
+            size += len(data) + 31
+            if size >= CHUNK_SIZE:
+                writer.flush()
+                size = 0
+        writer.close()
+    return time.perf_counter() - t0
+
+
 def sdk_writer(plan: list, channels: dict, path: str) -> float:
     gc.collect()
     t0 = time.perf_counter()
@@ -115,10 +146,16 @@ class StalledClient:
                                       close_timeout=0.1) as ws:
             subs = []
             while True:
-                msg = json.loads(await ws.recv())
+                # The server may advertise its channels in several messages: every one until it is quiet.
+                try:
+                    msg = json.loads(await asyncio.wait_for(ws.recv(), 0.3))
+                except asyncio.TimeoutError:
+                    if subs:
+                        break
+                    continue
                 if msg["op"] == "advertise":
-                    subs += [{"id": len(subs) + 1, "channelId": c["id"]} for c in msg["channels"]]
-                    break
+                    # One subscription id per channel (the same id twice is one subscription).
+                    subs += [{"id": len(subs) + i + 1, "channelId": c["id"]} for i, c in enumerate(msg["channels"])]
             await ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
             await asyncio.sleep(0.2)
             ws.transport.pause_reading()  # stop reading: the server's socket and queue fill up
@@ -137,13 +174,16 @@ def main() -> None:
     size = sum(len(d) for _, _, d in plan)
     print(f"{n:,} messages ({size / 1e6:.1f} MB of JSON) on {len(channels)} channels")
     with tempfile.TemporaryDirectory() as tmp:
-        a, b = os.path.join(tmp, "bare.mcap"), os.path.join(tmp, "sdk.mcap")
+        a, b, c = (os.path.join(tmp, name) for name in ("bare.mcap", "sdk.mcap", "ours.mcap"))
         bare = min(bare_writer(plan, channels, a) for _ in range(3))
         sdk = min(sdk_writer(plan, channels, b) for _ in range(3))
-        assert sdk_count(b) == n, (sdk_count(b), n)
-        print(f"mcap Writer      {n / bare:12,.0f} msg/s  {os.path.getsize(a) / 1e6:6.1f} MB")
-        print(f"foxglove MCAP    {n / sdk:12,.0f} msg/s  {os.path.getsize(b) / 1e6:6.1f} MB  "
+        ours = min(sdk_as_mcap_sink(plan, channels, c) for _ in range(3))
+        assert sdk_count(b) == n == sdk_count(c), (sdk_count(b), sdk_count(c), n)
+        print(f"mcap Writer               {n / bare:12,.0f} msg/s  {os.path.getsize(a) / 1e6:6.1f} MB")
+        print(f"foxglove MCAP, defaults   {n / sdk:12,.0f} msg/s  {os.path.getsize(b) / 1e6:6.1f} MB  "
               f"({bare / sdk:.2f}x the mcap Writer)")
+        print(f"foxglove MCAP, as McapSink{n / ours:12,.0f} msg/s  {os.path.getsize(c) / 1e6:6.1f} MB  "
+              f"({bare / ours:.2f}x the mcap Writer)")
 
     base, _ = min(drive_seconds(frames, lambda: None) for _ in range(2))
     print(f"decode+lint alone           {len(frames) / base:10,.0f} frames/s")

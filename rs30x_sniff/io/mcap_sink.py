@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import base64
 import json
+import struct
 from typing import IO, Any, Iterable
 
-from mcap.writer import CompressionType, Writer
+import foxglove
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from .. import __version__
 from ..events import Garbage, ShortPacket
 from ..render import record_json
 from ..schemas import schema_bytes
+from .captures import MCAP_MAGIC as _MAGIC
 from .servo_states import ServoStates
 from ..stats import CaptureStats
 from ..wire import byte_time
@@ -30,9 +33,6 @@ STATS_METADATA_NAME = "rs30x.stats"    # written by finish(): `info`'s figures f
 TIME_BASES = ("capture", "synthetic", "wall", "monotonic")
 # foxglove.LogLevel values (Foxglove's published schema).
 _LOG_LEVEL = {"info": 2, "warning": 3, "error": 4}
-# The mcap Writer also cuts chunks by size; ours does it first (so every cut is flushed to the OS),
-# this only keeps the library's own check out of the way.
-_WRITER_CHUNK_FACTOR = 4
 # Bytes a message record adds to a chunk besides its data (opcode, length, channel, sequence, two times).
 _MESSAGE_OVERHEAD = 31
 
@@ -161,6 +161,10 @@ class McapSink(JsonChannels):
     """Writes one MCAP file: register each schema and channel once (lazily), chunks cut by size and
     by log time so a writer killed mid-way loses at most ``chunk_seconds`` of traffic.
 
+    The file is written by the Foxglove SDK's MCAP writer (Rust: 3 to 4 times the messages/s of the
+    mcap package's Writer, see bench/foxglove_sdk.py) through :class:`_SdkFile`, so that the file
+    stays what the mcap Writer made of it: our name in the header, whole chunks only.
+
     Use as a context manager, or call :meth:`finish` (safe to call twice).
     """
 
@@ -180,15 +184,32 @@ class McapSink(JsonChannels):
         self.time_base = time_base
         self._chunk_ns = int(chunk_seconds * 1e9)
         self._chunk_size = chunk_size
-        self._writer = Writer(self._file, chunk_size=chunk_size * _WRITER_CHUNK_FACTOR,
-                              compression=CompressionType.ZSTD)
-        self._writer.start(profile="", library=f"rs30x-sniff {__version__}")
-        self._schemas: dict[str, int] = {}
-        self._channels: dict[str, int] = {}
+        self._out = _SdkFile(self._file, library=f"rs30x-sniff {__version__}")
+        # A context of its own: these channels reach this file only, never a live server in the same
+        # process (record --foxglove) nor another file (the next part of record --split-size).
+        self._context = foxglove.Context()
+        options = MCAPWriteOptions(
+            compression=MCAPCompression.Zstd, profile="",
+            # Chunks are cut here only (by size and time, each cut flushed to the OS): a cut the SDK
+            # made inside log() would report a write error on stderr instead of raising it.
+            chunk_size=None,
+            # Appending only: each chunk is built in memory and written whole, so a killed recorder
+            # leaves whole chunks and at most one cut record (a seeking writer streams a chunk under
+            # a placeholder length that is only filled in when it ends).
+            disable_seeking=True,
+            calculate_data_section_crc=False,  # 0, "not computed", as the mcap Writer left it
+            compression_threads=0)             # no faster with a thread pool (measured), and a recorder needs none
+        try:
+            self._writer = self._sdk(foxglove.open_mcap, self._out, context=self._context, writer_options=options)
+        except BaseException:
+            if self._owns_file:
+                self._file.close()
+            raise
+        self._schemas: set[str] = set()
+        self._channels: dict[str, Any] = {}
         self._chunk_start: int | None = None   # log time of the first message in the open chunk
         self._chunk_bytes = 0
         self._finished = False
-        self._size = 0
         self.messages = 0
         self.chunks = 0
         self.stats = CaptureStats(baud)  # what passes through the drive loop, summed as `info` sums it
@@ -196,7 +217,20 @@ class McapSink(JsonChannels):
                 "start_time": "" if start_time is None else repr(start_time),
                 "tool_version": __version__, "models": _models_text(self._models)}
         meta.update(extra_metadata or {})
-        self._writer.add_metadata(METADATA_NAME, meta)
+        self._sdk(self._writer.write_metadata, METADATA_NAME, meta)
+
+    def _sdk(self, call: Any, *args: Any, **kwargs: Any) -> Any:
+        """A call into the SDK's writer that may write to the file: a failed write (a full disk, or
+        Ctrl-C while Python code wrote a chunk) comes back from the SDK as a RuntimeError with the
+        cause left out; it is raised as itself, so the CLI reports an OSError in one line and a stop
+        as a stop."""
+        try:
+            return call(*args, **kwargs)
+        except Exception:
+            error, self._out.error = self._out.error, None
+            if error is not None:
+                raise error from None
+            raise
 
     # ---- context manager -----------------------------------------------------------------------
     def __enter__(self) -> McapSink:
@@ -209,22 +243,26 @@ class McapSink(JsonChannels):
     @property
     def bytes_written(self) -> int:
         """Bytes in the file so far (what has reached the file object)."""
-        return self._size if self._finished else self._file.tell()
+        return self._out.position
 
     # ---- channels -----------------------------------------------------------------------------
-    def _channel(self, topic: str, schema_name: str) -> int:
-        cid = self._channels.get(topic)
-        if cid is None:
-            sid = self._schemas.get(schema_name)
-            if sid is None:
-                data = schema_bytes(schema_name)
-                sid = self._schemas[schema_name] = self._writer.register_schema(schema_name, "jsonschema", data)
-                self._chunk_bytes += len(data) + len(schema_name) + 32  # the schema record goes in the chunk
-            cid = self._channels[topic] = self._writer.register_channel(topic, "json", sid)
+    def _channel(self, topic: str, schema_name: str) -> Any:
+        ch = self._channels.get(topic)
+        if ch is None:
+            data = schema_bytes(schema_name)
+            if schema_name not in self._schemas:
+                # One schema record per name (the SDK shares it between channels), in the chunk.
+                self._schemas.add(schema_name)
+                self._chunk_bytes += len(data) + len(schema_name) + 32
+            schema = foxglove.Schema(name=schema_name, encoding="jsonschema", data=data)
+            # The SDK's channel object, for its log(data, log_time): the wrapper's log() checks the
+            # message's type on every call, which about doubles the cost of a write (measured).
+            ch = self._channels[topic] = foxglove.Channel(topic, schema=schema, message_encoding="json",
+                                                          context=self._context).base
             self._chunk_bytes += len(topic) + 32
-        return cid
+        return ch
 
-    def _write(self, cid: int, log_time: int, data: bytes) -> None:
+    def _write(self, cid: Any, log_time: int, data: bytes) -> None:
         start = self._chunk_start
         if start is None:
             self._chunk_start = log_time
@@ -232,7 +270,8 @@ class McapSink(JsonChannels):
               or self._chunk_bytes >= self._chunk_size):
             self.flush()
             self._chunk_start = log_time
-        self._writer.add_message(cid, log_time, data, log_time)
+        # The publish time is the log time, as before: the SDK writes log_time for both.
+        cid.log(data, log_time)
         self._chunk_bytes += len(data) + _MESSAGE_OVERHEAD
         self.messages += 1
 
@@ -242,7 +281,7 @@ class McapSink(JsonChannels):
             return
         if self._chunk_start is not None:
             self.chunks += 1
-        self._writer.flush()
+        self._sdk(self._writer.flush)
         self._chunk_start = None
         self._chunk_bytes = 0
 
@@ -265,17 +304,88 @@ class McapSink(JsonChannels):
         self.flush()
         self._finished = True
         try:
-            self._writer.add_metadata(MODELS_METADATA_NAME, {"models": _models_text(self._models)})
+            self._sdk(self._writer.write_metadata, MODELS_METADATA_NAME, {"models": _models_text(self._models)})
             if self.stats.bytes_in:
                 self.stats.close()
-                self._writer.add_metadata(STATS_METADATA_NAME, {"stats": json.dumps(self.stats.as_dict())})
-            self._writer.finish()
+                self._sdk(self._writer.write_metadata, STATS_METADATA_NAME,
+                          {"stats": json.dumps(self.stats.as_dict())})
+            self._sdk(self._writer.close)
         finally:
-            self._size = self._file.tell()
+            for ch in self._channels.values():
+                ch.close()  # out of the context: nothing keeps this file's channels alive
+            self._out.release()
             if self._owns_file:
                 self._file.close()
             else:
                 self._file.flush()
+
+
+_HEADER = 0x01  # the header record's opcode
+_U32, _U64 = struct.Struct("<I"), struct.Struct("<Q")
+
+
+class _SdkFile:
+    """The file object the SDK's MCAP writer writes: every byte goes on to ``file``, but the header
+    names us (``library``): the SDK writes its own name there, and rs30x-sniff's reader
+    (io/mcap_source) knows our files by that field.
+
+    The writer appends only (disable_seeking) and asks for its position with seek(0, SEEK_CUR): it
+    gets the position in this file, so every offset it writes into the summary stays right whatever
+    the length of our header. (No data section CRC is written, as before: it would cover the SDK's
+    header, not ours.)
+    """
+
+    def __init__(self, file: IO[bytes], library: str) -> None:
+        self.file: IO[bytes] | None = file
+        self.library = library.encode()
+        self.position = 0
+        self.error: BaseException | None = None  # the last exception a write or flush raised
+
+    def write(self, data: bytes) -> int:
+        given = len(data)
+        try:
+            if self.position == 0:
+                data = self._own_header(bytes(data))
+            self.file.write(data)
+        except BaseException as e:
+            self.error = e  # for McapSink._sdk: the SDK passes on only its own error
+            raise
+        self.position += len(data)
+        return given  # what the writer gave, whatever reached the file
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        if (offset, whence) in ((0, 1), (0, 2), (self.position, 0)):
+            return self.position
+        raise OSError("the MCAP writer was expected to append only")
+
+    def tell(self) -> int:
+        return self.position
+
+    def flush(self) -> None:
+        if self.file is not None:
+            try:
+                self.file.flush()
+            except BaseException as e:
+                self.error = e
+                raise
+
+    def release(self) -> None:
+        # The SDK may hold on to this object after closing; the file (or a BytesIO's buffer) need not.
+        self.file = None
+
+    def _own_header(self, data: bytes) -> bytes:
+        n = len(_MAGIC)
+        if data[:n] != _MAGIC or len(data) < n + 9 or data[n] != _HEADER:
+            raise RuntimeError("the Foxglove SDK did not begin its MCAP with a header record")
+        length = _U64.unpack_from(data, n + 1)[0]
+        body_at = n + 9
+        if len(data) < body_at + length:
+            # This SDK writes the magic and the header in one call; one that does not needs this changed.
+            raise RuntimeError("the Foxglove SDK wrote its MCAP header in pieces")
+        profile_len = _U32.unpack_from(data, body_at)[0]
+        profile = data[body_at:body_at + 4 + profile_len]
+        body = profile + _U32.pack(len(self.library)) + self.library
+        return data[:n] + bytes([_HEADER]) + _U64.pack(len(body)) + body + data[body_at + length:]
 
 
 def _fragment(name: str, value: Any) -> str:
