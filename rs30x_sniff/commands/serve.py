@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 import threading
 from typing import Any
@@ -31,12 +32,33 @@ def add_foxglove_option(p: argparse.ArgumentParser, *, default: str | None = Non
                         f"(default host 127.0.0.1; 0.0.0.0 for every interface){extra}; the app URL is printed")
 
 
+class _SdkLog(logging.Handler):
+    """The SDK's own warnings and errors (it logs through Python's logging: a client that dropped its
+    connection, say) as one prefixed line each, on whatever ``sys.stderr`` is when they come: the
+    monitor's screen takes it over while it runs, so they never land in the middle of it."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            print(f"rs30x-sniff: Foxglove: {record.getMessage()}", file=sys.stderr, flush=True)
+        except Exception:  # noqa: BLE001 - a log line must not stop the capture
+            self.handleError(record)
+
+
+def _route_sdk_log() -> None:
+    logger = logging.getLogger("foxglove")
+    if not any(isinstance(h, _SdkLog) for h in logger.handlers):
+        logger.addHandler(_SdkLog(logging.WARNING))
+        logger.propagate = False  # not also Python's last-resort handler, unprefixed
+
+
 def start_foxglove(address: tuple[str, int] | None, *, source: str, baud: int,
                    models: dict[int, str] | None = None) -> Any:
     """The Foxglove sink for ``address`` (None: no server), its URLs said on stderr."""
     if address is None:
         return None
     from ..io.foxglove_sink import FoxgloveError, FoxgloveSink
+
+    _route_sdk_log()
 
     try:
         sink = FoxgloveSink(*address, source=source, baud=baud, models=models)

@@ -49,7 +49,15 @@ class JsonChannels:
     """The channels' messages, built once for every sink that publishes them (an MCAP file, a Foxglove
     WebSocket server): a subclass says how a channel is opened (``_channel``) and a message written
     (``_write``), so both carry the same bodies with the same log times.
+
+    A file takes every message. A live server sets ``_every_message`` to False and answers ``_live``:
+    a message on a channel nobody is subscribed to is then never encoded, so a server with no client
+    costs the decoding and little more. What a later message depends on (the stream offset of the raw
+    bytes, each servo's registers) is kept either way, so a client that subscribes late gets the same
+    bodies a file holds from then on.
     """
+
+    _every_message = True
 
     def __init__(self, *, source: str, baud: int, models: dict[int, str] | None = None,
                  start_time: float | None = None) -> None:
@@ -61,6 +69,7 @@ class JsonChannels:
         self._servos = ServoStates(models)
         self._models = self._servos.models     # servo -> model name, for the metadata too
         self._states: dict[int, dict[str, str]] = {}  # servo -> register name -> '"name":value'
+        self._held: dict[int, dict[str, Any]] = {}    # servo -> register values not yet in _states
         self._state_channels: dict[int, Any] = {}
 
     def _channel(self, topic: str, schema_name: str) -> Any:
@@ -69,6 +78,10 @@ class JsonChannels:
 
     def _write(self, cid: Any, log_time: int, data: bytes) -> None:
         raise NotImplementedError
+
+    def _live(self, cid: Any) -> bool:
+        """Whether a message on ``cid`` would reach anyone (asked only when not ``_every_message``)."""
+        return True
 
     def _time(self, t: float | None, offset: int) -> float:
         # A capture without timestamps: the time the byte would have reached the wire at full line rate.
@@ -88,51 +101,77 @@ class JsonChannels:
             return
         offset = self._raw_offset
         self._raw_offset += len(data)
+        cid = self._channel(RAW_TOPIC, "rs30x.Raw")
+        if not (self._every_message or self._live(cid)):
+            return
         ts = "null" if t is None else repr(float(t))
         body = (f'{{"offset":{offset},"t":{ts},"length":{len(data)},"data":"'
                 f'{base64.b64encode(data).decode("ascii")}"}}').encode()
-        self._write(self._channel(RAW_TOPIC, "rs30x.Raw"), _ns(self._time(t, offset)), body)
+        self._write(cid, _ns(self._time(t, offset)), body)
 
     def record(self, rec: Any) -> None:
         """A decoded record: its /rs30x/packets message, the state of every servo it changes, and
         its /rs30x/transactions message if it is a request that asked for a reply."""
         ev = rec.event
         log_time = _ns(self._time(ev.t_start, ev.offset))
-        self._write(self._channel(PACKETS_TOPIC, "rs30x.Packet"), log_time, _encode(record_json(rec)).encode())
+        every = self._every_message
+        cid = self._channel(PACKETS_TOPIC, "rs30x.Packet")
+        if every or self._live(cid):
+            self._write(cid, log_time, _encode(record_json(rec)).encode())
         if type(ev) is Garbage:
             return
         changed = self._servos.changes(rec)
         if changed:
             self._update_state(rec, changed, log_time)
         if rec.expects is not None:
-            self._write(self._channel(TRANSACTIONS_TOPIC, "rs30x.Transaction"), log_time,
-                        _encode(transaction_json(rec)).encode())
+            cid = self._channel(TRANSACTIONS_TOPIC, "rs30x.Transaction")
+            if every or self._live(cid):
+                self._write(cid, log_time, _encode(transaction_json(rec)).encode())
 
     def _update_state(self, rec: Any, changed: dict[int, list[tuple[str, Any]]], log_time: int) -> None:
         # Each servo's state is kept as its JSON fragments ('"name":value'), so a packet that changes
         # two registers re-encodes two values, not the whole object (a long packet changes 18 servos).
+        # A servo whose channel nobody watches keeps its new values as they are (``_held``), encoded
+        # when someone does: its state stays whole without a value encoded for nobody.
         states = self._states
+        channels = self._state_channels
+        every = self._every_message
+        live = []
         for tid, pairs in changed.items():
+            cid = channels.get(tid)
+            if cid is None:
+                cid = channels[tid] = self._channel(STATE_TOPIC.format(id=tid), "rs30x.ServoState")
             st = states.get(tid)
             if st is None:
                 st = states[tid] = {}
-            for name, value in pairs:
-                st[name] = _fragment(name, value)
+            if every or self._live(cid):
+                held = self._held.pop(tid, None)
+                if held:
+                    for name, value in held.items():
+                        st[name] = _fragment(name, value)
+                for name, value in pairs:
+                    st[name] = _fragment(name, value)
+                live.append((tid, cid, st))
+            else:
+                held = self._held.get(tid)
+                if held is None:
+                    held = self._held[tid] = {}
+                held.update(pairs)
+        if not live:
+            return
         ev = rec.event
         tail = f',"t":{"null" if ev.t_start is None else repr(ev.t_start)},"offset":{ev.offset},'
         fallback = rec.model.name if rec.model is not None else ""
         models = self._models
-        channels = self._state_channels
-        for tid in changed:
-            st = states[tid]
-            cid = channels.get(tid)
-            if cid is None:
-                cid = channels[tid] = self._channel(STATE_TOPIC.format(id=tid), "rs30x.ServoState")
+        for tid, cid, st in live:
             body = f'{{"id":{tid},"model":"{models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
             self._write(cid, log_time, body.encode())
 
     def findings(self, findings: Iterable[Any]) -> None:
         """Lint findings as foxglove.Log messages on /rs30x/diagnostics."""
+        cid = self._channel(DIAGNOSTICS_TOPIC, "foxglove.Log")
+        if not (self._every_message or self._live(cid)):
+            return
         for f in findings:
             t = self._time(f.t, f.offset)
             ns = _ns(t)
@@ -140,7 +179,7 @@ class JsonChannels:
                    "level": _LOG_LEVEL.get(f.severity, 0),
                    "message": f.message if f.id is None else f"id {f.id}: {f.message}",
                    "name": f"{f.code} {f.name}", "file": self.source, "line": f.offset}
-            self._write(self._channel(DIAGNOSTICS_TOPIC, "foxglove.Log"), ns, _encode(msg).encode())
+            self._write(cid, ns, _encode(msg).encode())
 
     # ---- as a sink of the drive loop (rs30x_sniff.pipeline) ----------------------------------------
     def chunk(self, data: bytes, t: float | None) -> None:

@@ -8,6 +8,7 @@ import json
 import re
 import struct
 import subprocess
+import threading
 import time
 
 import pytest
@@ -70,6 +71,8 @@ class Client:
                     frame = await asyncio.wait_for(ws.recv(), 0.1)
                 except asyncio.TimeoutError:
                     continue
+                except websockets.ConnectionClosed:
+                    break  # the server stopped (the command ended)
                 if isinstance(frame, bytes):
                     op, sub, log_time = struct.unpack_from("<BIQ", frame)
                     assert op == MESSAGE_DATA
@@ -96,6 +99,22 @@ class Client:
         return {t for t, _, _ in self.messages}
 
 
+def in_thread(client: Client, until, seconds: float = 30.0, abort: bool = False) -> threading.Thread:
+    """Run ``client`` in a thread of its own (the test meanwhile plays the bus)."""
+    thread = threading.Thread(target=lambda: asyncio.run(client.run(until, seconds, abort)), daemon=True)
+    thread.start()
+    return thread
+
+
+def file_messages(path) -> list[tuple[str, int, bytes]]:
+    """(topic, log time, payload) of every message of an MCAP file (a path or a file object), in file order."""
+    from mcap.reader import make_reader
+
+    f = path if hasattr(path, "read") else open(path, "rb")
+    with f:
+        return [(c.topic, m.log_time, m.data) for _, c, m in make_reader(f).iter_messages(log_time_order=False)]
+
+
 def _validate(client: Client) -> None:
     """Every payload is JSON valid against its channel's advertised schema (the package's own), and
     each channel's log times never go back."""
@@ -119,6 +138,10 @@ def test_serve_simulator_to_a_client_then_a_late_one():
         # Leaves mid-stream, abruptly: the server must neither stop nor stall for it.
         asyncio.run(first.run(lambda c: len(c.messages) >= 600 and wanted <= c.topics(), abort=True))
         assert first.info is not None and first.info["name"] == "rs30x-sniff"
+        advertised = {ch["topic"] for ch in first.channels.values()}
+        # The fixed channels from the start, and one state channel per servo of the hexapod.
+        assert advertised == {"/rs30x/raw", "/rs30x/packets", "/rs30x/transactions", "/rs30x/diagnostics",
+                              *(f"/rs30x/servo/{i}/state" for i in range(1, 19))}, advertised
         assert wanted <= first.topics(), first.topics()
         _validate(first)
         times = [t for topic, t, _ in first.messages if topic == "/rs30x/packets"]
@@ -138,6 +161,8 @@ def test_serve_simulator_to_a_client_then_a_late_one():
     finally:
         err = stop(proc)
     assert "messages published" in err, err
+    # The SDK's own words (the first client left without a closing handshake) come as our lines too.
+    assert all(line.startswith("rs30x-sniff: ") for line in err.splitlines()), err
 
 
 def test_serve_overheat_publishes_findings_on_diagnostics():
@@ -192,6 +217,8 @@ def test_the_server_publishes_what_the_mcap_file_holds():
     published: list[tuple[str, int, bytes]] = []
 
     class Recording(FoxgloveSink):
+        _every_message = True  # as if every channel had a subscriber
+
         def _write(self, cid, log_time, data):
             published.append((cid.topic(), log_time, data))
             super()._write(cid, log_time, data)
@@ -242,6 +269,219 @@ def test_record_with_foxglove_streams_what_it_writes(tmp_path):
     assert len(packets) == sum(1 for topic, _, _ in written if topic == "/rs30x/packets") > 0
     assert all(msg in written for msg in client.messages)
     assert packets[0][1] > 1_000_000_000 * 1_000_000_000  # wall clock, in ns since the epoch
+
+
+def test_record_loses_no_bytes_to_a_client_that_leaves_or_comes_late(tmp_path):
+    """`record --foxglove` with one client that drops its connection mid-stream (no closing handshake)
+    and one that connects late: the file holds every byte played, and each client saw only what the
+    file holds, in the file's order."""
+    from tests.e2e.helpers import Pty, recorded_bytes
+
+    pty = Pty()
+    out = tmp_path / "bus.mcap"
+    proc = cli("record", pty.path, "-o", str(out), "--baud", "230400", "--foxglove", "127.0.0.1:0")
+    try:
+        line = proc.stderr.readline().decode()
+        m = SERVER_LINE.search(line)
+        assert m, line + proc.stderr.read().decode()
+        url = m.group(1)
+        leaver = Client(url)
+        t_leaver = in_thread(leaver, lambda c: sum(t == "/rs30x/packets" for t, _, _ in c.messages) >= 300,
+                             abort=True)
+        end = time.monotonic() + 10
+        while len(leaver.subs) < 4 and time.monotonic() < end:
+            time.sleep(0.05)
+        time.sleep(0.2)  # the subscriptions reach the server
+        late = Client(url)
+        done = threading.Event()
+        played: dict[str, bytes] = {}
+        player = threading.Thread(target=lambda: played.update(
+            sent=pty.write_sim("hexapod", duration=4.0, baud=230400)))
+        player.start()
+        time.sleep(1.5)
+        t_late = in_thread(late, lambda c: done.is_set())
+        player.join(timeout=30)
+        seen = -1
+        while len(late.messages) != seen:  # until the late client has caught up
+            seen = len(late.messages)
+            time.sleep(0.5)
+        done.set()
+        t_late.join(timeout=20)
+        t_leaver.join(timeout=20)
+        assert proc.poll() is None, "the recorder stopped"
+        proc.send_signal(2)
+        _, err = proc.communicate(timeout=20)
+        assert proc.returncode == 0, err
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        pty.close()
+    assert recorded_bytes(out) == played["sent"]  # not a byte lost to either client
+    written = file_messages(out)
+    index = {msg: i for i, msg in enumerate(written)}
+    file_packets = [msg for msg in written if msg[0] == "/rs30x/packets"]
+    for client in (leaver, late):
+        _validate(client)
+        assert client.messages and all(msg in index for msg in client.messages)
+        # Per channel, in the file's order (the server sends one queue per client, in log order).
+        for topic in client.topics():
+            seen = [index[msg] for msg in client.messages if msg[0] == topic]
+            assert seen == sorted(seen), topic
+    left = [msg for msg in leaver.messages if msg[0] == "/rs30x/packets"]
+    assert 300 <= len(left) < len(file_packets) // 2  # it left early...
+    assert left == file_packets[:len(left)]           # ...having missed nothing before it did
+    came = [msg for msg in late.messages if msg[0] == "/rs30x/packets"]
+    assert came and came[0][1] > left[0][1] and len(came) < len(file_packets)
+    # And it saw the stream to its end (but for a last record only the recorder's stop may decode).
+    assert file_packets.index(came[-1]) >= len(file_packets) - 2
+
+
+def test_a_client_that_subscribes_late_gets_the_files_bodies():
+    """With no client, the server encodes nothing (nobody would get it); a client that subscribes
+    mid-stream then gets exactly the messages the MCAP file gets from that point, whole servo states
+    included (the registers that changed while nobody watched are in them). One process, an MCAP sink
+    and the server side by side, as in `record --foxglove`: neither sees the other's messages."""
+    from rs30x_sniff.io.foxglove_sink import FIXED_CHANNELS, FoxgloveSink
+    from rs30x_sniff.io.mcap_sink import McapSink
+    from rs30x_sniff.lint import Linter
+    from rs30x_sniff.pipeline import Decoder, Pipeline
+    from rs30x_sniff.sim import run
+
+    chunks = list(run("overheat", baud=115200, seed=1, duration=6.0))
+    half = len(chunks) // 2
+    buf = io.BytesIO()
+    mcap = McapSink(buf, source="overheat", baud=115200, time_base="capture")
+    # A backlog the whole second half fits in: this drive loop outruns any client.
+    fox = FoxgloveSink("127.0.0.1", 0, source="overheat", baud=115200, backlog=1 << 20)
+    pipeline = Pipeline(Decoder(linter=Linter()), [mcap, fox])
+    try:
+        for data, t in chunks[:half]:
+            pipeline.feed(data, t)
+        assert fox.messages == 0 and mcap.messages > 1000
+        before = mcap.messages
+        client = Client(fox.ws_url)
+        done = threading.Event()
+        thread = in_thread(client, lambda c: done.is_set())
+        end = time.monotonic() + 10
+        channels = list(fox._channels.values()) + list(fox._state_channels.values())
+        while not all(ch.has_sinks() for ch in channels) and time.monotonic() < end:
+            time.sleep(0.02)
+        assert fox._state_channels and all(ch.has_sinks() for ch in channels)
+        known = set(fox._channels)
+        for data, t in chunks[half:]:
+            pipeline.feed(data, t)
+        pipeline.close()
+        end = time.monotonic() + 20
+        while len(client.messages) < fox.messages and time.monotonic() < end:
+            time.sleep(0.05)
+        done.set()
+        thread.join(timeout=20)
+    finally:
+        fox.close()
+        mcap.finish()
+    expected = file_messages(io.BytesIO(buf.getvalue()))[before:]
+    assert {t for t, _, _ in expected} >= {t for t, _ in FIXED_CHANNELS}  # findings in this half too
+    assert {t for t, _, _ in expected} <= known  # no servo first seen after the client subscribed
+    assert fox.messages == len(expected)
+    assert client.messages == expected
+
+
+def test_monitor_with_foxglove_streams_to_a_client(tmp_path):
+    """`monitor --foxglove` in a real terminal (a pty): the URL is said before the screen starts, a
+    client gets the channels and the findings while the timeline runs, a client that drops its
+    connection leaves no SDK message on the screen, and `q` ends both (terminal restored, exit 0)."""
+    import fcntl
+    import os
+    import sys
+    import termios
+
+    master, slave = os.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
+    env = dict(os.environ, TERM="xterm-256color", COLUMNS="120", LINES="40")
+    proc = subprocess.Popen([sys.executable, "-m", "rs30x_sniff", "monitor", "--simulate", "overheat",
+                             "--foxglove", "127.0.0.1:0", "--record-dir", str(tmp_path)],
+                            stdin=slave, stdout=slave, stderr=slave, env=env, cwd=tmp_path, start_new_session=True)
+    os.close(slave)
+    screen = bytearray()
+    reading = threading.Event()
+
+    def drain() -> None:
+        # The screen is read all along, as a terminal would: a full pty would stall the monitor.
+        while not reading.is_set():
+            try:
+                data = os.read(master, 65536)
+            except OSError:
+                return
+            if not data:
+                return
+            screen.extend(data)
+
+    reader = threading.Thread(target=drain, daemon=True)
+    reader.start()
+    try:
+        end = time.monotonic() + 30
+        while not SERVER_LINE.search(screen.decode(errors="replace")) and time.monotonic() < end:
+            time.sleep(0.05)
+        m = SERVER_LINE.search(screen.decode(errors="replace"))
+        assert m, bytes(screen[-500:])
+        leaver = Client(m.group(1))
+        asyncio.run(leaver.run(lambda c: len(c.messages) >= 50, abort=True))
+        client = Client(m.group(1))
+        asyncio.run(client.run(lambda c: any(t == "/rs30x/diagnostics" for t, _, _ in c.messages), seconds=30))
+        time.sleep(0.5)
+        assert proc.poll() is None
+        os.write(master, b"q")
+        assert proc.wait(20) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        reading.set()
+        reader.join(timeout=5)
+        os.close(master)
+    shown = bytes(screen)
+    assert b"\x1b[?1049l" in shown  # the alternate screen was left: the terminal is back
+    assert b"Error receiving" not in shown and b"Traceback" not in shown
+    _validate(leaver)
+    _validate(client)
+    assert {"/rs30x/raw", "/rs30x/packets", "/rs30x/transactions"} <= client.topics()
+    logs = [json.loads(p) for t, _, p in client.messages if t == "/rs30x/diagnostics"]
+    assert logs and all(log["file"] == "overheat" for log in logs)
+
+
+def test_the_layout_shows_what_we_publish():
+    """docs/foxglove-layout.json is JSON whose every topic is one of our channels, and whose every
+    plotted field is a key the hexapod's state messages carry (per servo, 1 to 18)."""
+    from pathlib import Path
+
+    from rs30x_sniff.io.mcap_sink import DIAGNOSTICS_TOPIC, PACKETS_TOPIC, McapSink
+    from rs30x_sniff.pipeline import Decoder, drive
+    from rs30x_sniff.sim import run
+
+    layout = json.loads((Path(__file__).resolve().parents[2] / "docs" / "foxglove-layout.json").read_text())
+    panels = layout["configById"]
+    buf = io.BytesIO()
+    with McapSink(buf, source="hexapod", baud=115200, time_base="capture") as mcap:
+        drive(iter(run("hexapod", baud=115200, duration=2.0)), Decoder(), mcap)
+    keys: dict[str, set[str]] = {}
+    for topic, _, payload in file_messages(io.BytesIO(buf.getvalue())):
+        keys.setdefault(topic, set()).update(json.loads(payload))
+    plotted = {}
+    for key, cfg in panels.items():
+        if key.startswith("Plot!"):
+            for path in cfg["paths"]:
+                topic, _, field = path["value"].partition(".")
+                assert field in keys.get(topic, ()), path["value"]
+                plotted.setdefault(field, set()).add(int(topic.split("/")[3]))
+    assert plotted == {f: set(range(1, 19)) for f in ("present_position", "present_current", "present_temperature")}
+    [log] = [cfg for key, cfg in panels.items() if key.startswith("RosOut!")]  # Foxglove's Log panel
+    assert log["topicToRender"] == DIAGNOSTICS_TOPIC
+    assert all(cfg["topicPath"] in keys for key, cfg in panels.items() if key.startswith("RawMessages!"))
+    assert PACKETS_TOPIC in keys
+
+    def leaves(node):
+        return [node] if isinstance(node, str) else leaves(node["first"]) + leaves(node["second"])
+
+    assert sorted(leaves(layout["layout"])) == sorted(panels)  # every panel placed, none missing
 
 
 def test_monitor_takes_foxglove():
