@@ -156,7 +156,7 @@ def drive_cpu(chunks: list, baud: int, mode: str) -> tuple[float, int]:
     from rs30x_sniff.io.foxglove_sink import FoxgloveSink
     from rs30x_sniff.io.mcap_sink import McapSink
     from rs30x_sniff.lint import Linter
-    from rs30x_sniff.pipeline import Decoder, Pipeline, drive
+    from rs30x_sniff.pipeline import Decoder, Pipeline
 
     # decoder: no sink at all; serve: the server alone (`serve PORT`), with no client.
     sinks = [] if mode in ("decoder", "serve") else [McapSink(io.BytesIO(), source="bench", baud=baud,
@@ -178,18 +178,21 @@ def drive_cpu(chunks: list, baud: int, mode: str) -> tuple[float, int]:
             while len(client.subscribed) < expected and time.monotonic() < end:
                 time.sleep(0.05)
             time.sleep(0.3)
+    pipeline = Pipeline(Decoder(linter=Linter()), sinks)
     gc.collect()
     t0 = time.thread_time()
-    drive(iter(chunks), Decoder(linter=Linter()), *sinks)
+    for data, t in chunks:
+        pipeline.feed(data, t)
     cpu = time.thread_time() - t0
     if client is not None:
-        # Until the client has what the server queued for it (or stops getting more).
+        # Until the client has what the server queued for it: closing the pipeline stops the server.
         seen = -1
         while client.messages != seen:
             seen = client.messages
             time.sleep(0.5)
         client.stop.set()
         client.thread.join(5)
+    pipeline.close()
     return cpu, client.messages if client else 0
 
 
