@@ -124,7 +124,7 @@ class BaudFromTimes(Sink):
         self._prev: tuple[int, float] | None = None
         self._cached: BaudEstimate | None = None
 
-    def chunk(self, data: bytes, t: float | None) -> None:
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         if not data:
             return
         if t is None:
@@ -317,7 +317,7 @@ class BaudWatch(Sink):
         self.rescan_due = False
         self.reason = ""
 
-    def chunk(self, data: bytes, t: float | None) -> None:
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         if not data:
             return
         self.fed += len(data)

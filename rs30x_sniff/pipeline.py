@@ -106,11 +106,11 @@ class Sink:
     """Where decoded traffic goes (text, JSON lines, a lint report, MCAP, statistics, the monitor).
 
     The drive loop calls ``chunk`` with the raw bytes before they are decoded (so nothing read is lost
-    to a decoding error), ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing
+    to a decoding error; ``sender`` and ``error`` are what the capture said of them, rs30x_sniff.chunks), ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing
     for a moment, and ``close`` once at the end. Every method is optional.
     """
 
-    def chunk(self, data: bytes, t: float | None) -> None:
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         pass
 
     def batch(self, step: Step) -> None:
@@ -149,7 +149,7 @@ class Pipeline:
                 s.idle()
             return Step()
         for s in sinks:
-            s.chunk(data, t)
+            s.chunk(data, t, sender, error)
         step = self.decoder.feed(data, t, sender, error)
         if step or step.findings:
             for s in sinks:

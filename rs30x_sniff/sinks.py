@@ -100,5 +100,5 @@ class ProgressSink(Sink):
     def __init__(self, advance: Callable[[int], None]) -> None:
         self.advance = advance
 
-    def chunk(self, data: bytes, t: float | None) -> None:
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         self.advance(len(data))

@@ -111,7 +111,7 @@ class CaptureStats(Sink):
         self._peak: tuple[float, float] | None = None  # (load, window start) of the busiest full window
 
     # ---- as a sink ---------------------------------------------------------------------------------
-    def chunk(self, data: bytes, t: float | None) -> None:
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         self.bytes_in += len(data)
 
     def batch(self, step: Step) -> None:

@@ -292,7 +292,7 @@ class BaudWatchWarning(Sink):
         self.watch = BaudWatch(baud)
         self.said = False
 
-    def chunk(self, data: bytes, t: float | None) -> None:
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         self.watch.chunk(data, t)
         self._say()
 

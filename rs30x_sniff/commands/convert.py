@@ -89,9 +89,17 @@ def run(args: argparse.Namespace) -> int:
     start_time = parse_start_time(args.start_time)
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)
-    first, chunks = peek(open_input(args.input, args.input_format, settings))
+    src = open_input(args.input, args.input_format, settings)
+    first, chunks = peek(src)
     if first is None:
         raise CliError(f"{args.input}: no data (the capture is empty): nothing to convert")
+    if start_time is None:
+        # Another tool's log may carry the wall-clock time of its first stamp (a Saleae ISO table, a
+        # socat or jpnevulator log): the MCAP is anchored there, as --start-time would (which wins).
+        found = getattr(getattr(src, "context", None), "found", None) or {}
+        when = found.get("start_time")
+        if when is not None:
+            start_time = when.timestamp()
     decoder = Decoder(settings.decode_options(), linter=linter)
     source = "stdin" if args.input == "-" else args.input
     total = os.path.getsize(args.input) if os.path.isfile(args.input) and (

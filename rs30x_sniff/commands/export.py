@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     def chunks() -> Iterator[Chunk]:
         # A capture that had no timestamps keeps none, except in timestamped output, which gets
         # the synthetic (byte position) times the log was written with.
-        for data, t, log_time in reader:
+        for data, t, log_time, _ in reader:  # bin and hex text cannot say who sent a byte or flag one
             yield data, (t if t is not None or fmt != TIMESTAMPED else log_time / 1e9)
 
     if args.output == STDOUT:

@@ -72,12 +72,12 @@ class _Files(Sink):
         self.paths.append(path)
         return sink
 
-    def chunk(self, data: bytes, t: float | None) -> None:
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         if self.split_bytes is not None and self.sink.bytes_written >= self.split_bytes:
             self.sink.finish()
             self.sink = self._open()
         # Raw bytes go to the file before decoding: nothing received is ever lost to a decoder error.
-        self.sink.chunk(data, t)
+        self.sink.chunk(data, t, sender, error)
         self.dirty = True
         self.idle()
 
@@ -111,7 +111,7 @@ class _Status(Sink):
                              redirect_stdout=True, redirect_stderr=False)
             self.live.start()
 
-    def chunk(self, data: bytes, t: float | None) -> None:
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         self.bytes += len(data)
         if t is not None:
             self.load.add(t, len(data))

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, Callable, Iterable, Iterator
 
+from ..chunks import Marked
 from . import foreign
 
 Chunk = tuple[bytes, float | None]
@@ -351,8 +352,8 @@ class CaptureReader:
                                "(save it to a file first)")
         reader = McapRawReader(self.path, warn=self._warn)
         reader.warnings = self.warnings
-        for data, t, _ in reader:
-            yield data, t
+        for data, t, _, marks in reader:
+            yield (data, t) if marks is None else Marked(data, t, sender=marks[0], error=marks[1])
 
     def __iter__(self) -> Iterator[Chunk]:
         return self._start()

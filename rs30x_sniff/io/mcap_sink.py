@@ -12,7 +12,7 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from .. import __version__
 from ..events import Garbage, ShortPacket
-from ..render import record_json
+from ..render import record_json_text
 from ..schemas import schema_bytes
 from .captures import MCAP_MAGIC as _MAGIC
 from .servo_states import ServoStates
@@ -89,15 +89,17 @@ class JsonChannels:
         return self._origin + (t if t is not None else offset * self._byte_time)
 
     # ---- messages -----------------------------------------------------------------------------
-    def raw(self, data: bytes, t: float | None) -> None:
-        """One /rs30x/raw message: bytes as they arrived (``t``: capture time of the first byte, or None)."""
+    def raw(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
+        """One /rs30x/raw message: bytes as they arrived (``t``: capture time of the first byte, or None),
+        with who sent them and the UART error flagged on them where the capture says (``sender``,
+        ``error``: written only when set, so they survive a conversion of another tool's capture)."""
         if not data:
             return
         if t is None and len(data) > RAW_SPLIT:
             # An untimed capture arrives in big blocks; smaller messages keep each one's (synthetic)
             # log time close to its bytes and chunks within their time bound.
             for i in range(0, len(data), RAW_SPLIT):
-                self.raw(data[i:i + RAW_SPLIT], None)
+                self.raw(data[i:i + RAW_SPLIT], None, sender, error)
             return
         offset = self._raw_offset
         self._raw_offset += len(data)
@@ -105,8 +107,9 @@ class JsonChannels:
         if not (self._every_message or self._live(cid)):
             return
         ts = "null" if t is None else repr(float(t))
+        marks = (f',"sender":"{sender}"' if sender else "") + (f',"error":"{error}"' if error else "")
         body = (f'{{"offset":{offset},"t":{ts},"length":{len(data)},"data":"'
-                f'{base64.b64encode(data).decode("ascii")}"}}').encode()
+                f'{base64.b64encode(data).decode("ascii")}"{marks}}}').encode()
         self._write(cid, _ns(self._time(t, offset)), body)
 
     def record(self, rec: Any) -> None:
@@ -117,7 +120,7 @@ class JsonChannels:
         every = self._every_message
         cid = self._channel(PACKETS_TOPIC, "rs30x.Packet")
         if every or self._live(cid):
-            self._write(cid, log_time, _encode(record_json(rec)).encode())
+            self._write(cid, log_time, record_json_text(rec, compact=True).encode())
         if type(ev) is Garbage:
             return
         changed = self._servos.changes(rec)
@@ -182,8 +185,8 @@ class JsonChannels:
             self._write(cid, ns, _encode(msg).encode())
 
     # ---- as a sink of the drive loop (rs30x_sniff.pipeline) ----------------------------------------
-    def chunk(self, data: bytes, t: float | None) -> None:
-        self.raw(data, t)
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
+        self.raw(data, t, sender, error)
 
     def batch(self, step: Any) -> None:
         record = self.record
@@ -325,8 +328,8 @@ class McapSink(JsonChannels):
         self._chunk_bytes = 0
 
     # ---- as a sink: JsonChannels' protocol, and the statistics of what passed through ------------
-    def chunk(self, data: bytes, t: float | None) -> None:
-        super().chunk(data, t)
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
+        super().chunk(data, t, sender, error)
         self.stats.chunk(data, t)
 
     def batch(self, step: Any) -> None:

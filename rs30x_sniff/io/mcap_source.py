@@ -14,6 +14,7 @@ from typing import BinaryIO, Callable, Iterator
 import zstandard
 from mcap.opcode import Opcode
 
+from ..chunks import SENDERS, UART_ERRORS, Marked
 from .captures import MCAP_MAGIC, CaptureError, CaptureWarning, open_capture, stderr_warning
 from .mcap_sink import METADATA_NAME, MODELS_METADATA_NAME, RAW_TOPIC
 
@@ -33,7 +34,9 @@ _KNOWN = {int(op) for op in Opcode}
 
 _stderr_warning = stderr_warning  # kept: the name other modules knew
 
-Raw = tuple[bytes, float | None, int]
+# (bytes, capture time, log time ns, marks): marks is None, or (sender, error) as the capture recorded
+# them (rs30x_sniff.chunks), for a log converted from another tool's capture.
+Raw = tuple[bytes, float | None, int, "tuple[str | None, str | None] | None"]
 
 
 class _Damage(Exception):
@@ -319,6 +322,9 @@ class McapRawReader:
             t = float(t) if t is not None else None
             offset = obj.get("offset")
             length = obj.get("length")
+            sender, error = obj.get("sender"), obj.get("error")
+            if (sender is not None and sender not in SENDERS) or (error is not None and error not in UART_ERRORS):
+                raise ValueError("a mark we do not write")
         except (ValueError, KeyError, TypeError, AttributeError, binascii.Error):
             raise _Bad(f"a {RAW_TOPIC} message that is not what we write") from None
         # The writer numbers every raw byte: a message that does not start where the last one ended
@@ -328,7 +334,7 @@ class McapRawReader:
         if length is not None and length != len(data):
             raise _Bad(f"a {RAW_TOPIC} message of {len(data)} bytes that says {length}")
         state.offset += len(data)
-        return data, t, log_time
+        return data, t, log_time, (None if sender is None and error is None else (sender, error))
 
     # ---- what reading lost ---------------------------------------------------------------------
     def _warn(self, text: str, offset: int | None, lost: int) -> None:
@@ -466,5 +472,5 @@ def _check_prefix(opcode: int, length: int, prefix: bytes, pos: int) -> None:
 def read_mcap_raw(path: str, warn: Callable[[str], None] | None = stderr_warning
                   ) -> Iterator[tuple[bytes, float | None]]:
     """The capture an rs30x-sniff MCAP holds: its /rs30x/raw chunks with their original timestamps."""
-    for data, t, _ in McapRawReader(path, warn=warn):
-        yield data, t
+    for data, t, _, marks in McapRawReader(path, warn=warn):
+        yield (data, t) if marks is None else Marked(data, t, sender=marks[0], error=marks[1])

@@ -77,7 +77,7 @@ class _Recording(Sink):
             self.feeder._note = f"recording stopped: {e.strerror or e}"
             self.feeder._close_sink(quiet=True)
 
-    def chunk(self, data: bytes, t: float | None) -> None:
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         self._guard(self.sink.chunk, data, t)
 
     def batch(self, step: Step) -> None:

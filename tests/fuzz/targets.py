@@ -125,7 +125,7 @@ def check_mcap(data: bytes) -> None:
     try:
         reader.read_metadata()
         _ = reader.baud, reader.models
-        got = [(d, t) for d, t, _ in reader]
+        got = [(d, t) for d, t, _, _ in reader]
     except CaptureError as e:
         assert "\n" not in str(e)
         return

@@ -15,7 +15,7 @@ from .conftest import make_mcap
 
 def _read(path, warnings: list | None = None) -> tuple[list, McapRawReader]:
     reader = McapRawReader(str(path), warn=(warnings.append if warnings is not None else None))
-    return [(d, t) for d, t, _ in reader], reader
+    return [(r[0], r[1]) for r in reader], reader
 
 
 def _chunk_offsets(path) -> list[tuple[int, int]]:

@@ -374,7 +374,7 @@ def test_cli_commands(tmp_path, capsys, name, forced):
     capsys.readouterr()
     from rs30x_sniff.io.mcap_source import McapRawReader
 
-    assert b"".join(d for d, _, _ in McapRawReader(str(out))) == b"".join(d for d, _, _ in w.simulated())
+    assert b"".join(r[0] for r in McapRawReader(str(out))) == b"".join(d for d, _, _ in w.simulated())
 
 
 @pytest.mark.parametrize("name", NAMES)

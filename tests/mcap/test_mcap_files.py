@@ -132,7 +132,7 @@ def test_a_file_cut_anywhere_is_read_up_to_its_last_complete_chunk(hexapod_mcap,
         cut_path.write_bytes(blob[:cut])
         warnings: list[str] = []
         reader = McapRawReader(str(cut_path), warn=warnings.append)
-        got = b"".join(d for d, _, _ in reader)
+        got = b"".join(r[0] for r in reader)
         assert full.startswith(got), cut
         if cut < data_end:
             assert reader.complete is False and len(warnings) == 1, cut
@@ -213,6 +213,6 @@ def test_a_killed_writer_loses_at_most_about_a_second(tmp_path):
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
     warnings: list[str] = []
-    times = [t for _, t, _ in McapRawReader(str(out), warn=warnings.append)]
+    times = [r[1] for r in McapRawReader(str(out), warn=warnings.append)]
     assert warnings and times
     assert times[-1] >= given - 1.05

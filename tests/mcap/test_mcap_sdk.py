@@ -67,8 +67,8 @@ def test_two_files_open_at_once_get_only_their_own_messages(tmp_path):
             b.raw(b"\xfd\xdf", i * 0.01)
     a.finish()
     b.finish()
-    assert [d for d, _, _ in McapRawReader(str(tmp_path / "a.mcap"))] == [b"\xfa\xaf"] * 50
-    assert [d for d, _, _ in McapRawReader(str(tmp_path / "b.mcap"))] == [b"\xfd\xdf"] * 25
+    assert [d for d, *_ in McapRawReader(str(tmp_path / "a.mcap"))] == [b"\xfa\xaf"] * 50
+    assert [d for d, *_ in McapRawReader(str(tmp_path / "b.mcap"))] == [b"\xfd\xdf"] * 25
 
 
 class _Failing(io.BytesIO):
