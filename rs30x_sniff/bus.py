@@ -155,6 +155,16 @@ class Record:
             return tuple(v for sub, d, _ in lay for v in sub.values(d))
         return lay.values(data)
 
+    def named_values(self) -> list[tuple[Any, str, Any]]:
+        """``(servo id, register name, value)`` of each whole, named register the packet carries, in
+        field order (Layout.named_values): the fields' content without the Field objects."""
+        lay, data = self._layout()
+        if lay is None:
+            return []
+        if isinstance(lay, list):
+            return [x for sub, d, vid in lay for x in sub.named_values(d, sub.values(d), vid)]
+        return lay.named_values(data, self.values, self.event.id)
+
     def fields_json(self, only: set[int] | None = None, compact: bool = False) -> str:
         """The JSON text of the fields' objects (``render.field_json``), without the brackets, written
         from per-layout templates: no Field objects or dicts are built (``only``: those servo IDs)."""

@@ -210,7 +210,7 @@ class Layout:
     With ``records`` > 0 it is a long packet's data: that many repeats of VID + ``length`` bytes.
     """
 
-    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_json")
+    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_json", "_named")
 
     def __init__(self, model: Model, address: int, length: int, records: int = 0) -> None:
         parts = []
@@ -240,6 +240,7 @@ class Layout:
                 exprs.append(_conversion(reg, partial, f"r[{k}]", env, j))
                 k += 1
         self._json: tuple[tuple[str, ...], ...] | None = None  # fields_json's templates (spaced, compact)
+        self._named: tuple[tuple[int, str], ...] | None = None  # named_values' (part, name) pairs
         unpack = self.unpack_raw = struct.Struct("<" + "".join(codes)).unpack
         if all(e == f"r[{i}]" for i, e in enumerate(exprs)):
             self.values = unpack
@@ -293,6 +294,22 @@ class Layout:
             return tmpl, lambda d, h, v, s: ""
         src = f"lambda d, h, v, s: F % ({', '.join(args)},)"
         return tmpl, eval(src, {"F": fmt, "J": _json_scalar})  # noqa: S307 - generated from the validated memory map
+
+    def named_values(self, data: bytes, values: tuple, servo_id: int | None = None) -> list[tuple[Any, str, Any]]:
+        """``(servo id, register name, value)`` of every whole, named register in ``data``: what the
+        fields say, without building them (the servo-state channel and table read this per packet)."""
+        named = self._named
+        if named is None:
+            named = self._named = tuple((j, reg.name) for j, (_, _, reg, partial) in enumerate(self.parts)
+                                        if reg.name is not None and not partial)
+        if not self.records:
+            return [(servo_id, name, values[j]) for j, name in named]
+        stride, n = self.size + 1, len(self.parts)
+        out: list[tuple[Any, str, Any]] = []
+        for rec in range(self.records):
+            vid, base = data[rec * stride], rec * n
+            out += [(vid, name, values[base + j]) for j, name in named]
+        return out
 
     def fields_json(self, data: bytes, values: tuple, servo_id: int | None = None,
                     only: set[int] | None = None, compact: bool = False) -> str:

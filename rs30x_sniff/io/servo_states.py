@@ -31,12 +31,8 @@ class ServoStates:
             return {}
         out: dict[int, list[tuple[str, Any]]] = {}
         known = self.known
-        for f in rec.fields:
-            name = f.register.name
-            if name is None or f.partial:
-                continue
-            value = f.value
-            for tid in (list(known) if f.id == BROADCAST_ID else (f.id,)):
+        for fid, name, value in rec.named_values():
+            for tid in (list(known) if fid == BROADCAST_ID else (fid,)):
                 pairs = out.get(tid)
                 if pairs is None:
                     pairs = out[tid] = []

@@ -40,3 +40,10 @@ def test_partial_registers_enums_and_mixed_models_long_packets():
         for compact in (False, True):
             want = (_COMPACT if compact else json.dumps)(record_json(rec))
             assert record_json_text(rec, compact=compact) == want
+
+
+@pytest.mark.parametrize("name", sorted(SCENARIOS))
+def test_named_values_are_what_the_fields_say(name):
+    for rec in _records(name):
+        want = [(f.id, f.register.name, f.value) for f in rec.fields if f.register.name is not None and not f.partial]
+        assert rec.named_values() == want
