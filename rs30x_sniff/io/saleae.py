@@ -345,19 +345,7 @@ def _logic2_rows(lines: Iterable[str], ctx: ReadContext) -> Iterator[Row]:
             dur = _seconds(row[i_dur]) if i_dur is not None and row[i_dur] else None
             err = _error_of(row[i_err]) if i_err is not None and row[i_err] else None
             name = row[i_name] if i_name is not None else ""
-            cell = row[i_data]
-            v = values.table.get(cell)
-            if v is None:
-                if values.parse is None and not values.decide(cell):
-                    pending.append((t, cell, name, err, dur, line))
-                    continue
-                v = values.table.get(cell)
-                if v is None:
-                    v = values.parse(cell)
-            if pending:
-                yield from _decided(pending, values, path)
-                pending = []
-            yield t, v, name, err, dur, line
+            yield from _valued(values, pending, path, (t, row[i_data], name, err, dur, line))
     except _BadValue as e:
         raise CaptureError(f"{path}:{line}: {e}", line=line) from None
     except csv.Error as e:
@@ -365,6 +353,24 @@ def _logic2_rows(lines: Iterable[str], ctx: ReadContext) -> Iterator[Row]:
     if pending:
         values.set(DEC)  # nothing but lone digits: read as decimal
         yield from _decided(pending, values, path)
+
+
+def _valued(values: _Values, pending: list[tuple], path: str, row: tuple) -> Iterator[Row]:
+    """A row ``(t, cell, name, err, dur, line)`` with its cell read as a byte, once the table's radix is
+    known; until then rows wait in ``pending`` (a lone digit fits several radixes) and go out first."""
+    t, cell, name, err, dur, line = row
+    v = values.table.get(cell)
+    if v is None:
+        if values.parse is None and not values.decide(cell):
+            pending.append(row)
+            return
+        v = values.table.get(cell)
+        if v is None:
+            v = values.parse(cell)
+    if pending:
+        yield from _decided(pending, values, path)
+        pending.clear()
+    yield t, v, name, err, dur, line
 
 
 def _decided(pending: list[tuple], values: _Values, path: str) -> Iterator[Row]:
@@ -403,19 +409,7 @@ def _logic1_rows(lines: Iterable[str], ctx: ReadContext, first_line: int = 2) ->
                 if cell and cell.lower() != "error":
                     raise _BadValue(f"an error cell holds {_show(cell)}, not Error or nothing")
             err = FRAMING_ERROR if framing else PARITY_ERROR if parity else None
-            cell = fields[1]
-            v = values.table.get(cell)
-            if v is None:
-                if values.parse is None and not values.decide(cell):
-                    pending.append((t, cell, "", err, None, line))
-                    continue
-                v = values.table.get(cell)
-                if v is None:
-                    v = values.parse(cell)
-            if pending:
-                yield from _decided(pending, values, path)
-                pending = []
-            yield t, v, "", err, None, line
+            yield from _valued(values, pending, path, (t, fields[1], "", err, None, line))
     except _BadValue as e:
         raise CaptureError(f"{path}:{line}: {e}", line=line) from None
     if pending:
