@@ -337,20 +337,23 @@ def check_positive(option: str, value: float | None) -> None:
 
 
 # ---- inputs ----------------------------------------------------------------------------------------
-def open_input(path: str, fmt: str | None, settings: Settings, *, duration: float | None = None) -> Iterator[Chunk]:
+def open_input(path: str, fmt: str | None, settings: Settings, *, duration: float | None = None,
+               locate: bool = True) -> Iterator[Chunk]:
     """Chunks from a capture file (or '-' for stdin), or live from a serial port, as ``settings`` say.
 
     A port (a character device such as /dev/ttyUSB0, or a pyserial URL such as socket://host:port)
     is read passively at the settings' baud until Ctrl-C, SIGTERM, SIGHUP or ``duration`` seconds;
     the returned source then has ``live = True`` and, after iteration, ``lost`` tells whether the
-    port failed. A timestamped capture's times are read by the settings' time reference.
+    port failed. A timestamped capture's times are read by the settings' time reference. ``locate``
+    False: nobody will ask where in a text capture a byte was (no line index is kept).
     """
     if fmt is None and is_port_path(path):
         from ..io.serial_tap import LiveSource
 
         check_positive("--duration", duration)
         return LiveSource(path, settings.baud, duration=duration).start()
-    return read_input(path, fmt, baud=settings.baud, time_ref=settings.time_ref, options=input_options(settings))
+    return read_input(path, fmt, baud=settings.baud, time_ref=settings.time_ref,
+                      options={**input_options(settings), "locate": locate})
 
 
 def input_options(settings: Settings) -> dict[str, Any]:

@@ -340,7 +340,9 @@ class CaptureReader:
                                        "(save it to a file first)")
                 self._gen = _closing(other.read(opened.stream, self.context), opened.stream)
             else:
-                self._lines = _LineIndex()
+                # 16 bytes a line, for findings' FILE:LINE:COL: a reader nobody will ask (options
+                # "locate": False, as convert's) keeps none, and a long capture's memory stays flat.
+                self._lines = _LineIndex() if self.context.options.get("locate", True) else _NoIndex()
                 self._gen = _read_text(opened.stream, path, fmt == TIMESTAMPED, self._lines)
         return self._gen
 
@@ -395,6 +397,33 @@ class _LineIndex:
         step = w & 3
         col = ((w >> 2) & 0x3FFFFFFF) + step * k if step else self.uneven[i][k]
         return w >> 32, col
+
+
+class _Forget(list):
+    """A list that keeps nothing."""
+
+    def append(self, _: object) -> None:
+        pass
+
+
+class _ForgetMap(dict):
+    """A dict that keeps nothing."""
+
+    def __setitem__(self, key: object, value: object) -> None:
+        pass
+
+
+class _NoIndex(_LineIndex):
+    """A line index that records nothing (``locate`` is always None)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.starts = _Forget()  # type: ignore[assignment]
+        self.where = _Forget()   # type: ignore[assignment]
+        self.uneven = _ForgetMap()
+
+    def locate(self, offset: int) -> tuple[int, int] | None:
+        return None
 
 
 def open_capture(path: str) -> BinaryIO:
