@@ -434,9 +434,8 @@ class FrameDecoder:
             self._kernel_window = min(window * 2, _KERNEL_MAX)
         if not ends:
             return i
-        buf_base = self._base
         blob = bytes(self._buf[i:i + covered])
-        base = buf_base + i
+        base = self._base + i
         timed = bool(self._chunk_offsets)
         times = self._times
         event = _frame_event

@@ -44,6 +44,7 @@ class ForeignFormat:
     time_ref: str
     extensions: tuple[str, ...] = ()
     needs_seek: bool = False
+    channels: bool = False  # the capture holds several signals, picked with --channel (options["channel"])
     probe: Callable[[str, dict[str, Any]], dict[str, Any]] | None = None
 
 

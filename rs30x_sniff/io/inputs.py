@@ -26,6 +26,8 @@ def read_input(path: str, fmt: str | None = None, *, baud: int, time_ref: str | 
     src = read_capture(path, fmt, warn=warn, options=options)
     kind = getattr(src, "format", fmt)
     other = foreign.get(kind)
+    if (options or {}).get("channel") is not None and not (other is not None and other.channels) and warn:
+        warn(f"{path}: --channel is ignored: a {kind} capture holds one stream of bytes")
     if other is not None:
         # Another tool's format says what its times mean (a logic analyzer stamps each byte's start
         # bit, a serial logger each read's return); --time-ref still overrides it.

@@ -495,6 +495,7 @@ SIGROK = register(ForeignFormat(
     time_ref=FIRST,
     extensions=(".sr",),
     needs_seek=True,
+    channels=True,
     probe=probe_sr,
 ))
 
@@ -504,4 +505,5 @@ SIGROK_UART = register(ForeignFormat(
     sniff=sniff_annotations,
     read=read_annotations,
     time_ref=FIRST,
+    channels=True,
 ))
