@@ -202,3 +202,16 @@ _with_fields(Garbage, _COMMON + ("reason",))
 Packet = ShortPacket | LongPacket | ReturnPacket
 Reply = ReturnPacket | Ack | Nack
 AnyEvent = ShortPacket | LongPacket | ReturnPacket | Ack | Nack | Garbage
+
+
+def frame_event(off: int, raw: bytes, t0: float | None, t1: float | None, ok: bool) -> AnyEvent:
+    """The event of one whole frame ``raw`` (FA AF or FD DF, header and Sum included) at stream ``off``."""
+    sid, flag, address, length, count = raw[2], raw[3], raw[4], raw[5], raw[6]
+    data = raw[7:-1]
+    if raw[0] == 0xFD:
+        return tuple.__new__(ReturnPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok))
+    if sid == 0:
+        records = tuple([tuple.__new__(LongRecord, (data[k], data[k + 1:k + length]))
+                         for k in range(0, len(data), length)]) if length else ()
+        return tuple.__new__(LongPacket, (off, raw, t0, t1, flag, address, length, count, records, ok))
+    return tuple.__new__(ShortPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok))

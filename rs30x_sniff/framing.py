@@ -15,12 +15,15 @@ from .events import (
     AnyEvent,
     Garbage,
     LongPacket,
-    LongRecord,
     Nack,
     ReturnPacket,
     ShortPacket,
+    frame_event,
 )
-from .framing_kernel import scan_regular
+import numpy as np
+
+from .frame_runs import FrameRun
+from .framing_kernel import scan_regular_arrays
 from .wire import ACK, DEFAULT_BAUD, FLAG_WANTS_ACK, NACK, byte_time
 
 _FA, _AF, _FD, _DF = 0xFA, 0xAF, 0xFD, 0xDF
@@ -38,6 +41,9 @@ GARBAGE_PIECE = 128
 # The numpy kernel is tried on windows of this many buffered bytes (growing while runs fill them); a
 # window holds at least a few frames, so a per-frame chunk never pays for a kernel call.
 _KERNEL_MIN, _KERNEL_START, _KERNEL_MAX = 256, 4096, 1 << 16
+# In run mode (FrameRun out, for whole files) windows grow larger, and an irregularity rests the kernel
+# only for a few frames: the columnar path behind it is worth a retry much more than a few events.
+_RUNS_MAX, _RUNS_REST = 1 << 20, 256
 
 # Faults of a capture's clock (the bytes themselves may be fine): a chunk stamped before the previous
 # one, or after it but before its bytes could have gone over the wire at the baud rate.
@@ -74,7 +80,7 @@ class FrameDecoder:
     """
 
     def __init__(self, baud: int = DEFAULT_BAUD, gap_bytes: float | None = DEFAULT_GAP_BYTES,
-                 max_data: int = DEFAULT_MAX_DATA, kernel: bool = True) -> None:
+                 max_data: int = DEFAULT_MAX_DATA, kernel: bool = True, runs: bool = False) -> None:
         self.baud = baud
         self.byte_time = byte_time(baud)
         self.gap_bytes = gap_bytes
@@ -98,7 +104,10 @@ class FrameDecoder:
         self.closed = False
         # The numpy kernel (rs30x_sniff.framing_kernel) for long clean runs; kernel=False is the plain
         # state machine, which the differential tests compare it with.
-        self.kernel = kernel
+        self.kernel = kernel or runs
+        # runs=True: the kernel's runs come out as one FrameRun each instead of an event per frame (the
+        # columnar path: rs30x_sniff.frame_runs); every other byte still becomes an event.
+        self.runs = runs
         self._kernel_window = _KERNEL_START
         self._kernel_rest = 0  # stream offset before which the kernel is not tried again
 
@@ -116,6 +125,49 @@ class FrameDecoder:
             return []
         self._add(data, t)
         return self._parse(final=False)
+
+    def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> list:
+        """Add several chunks, then decode once: the events (and, in run mode, FrameRuns) they decide.
+
+        The same as feeding them one by one, but the kernel sees them as one buffer, and a clean
+        stretch of timestamped chunks is placed in time with a few array operations.
+        """
+        if self.closed:
+            raise RuntimeError("feed_many() after close()")
+        chunks = [c for c in chunks if c[0]]
+        if not chunks:
+            return []
+        if not (len(chunks) > 8 and self._add_many(chunks)):
+            for data, t in chunks:
+                self._add(data, t)
+        return self._parse(final=False)
+
+    def _add_many(self, chunks: list[tuple[bytes, float | None]]) -> bool:
+        """:meth:`_add` for a list of chunks at once, when all are timestamped and the clock keeps pace
+        (no time fault); False, having changed nothing, otherwise. Same floating-point operations in
+        the same order as ``_add``, so every time is bit-identical."""
+        times = [t for _, t in chunks]
+        if None in times:
+            return False
+        bt = self.byte_time
+        lens = np.fromiter((len(d) for d, _ in chunks), dtype=np.int64, count=len(chunks))
+        ts = np.array(times, dtype=np.float64)
+        last = ts + (lens - 1) * bt              # _last_t after each chunk
+        prev = np.empty_like(ts)
+        prev[1:] = last[:-1]
+        prev[0] = np.nan if self._last_t is None else self._last_t
+        if (ts < (prev + bt) - bt / 4).any():    # a clock fault somewhere: placed one by one
+            return False
+        offsets = self.offset + np.cumsum(lens) - lens
+        if self.gap_bytes is not None:
+            idle = ts - prev - bt
+            self._breaks += offsets[idle > self.gap_bytes * bt].tolist()
+        self._chunk_offsets += offsets.tolist()
+        self._chunk_times += times
+        self._last_t = float(last[-1])
+        self._chunk_t = self._start_t = times[-1]
+        self._buf += b"".join([d for d, _ in chunks])
+        return True
 
     def feed_fault(self, data: bytes, t: float | None, reason: str) -> list[AnyEvent]:
         """Add bytes the capturing UART flagged (``reason``: a framing or parity error, rs30x_sniff.chunks).
@@ -299,7 +351,7 @@ class FrameDecoder:
                 if i > start and br and br[0] == base + i:
                     self._emit_garbage(out, i)
                     continue
-            if i == start and not br and n - i >= _KERNEL_MIN and kernel and not self._ack_pending \
+            if i == start and n - i >= _KERNEL_MIN and kernel and not self._ack_pending \
                     and base + i >= self._kernel_rest:
                 j = self._run_kernel(out, i)
                 if j > i:
@@ -410,7 +462,7 @@ class FrameDecoder:
 
     def _emit_frame(self, out: list[AnyEvent], end: int, ok: bool) -> None:
         off, raw, t0, t1 = self._take(end)
-        ev = _frame_event(off, raw, t0, t1, ok)
+        ev = frame_event(off, raw, t0, t1, ok)
         out.append(ev)
         # Only the byte right after a request in return mode 0001 may be its ACK/NACK (table 4.3).
         self._ack_pending = type(ev) is ShortPacket and FLAG_WANTS_ACK[raw[3]]
@@ -424,21 +476,37 @@ class FrameDecoder:
         do not, so noisy input pays little for the attempts.
         """
         window = self._kernel_window
-        starts, ends, more = scan_regular(bytes(self._buf[i:i + window]), self.max_data)
-        covered = ends[-1] if ends else 0
+        starts, ends, more = scan_regular_arrays(bytes(self._buf[i:i + window]), self.max_data)
+        base = self._base + i
+        if self._breaks and len(starts):
+            # An idle gap strictly inside a frame cuts it (_frame_end): the run stops before that frame.
+            br = np.array(self._breaks, dtype=np.int64)
+            k = np.searchsorted(br, base + starts, side="right")
+            inside = np.flatnonzero((k < len(br)) & (br[np.minimum(k, len(br) - 1)] < base + ends))
+            if inside.size:
+                starts, ends, more = starts[:inside[0]], ends[:inside[0]], False
+        covered = int(ends[-1]) if len(ends) else 0
         if not more:
             # An irregularity: let the state machine have the next stretch before trying again.
             self._kernel_window = max(window // 2, _KERNEL_MIN)
-            self._kernel_rest = self._base + i + covered + 4 * self._kernel_window
+            rest = _RUNS_REST if self.runs else 4 * self._kernel_window
+            self._kernel_rest = base + covered + rest
         elif covered * 2 >= window:
-            self._kernel_window = min(window * 2, _KERNEL_MAX)
-        if not ends:
+            self._kernel_window = min(window * 2, _RUNS_MAX if self.runs else _KERNEL_MAX)
+        if not len(ends):
             return i
         blob = bytes(self._buf[i:i + covered])
-        base = self._base + i
+        self._start = i + covered
+        times = self._run_times(base, starts, ends) if self.runs else None
+        if times is not None:
+            out.append(FrameRun(base, blob, starts, ends, *times))
+            s = int(starts[-1])
+            self._ack_pending = blob[s] == _FA and blob[s + 2] != 0 and FLAG_WANTS_ACK[blob[s + 3]]
+            return i + covered
+        starts, ends = starts.tolist(), ends.tolist()
         timed = bool(self._chunk_offsets)
         times = self._times
-        event = _frame_event
+        event = frame_event
         append = out.append
         t0 = t1 = None
         for s, e in zip(starts, ends):
@@ -448,21 +516,29 @@ class FrameDecoder:
             append(event(off, blob[s:e], t0, t1, True))
         last = out[-1]
         self._ack_pending = type(last) is ShortPacket and FLAG_WANTS_ACK[last[5]]
-        self._start = i + covered
         return i + covered
 
-
-def _frame_event(off: int, raw: bytes, t0: float | None, t1: float | None, ok: bool) -> AnyEvent:
-    """The event of one whole frame ``raw`` (FA AF or FD DF, header and Sum included)."""
-    sid, flag, address, length, count = raw[2], raw[3], raw[4], raw[5], raw[6]
-    data = raw[7:-1]
-    if raw[0] == _FD:
-        return tuple.__new__(ReturnPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok))
-    if sid == 0:
-        records = tuple([tuple.__new__(LongRecord, (data[k], data[k + 1:k + length]))
-                         for k in range(0, len(data), length)]) if length else ()
-        return tuple.__new__(LongPacket, (off, raw, t0, t1, flag, address, length, count, records, ok))
-    return tuple.__new__(ShortPacket, (off, raw, t0, t1, sid, flag, address, length, count, data, ok))
+    def _run_times(self, base: int, starts: np.ndarray, ends: np.ndarray):
+        """Each frame's (t_start, t_end) as :meth:`_times` gives them, for a whole run at once (the
+        same operations in the same order, so the same floats): (None, None) without timestamps, and
+        None when some bytes have no time (an untimed chunk among timed ones: events, frame by frame)."""
+        offs = self._chunk_offsets
+        if not offs:
+            return None, None
+        first = base + starts
+        last = base + ends - 1
+        o = np.array(offs, dtype=np.int64)
+        k0 = np.searchsorted(o, first, side="right") - 1
+        k1 = np.searchsorted(o, last, side="right") - 1
+        lo, hi = int(k0[0]), int(k1[-1]) + 1
+        times = self._chunk_times[lo:hi] if lo >= 0 else [None]
+        if None in times:
+            return None
+        tm = np.array(times, dtype=np.float64)
+        bt = self.byte_time
+        t0 = tm[k0 - lo] + (first - o[k0]) * bt
+        t1 = (tm[k1 - lo] + (last - o[k1]) * bt) + bt
+        return t0, t1
 
 
 def decode_all(chunks, baud: int = DEFAULT_BAUD, **kw) -> list[AnyEvent]:

@@ -11,9 +11,16 @@ _RET0, _RET1 = RETURN_HEADER   # FD DF: return packets
 # Header layout shared by every packet (chapter 4, "Format of Packets"): two sync bytes, ID, Flag,
 # Address, Length, Count, then the data and one Sum byte, the XOR of ID through the last data byte.
 _LENGTH, _COUNT, _OVERHEAD = 5, 6, HEADER_SIZE + 1
+_NONE = np.zeros(0, dtype=np.intp)
 
 
 def scan_regular(window: bytes, max_data: int) -> tuple[list[int], list[int], bool]:
+    """:func:`scan_regular_arrays` with the starts and ends as lists."""
+    starts, stops, more = scan_regular_arrays(window, max_data)
+    return starts.tolist(), stops.tolist(), more
+
+
+def scan_regular_arrays(window: bytes, max_data: int) -> tuple[np.ndarray, np.ndarray, bool]:
     """The intact frames that tile ``window`` back to back from its first byte: (starts, ends, more).
 
     A frame counts when it is what the frame decoder would take at a clean boundary without a second
@@ -28,12 +35,12 @@ def scan_regular(window: bytes, max_data: int) -> tuple[list[int], list[int], bo
     a = np.frombuffer(window, dtype=np.uint8)
     n = a.size
     if n < HEADER_SIZE:
-        return [], [], True
+        return _NONE, _NONE, True
     head, nxt = a[:n - HEADER_SIZE + 1], a[1:n - HEADER_SIZE + 2]  # every start with a whole header
     sync = ((head == _REQ0) & (nxt == _REQ1)) | ((head == _RET0) & (nxt == _RET1))
     cand = np.flatnonzero(sync)
     if cand.size == 0 or cand[0] != 0:
-        return [], [], False
+        return _NONE, _NONE, False
     length = a[cand + _LENGTH].astype(np.int64)
     data_len = np.where(a[cand] == _REQ0, length * a[cand + _COUNT], length)
     ends = cand + _OVERHEAD + data_len
@@ -57,4 +64,4 @@ def scan_regular(window: bytes, max_data: int) -> tuple[list[int], list[int], bo
     else:
         at = np.searchsorted(cand, stop)
         more = bool(at < cand.size and cand[at] == stop and data_len[at] <= max_data and ends[at] > n)
-    return starts.tolist(), stops.tolist(), more
+    return starts, stops, more

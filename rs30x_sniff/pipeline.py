@@ -5,8 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Iterator
 
+from .blocks import Block, feed_run
 from .bus import DEFAULT_REPLY_TIMEOUT, BusTracker, Record
 from .chunks import Marked, SenderMap
+from .frame_runs import FrameRun
 from .framing import DEFAULT_GAP_BYTES, FrameDecoder
 from .memmap import ModelRegistry, default_registry
 from .wire import DEFAULT_BAUD
@@ -29,15 +31,36 @@ class Step(list):
 
     ``findings`` holds every lint finding new since the previous call (those on these records, and at
     the close those only the end of input reveals); ``late`` is that last kind alone: findings about
-    records handed out earlier.
+    records handed out earlier. A columnar decoder's step may also hold Blocks (rs30x_sniff.blocks):
+    many records as columns; :meth:`expanded` has them as Records.
     """
 
-    __slots__ = ("findings", "late")
+    __slots__ = ("findings", "late", "blocks")
 
     def __init__(self, records: Iterable[Record] = (), findings: list | None = None, late: list | None = None) -> None:
         super().__init__(records)
         self.findings = findings if findings is not None else []
         self.late = late if late is not None else []
+        self.blocks = False  # True when some items are Blocks
+
+    @property
+    def count(self) -> int:
+        """How many records the step holds (a Block counts its rows)."""
+        if not self.blocks:
+            return len(self)
+        return sum(len(x) if type(x) is Block else 1 for x in self)
+
+    def expanded(self) -> Step:
+        """This step with each Block's rows as Records (itself when it holds no Block)."""
+        if not self.blocks:
+            return self
+        out = Step((), self.findings, self.late)
+        for x in self:
+            if type(x) is Block:
+                out += x.records()
+            else:
+                out.append(x)
+        return out
 
 
 class Decoder:
@@ -47,9 +70,12 @@ class Decoder:
     ``findings`` already hold what the linter could tell at that point.
     """
 
-    def __init__(self, options: DecodeOptions | None = None, linter: Any = None) -> None:
+    def __init__(self, options: DecodeOptions | None = None, linter: Any = None, columnar: bool = False) -> None:
         o = self.options = options or DecodeOptions()
-        self.frames = FrameDecoder(o.baud, gap_bytes=o.gap_bytes)
+        # columnar: clean stretches of traffic come out as Blocks (rs30x_sniff.blocks) instead of a
+        # Record each; whoever reads the steps must take Blocks (Step.expanded gives Records).
+        self.columnar = columnar
+        self.frames = FrameDecoder(o.baud, gap_bytes=o.gap_bytes, runs=columnar)
         self.bus = BusTracker(o.registry or default_registry(), o.models, o.reply_timeout, o.default_model)
         self.linter = linter
         # Who sent which bytes, where the capture says so (a serial logger's TX/RX): the linter checks
@@ -80,22 +106,53 @@ class Decoder:
             self.senders.note(self.bytes_in, sender)
         self.bytes_in += len(data)
         events = self.frames.feed(data, t) if error is None else self.frames.feed_fault(data, t, error)
-        out = self.bus.feed_many(events, Step())
+        return self._decided(events)
+
+    def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> Step:
+        """Decode several plain chunks (nothing said of their sender or errors) at once: the same
+        records as feeding them one by one, in one step (the columnar path's way in)."""
+        if self.senders:
+            self.senders.note(self.bytes_in, None)
+        self.bytes_in += sum(len(d) for d, _ in chunks)
+        return self._decided(self.frames.feed_many(chunks))
+
+    def _track(self, events: list, out: Step) -> Step:
+        """Pair ``events`` (and in columnar mode, FrameRuns) into ``out``."""
+        if not self.columnar:
+            return self.bus.feed_many(events, out)
+        bus = self.bus
+        track = bus._feed
+        for ev in events:
+            if type(ev) is FrameRun:
+                feed_run(bus, ev, out)
+                out.blocks = True
+            else:
+                track(ev, out)
+        return out
+
+    def _decided(self, events: list) -> Step:
+        out = self._track(events, Step())
         linter = self.linter
         if linter is not None and out:
             lint = linter.feed
             for rec in out:
-                lint(rec)
+                if type(rec) is Block:
+                    linter.feed_block(rec)
+                else:
+                    lint(rec)
             out.findings = self._new_findings()
         return out
 
     def close(self) -> Step:
         """End of input: the records still pending, and the findings only the end reveals (``late``)."""
-        out = self.bus.feed_many(self.frames.close(), Step())
+        out = self._track(self.frames.close(), Step())
         out += self.bus.close()
         if self.linter is not None:
             for rec in out:
-                self.linter.feed(rec)
+                if type(rec) is Block:
+                    self.linter.feed_block(rec)
+                else:
+                    self.linter.feed(rec)
             self.linter.time_faults = self.frames.time_faults  # the capture's clock, for F005/F006
             out.late = self.late_findings = self.linter.close()
             out.findings = self._new_findings()

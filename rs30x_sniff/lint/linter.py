@@ -139,6 +139,12 @@ class Linter:
         self.prev = rec
         return new
 
+    def feed_block(self, blk: Any) -> None:
+        """Check a Block's rows (rs30x_sniff.blocks), in wire order, as if fed one by one."""
+        feed = self.feed
+        for rec in blk.records():
+            feed(rec)
+
     def close(self) -> list[Finding]:
         """Findings only the end of input reveals (they still attach to the records they concern)."""
         new = self._new = []

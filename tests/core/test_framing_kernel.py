@@ -72,8 +72,8 @@ def test_the_kernel_says_why_it_stopped():
 
 def test_long_clean_input_goes_through_the_kernel(monkeypatch):
     calls = []
-    real = framing.scan_regular
-    monkeypatch.setattr(framing, "scan_regular", lambda *a: calls.append(1) or real(*a))
+    real = framing.scan_regular_arrays
+    monkeypatch.setattr(framing, "scan_regular_arrays", lambda *a: calls.append(1) or real(*a))
     data = (encode_read(3, 0x2A, 2) + encode_return(3, 0x2A, b"\x10\x00")) * 2000
     events = decode_chunks([(data[i:i + 8192], None) for i in range(0, len(data), 8192)])
     assert len(events) == 4000 and calls and len(calls) < 50
