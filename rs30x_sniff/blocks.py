@@ -93,6 +93,9 @@ class Block:
         if isinstance(recs, list):
             return recs[k]
         rec = recs.get(k)
+        if rec is None and k > 0 and self.answered[k - 1]:
+            self.record(k - 1)  # a reply is built with its request, and linked to it
+            return recs[k]
         if rec is None:
             rec = recs[k] = self._record(self.run.event(self.lo + k), int(self.cols["kind"][k]), k)
             if self.answered[k]:

@@ -51,10 +51,7 @@ of present_position of ID 1 is logged as received (RX), the servo's return of 90
 def sender_mismatch(st, lint, rec, ev):
     senders = st.senders
     if senders is False:
-        # Decided at the first packet: by then the first chunks, and their senders, have been fed.
-        senders = st.senders = getattr(lint, "senders", None) or None
-        if senders is None:
-            _stop_calling(st, lint)
+        senders = decide(st, lint)
     if senders is None:
         return
     offset = ev[0]
@@ -67,6 +64,15 @@ def sender_mismatch(st, lint, rec, ev):
         st.wrong += 1
         if st.first is None:
             st.first = (offset, ev[2], rec.id, kind, sent)
+
+
+def decide(st, lint):
+    """Whether the capture says who sent what, decided at the first packet (by then the first chunks, and
+    their senders, have been fed): the SenderMap, or None."""
+    senders = st.senders = getattr(lint, "senders", None) or None
+    if senders is None:
+        _stop_calling(st, lint)
+    return senders
 
 
 def _stop_calling(st, lint) -> None:

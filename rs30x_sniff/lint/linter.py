@@ -7,6 +7,7 @@ from typing import Any, Callable
 
 from ..bus import MISSING, Record
 from ..wire import BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, byte_time
+from .batch import quiet_block
 from .config import LintConfig
 from .registry import KINDS, RULES, WHEN, Finding, Rule
 from .state import Plan, Shadow
@@ -140,7 +141,10 @@ class Linter:
         return new
 
     def feed_block(self, blk: Any) -> None:
-        """Check a Block's rows (rs30x_sniff.blocks), in wire order, as if fed one by one."""
+        """Check a Block's rows (rs30x_sniff.blocks), in wire order, as if fed one by one: on the columns
+        when no rule has anything to say of them (rs30x_sniff.lint.batch), else record by record."""
+        if quiet_block(self, blk):
+            return
         feed = self.feed
         for rec in blk.records():
             feed(rec)

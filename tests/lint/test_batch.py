@@ -1,0 +1,122 @@
+"""The linter's column form (rs30x_sniff.lint.batch) finds what the record path finds, rule by rule.
+
+Each case hides one anomaly in clean traffic that the columnar path takes as Blocks; the findings, the
+records' findings and the linter's memory must match the record path's, and the anomaly's rule must
+have spoken (so a column form that misses it fails here).
+"""
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from rs30x_sniff import blocks as blocks_module
+from rs30x_sniff.lint.batch import KNOWN
+from rs30x_sniff.lint.registry import RULES, frame
+from rs30x_sniff.wire import RETURN_HEADER, byte_time, encode_long, encode_read, encode_return, encode_short
+from tests.core.test_columnar import columnar_path, record_key, record_path
+
+BT = byte_time(115200)
+SERVOS = (1, 2, 3, 4)
+
+
+def _goal(pos: int, gt: int = 50) -> bytes:
+    return pos.to_bytes(2, "little", signed=True) + gt.to_bytes(2, "little")
+
+
+def clean_cycle(cycle: int, sid: int) -> list[bytes]:
+    """One cycle of a healthy bus: goals to every servo (slow, small steps), then one poll and its return."""
+    goals = encode_long(30, [(v, _goal(100 + (cycle % 50) * 2)) for v in SERVOS])
+    ret = encode_return(sid, 42, _goal(100 + (cycle % 50) * 2) + bytes(14))
+    return [goals, encode_short(sid, 0x09, 0, b"", length=0, count=1), ret]
+
+
+# Each anomaly: (rule it trips, frames to put in place of one cycle's poll, extra gap inside a frame).
+ANOMALIES = {
+    "P001": [encode_short(2, 0x89, 0, b"", length=0, count=1), encode_return(2, 42, bytes(18))],
+    "P005": [encode_long(30, [(v, _goal(120)) for v in (1, 2, 200)])],
+    "P004": [encode_long(30, [(v, _goal(120)) for v in (1, 2, 2)])],
+    "P012": [encode_short(2, 0x09, 0, b"", length=0, count=1), frame(2, 0, 42, 18, 2, *bytes(18), header=RETURN_HEADER)],
+    "B004": [encode_short(2, 0x09, 0, b"", length=0, count=1), encode_return(3, 42, bytes(18))],
+    "B005": [encode_short(2, 0x09, 0, b"", length=0, count=1), encode_return(2, 30, bytes(4))],
+    "M001": [encode_short(2, 0x00, 42, b"\x00\x00")],
+    "M002": [encode_short(2, 0x00, 34, b"\x00")],
+    "M003": [encode_short(2, 0x00, 30, (2000).to_bytes(2, "little", signed=True))],
+    "M004": [encode_short(2, 0x00, 31, b"\x00")],
+    "Q007": [encode_long(30, [(v, _goal(-1400, 1)) for v in SERVOS])],
+    "B006": "late reply",
+    "F004": "gap inside a frame",
+}
+
+
+def capture(anomaly: str, at: int, cycles: int = 300, timed: bool = True, more: dict | None = None):
+    """``cycles`` clean cycles with ``anomaly`` in cycle ``at`` (and ``more``: {cycle: anomaly})."""
+    where = {at: anomaly, **(more or {})}
+    chunks, t = [], 1.0
+    for cycle in range(cycles):
+        frames = clean_cycle(cycle, SERVOS[cycle % len(SERVOS)])
+        extra = ANOMALIES[where[cycle]] if cycle in where else None
+        if isinstance(extra, list):
+            frames = frames[:1] + extra
+        for k, frame in enumerate(frames):
+            if extra == "gap inside a frame" and k == 0:
+                chunks += [(frame[:5], t), (frame[5:], t + 5 * BT + 10 * BT)]
+                t += len(frame) * BT + 10 * BT + 0.0001
+                continue
+            if extra == "late reply" and k == 2:
+                t += 0.01
+            chunks.append((frame, t if timed else None))
+            t += len(frame) * BT + 0.0001
+        t = max(t, 1.0 + (cycle + 1) * 0.003)
+    return chunks
+
+
+def compare(chunks, groups=(500,)):
+    a, da = record_path(chunks, lint=True)
+    b, db, blocks = columnar_path(chunks, list(groups), lint=True)
+    assert [record_key(r) for r in b] == [record_key(r) for r in a]
+    found = [(f.code, f.offset, f.message, f.id) for f in da.linter.findings]
+    assert [(f.code, f.offset, f.message, f.id) for f in db.linter.findings] == found
+    assert [(f.code, f.offset) for f in db.linter.close()] == [(f.code, f.offset) for f in da.linter.close()]
+    shadows = lambda d: {i: tuple(getattr(s, k) for k in s.__slots__) for i, s in d.linter.servos.items()}  # noqa: E731
+    assert shadows(db) == shadows(da)
+    assert list(db.linter.servos) == list(da.linter.servos)
+    assert db.linter.ids == da.linter.ids and db.linter.records == da.linter.records
+    times = lambda d: (list(d.linter.state_of("F007").times._samples), d.linter.state_of("F007").times._prev)  # noqa: E731
+    assert times(db) == times(da)
+    return blocks, {f[0] for f in found}
+
+
+def test_every_rule_has_a_column_form():
+    assert {r.code for r in RULES} <= KNOWN
+
+
+def test_clean_traffic_is_linted_on_the_columns(monkeypatch):
+    calls = []
+    from rs30x_sniff.lint import linter
+
+    real = linter.quiet_block
+    monkeypatch.setattr(linter, "quiet_block", lambda lint, blk: calls.append(real(lint, blk)) or calls[-1])
+    blocks, codes = compare(capture("P001", at=-1))
+    assert blocks and calls and all(calls) and not codes
+
+
+@pytest.mark.parametrize("anomaly", sorted(ANOMALIES))
+@pytest.mark.parametrize("at", [3, 150, 299])
+def test_an_anomaly_in_clean_traffic(anomaly, at):
+    blocks, codes = compare(capture(anomaly, at))
+    assert anomaly in codes and blocks
+
+
+@pytest.mark.parametrize("anomaly", ["P001", "B005", "M003", "Q007"])
+def test_untimed(anomaly):
+    blocks, codes = compare(capture(anomaly, 100, timed=False))
+    assert anomaly in codes and blocks
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])
+@given(picks=st.dictionaries(st.integers(0, 119), st.sampled_from(sorted(ANOMALIES)), max_size=6),
+       groups=st.lists(st.integers(1, 400), min_size=1, max_size=3), tiny=st.booleans(), timed=st.booleans())
+def test_anomalies_anywhere(monkeypatch, picks, groups, tiny, timed):
+    monkeypatch.setattr(blocks_module, "MIN_BLOCK", 1 if tiny else 32)
+    compare(capture("P001", -1, cycles=120, timed=timed, more=picks), groups)
