@@ -26,6 +26,10 @@ class DecodeOptions:
     registry: ModelRegistry | None = None
 
 
+# A columnar Pipeline decodes a file's chunks this many bytes at a time.
+GROUP_BYTES = 1 << 16
+
+
 class Step(list):
     """The records one :meth:`Decoder.feed` (or :meth:`Decoder.close`) decided, in wire order.
 
@@ -163,9 +167,15 @@ class Sink:
     """Where decoded traffic goes (text, JSON lines, a lint report, MCAP, statistics, the monitor).
 
     The drive loop calls ``chunk`` with the raw bytes before they are decoded (so nothing read is lost
-    to a decoding error; ``sender`` and ``error`` are what the capture said of them, rs30x_sniff.chunks), ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing
-    for a moment, and ``close`` once at the end. Every method is optional.
+    to a decoding error; ``sender`` and ``error`` are what the capture said of them, rs30x_sniff.chunks),
+    ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing for a moment, and
+    ``close`` once at the end. Every method is optional.
+
+    A sink with ``takes_blocks`` True is handed a columnar decoder's steps as they are (Records and
+    Blocks, rs30x_sniff.blocks); any other sink gets them with every Block's rows as Records.
     """
+
+    takes_blocks = False
 
     def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         pass
@@ -197,6 +207,28 @@ class Pipeline:
     def remove(self, sink: Sink) -> None:
         self.sinks = tuple(s for s in self.sinks if s is not sink)
 
+    def _hand_out(self, step: Step) -> None:
+        """``step`` to every sink, as Blocks to those that take them and as Records to the rest."""
+        records = None
+        for s in self.sinks:
+            if not step.blocks or getattr(s, "takes_blocks", False):
+                s.batch(step)
+            else:
+                if records is None:
+                    records = step.expanded()
+                s.batch(records)
+
+    def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> Step:
+        """Several plain chunks through the decoder at once (Decoder.feed_many) into every sink."""
+        sinks = self.sinks
+        for data, t in chunks:
+            for s in sinks:
+                s.chunk(data, t, None, None)
+        step = self.decoder.feed_many(chunks)
+        if step or step.findings:
+            self._hand_out(step)
+        return step
+
     def feed(self, data: bytes, t: float | None = None, sender: str | None = None,
              error: str | None = None) -> Step:
         """One chunk through the decoder into every sink; an empty chunk means the source is idle."""
@@ -209,8 +241,7 @@ class Pipeline:
             s.chunk(data, t, sender, error)
         step = self.decoder.feed(data, t, sender, error)
         if step or step.findings:
-            for s in sinks:
-                s.batch(step)
+            self._hand_out(step)
         return step
 
     def close(self) -> Step:
@@ -220,8 +251,7 @@ class Pipeline:
         self.closed = True
         step = self.decoder.close()
         try:
-            for s in self.sinks:
-                s.batch(step)
+            self._hand_out(step)
         finally:
             errors = []
             for s in self.sinks:
@@ -237,12 +267,15 @@ class Pipeline:
         """Feed every chunk, then close. The sinks are closed even when the source fails midway (a
         corrupt file, a lost port), so what was read is written; the source's error is raised after."""
         try:
-            feed = self.feed
-            for chunk in chunks:
-                if type(chunk) is Marked:
-                    feed(chunk[0], chunk[1], chunk.sender, chunk.error)
-                else:
-                    feed(*chunk)
+            if self.decoder.columnar:
+                self._run_grouped(chunks)
+            else:
+                feed = self.feed
+                for chunk in chunks:
+                    if type(chunk) is Marked:
+                        feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+                    else:
+                        feed(*chunk)
         except BaseException:
             try:
                 self.close()
@@ -251,6 +284,31 @@ class Pipeline:
             raise
         self.close()
         return self.decoder
+
+
+    def _run_grouped(self, chunks: Iterable[tuple[bytes, float | None]]) -> None:
+        """The columnar decoder's loop: plain chunks in groups of about GROUP_BYTES (one kernel pass
+        and one Block per clean stretch), marked and empty ones alone, in order."""
+        group: list[tuple[bytes, float | None]] = []
+        size = 0
+        feed_many = self.feed_many
+        for chunk in chunks:
+            if type(chunk) is Marked or not chunk[0]:
+                if group:
+                    feed_many(group)
+                    group, size = [], 0
+                if type(chunk) is Marked:
+                    self.feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+                else:
+                    self.feed(*chunk)
+                continue
+            group.append(chunk)
+            size += len(chunk[0])
+            if size >= GROUP_BYTES:
+                feed_many(group)
+                group, size = [], 0
+        if group:
+            feed_many(group)
 
 
 def drive(chunks: Iterable[tuple[bytes, float | None]], decoder: Decoder, *sinks: Sink) -> Decoder:

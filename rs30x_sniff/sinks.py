@@ -84,18 +84,22 @@ class JsonlSink(_LineSink):
 class FindingsSink(Sink):
     """Every lint finding and the record count: what a lint report needs of one capture."""
 
+    takes_blocks = True  # counts a Block's rows; reads nothing else of them
+
     def __init__(self) -> None:
         self.findings: list = []
         self.records = 0
 
     def batch(self, step: Step) -> None:
-        self.records += len(step)
+        self.records += step.count
         if step.findings:
             self.findings += step.findings
 
 
 class ProgressSink(Sink):
     """Advances a progress bar by the bytes read."""
+
+    takes_blocks = True
 
     def __init__(self, advance: Callable[[int], None]) -> None:
         self.advance = advance
