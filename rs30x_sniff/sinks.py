@@ -5,10 +5,28 @@ from __future__ import annotations
 import json
 from typing import IO, Any, Callable
 
+from .block_json import block_json_lines
+from .blocks import Block
 from .bus import Record
+from .frame_runs import LONG
 from .filters import Filter
 from .pipeline import Sink, Step
 from .render import record_json_text, text_line, verbose_lines
+
+
+def block_rows_involving(blk: Block, ids: set[int]) -> list[int]:
+    """The rows of a Block that ``involves`` keeps."""
+    run = blk.run
+    blob = run.blob
+    out = []
+    for k, (s, e, kind) in enumerate(zip(run.starts[blk.lo:blk.hi].tolist(), run.ends[blk.lo:blk.hi].tolist(),
+                                         blk.cols["kind"].tolist())):
+        if kind == LONG:
+            if blob[s + 5] and not ids.isdisjoint(blob[s + 7:e - 1:blob[s + 5]]):
+                out.append(k)
+        elif blob[s + 2] in ids:
+            out.append(k)
+    return out
 
 
 def involves(rec: Record, ids: set[int]) -> bool:
@@ -30,12 +48,23 @@ class _LineSink(Sink):
         self.flush = flush  # a person or a pipe watches a live bus: show each batch as it comes
         self.records = 0
 
+    takes_blocks = True
+
     def batch(self, step: Step) -> None:
         ids = self.ids
         flt = self.filter
         write = self.out.write
         line = self.line
+        if step.blocks and flt is not None:
+            step = step.expanded()  # the filter language reads records
         for rec in step:
+            if type(rec) is Block:
+                rows = None if ids is None else block_rows_involving(rec, ids)
+                text = self.block_lines(rec, rows)
+                if text:
+                    write(text)
+                    self.records += len(rec) if rows is None else len(rows)
+                continue
             if (ids is None or involves(rec, ids)) and (flt is None or flt.matches(rec)):
                 write(line(rec))
                 self.records += 1
@@ -49,6 +78,11 @@ class _LineSink(Sink):
 
     def line(self, rec: Record) -> str:
         raise NotImplementedError
+
+    def block_lines(self, blk: Block, rows: list[int] | None) -> str:
+        """The lines of a Block's rows (``rows``: those alone), as ``line`` would write their records."""
+        recs = blk.records()
+        return "".join([self.line(recs[k]) for k in (range(len(recs)) if rows is None else rows)])
 
     def finding_line(self, f: Any) -> str:
         raise NotImplementedError
@@ -76,6 +110,9 @@ class JsonlSink(_LineSink):
 
     def line(self, rec: Record) -> str:
         return record_json_text(rec, self.ids) + "\n"
+
+    def block_lines(self, blk: Block, rows: list[int] | None) -> str:
+        return block_json_lines(blk, self.ids, rows=rows)
 
     def finding_line(self, f: Any) -> str:
         return json.dumps({"type": "diagnostic", **f.as_json()}) + "\n"

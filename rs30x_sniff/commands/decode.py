@@ -52,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
             sink = JsonlSink(out, ids=ids, filter=flt, flush=is_live(chunks))
         else:
             sink = TextSink(out, ids=ids, filter=flt, flush=is_live(chunks), verbose=args.verbose)
-        dec = drive(chunks, Decoder(opts, linter), sink, *live_sinks(settings, chunks, args.input))
+        # A file takes the columnar path (the same lines); a port, record by record as they come.
+        dec = drive(chunks, Decoder(opts, linter, columnar=not is_live(chunks)), sink,
+                    *live_sinks(settings, chunks, args.input))
     no_data(args.input, dec, chunks)
     return 1 if getattr(chunks, "lost", False) else 0  # a live port that failed (the source said why)

@@ -1,0 +1,67 @@
+"""A Block's JSON lines from templates (rs30x_sniff.block_json) are byte for byte its records' JSON."""
+
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from rs30x_sniff import block_json, blocks
+from rs30x_sniff.block_json import block_json_lines
+from rs30x_sniff.blocks import Block
+from rs30x_sniff.lint import Linter
+from rs30x_sniff.pipeline import Decoder
+from rs30x_sniff.render import record_json_text
+from rs30x_sniff.sim import scenarios
+from tests.core.test_columnar import traffic
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
+from traffic import hexapod_frames  # noqa: E402
+
+ONLY = [None, {1}, {2, 3}]
+
+
+def check_blocks(chunks, lint: bool, group: int = 400) -> int:
+    """Decode columnar; for every Block (before anything builds its records) compare the template
+    lines with the records' own, whole, for some servos, compact and for a subset of rows."""
+    dec = Decoder(None, Linter() if lint else None, columnar=True)
+    seen = 0
+    steps = [dec.feed_many(chunks[k:k + group]) for k in range(0, len(chunks), group)] + [dec.close()]
+    for step in steps:
+        for blk in step:
+            if type(blk) is not Block:
+                continue
+            quiet = not isinstance(blk._records, list)
+            rows = list(range(0, len(blk), 3))
+            got = [(block_json_lines(blk, only, compact), block_json_lines(blk, only, compact, rows))
+                   for only in ONLY for compact in (False, True)]
+            recs = blk.records()
+            want = [("".join(record_json_text(r, only, compact) + "\n" for r in recs),
+                     "".join(record_json_text(recs[k], only, compact) + "\n" for k in rows))
+                    for only in ONLY for compact in (False, True)]
+            assert got == want
+            seen += quiet
+    return seen
+
+
+@pytest.mark.parametrize("timed", [True, False])
+@pytest.mark.parametrize("lint", [True, False])
+def test_hexapod_traffic(timed, lint):
+    chunks = [(d, t if timed else None) for d, t in hexapod_frames(3000)]
+    assert check_blocks(chunks, lint) > 0
+
+
+@pytest.mark.parametrize("name", sorted(scenarios.SCENARIOS))
+def test_scenarios(name):
+    check_blocks(list(scenarios.run(name, duration=2.0)), lint=True)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 10**6), n=st.integers(1, 200), timed=st.booleans(), rare=st.sampled_from([0.3, 0.05]),
+       lint=st.booleans())
+def test_random_traffic(monkeypatch, seed, n, timed, rare, lint):
+    monkeypatch.setattr(blocks, "MIN_BLOCK", 1)
+    monkeypatch.setattr(block_json, "_MAX_TEMPLATES", 8)  # the template cache fills and clears too
+    check_blocks(traffic(seed, n, timed=timed, gaps=True, faults=False, rare=rare), lint, group=50)
