@@ -275,25 +275,31 @@ class Layout:
 
     def _compile_json(self, compact: bool) -> tuple[tuple[str, ...], Any]:
         """fields_json's templates: one per part, and for the whole layout one ``%`` format with a
-        generated function filling it in (the hex of the data sliced per field, values by their kind)."""
+        generated function filling it in (the hex of the data sliced per field, and each value's text
+        looked up by its raw value: _value_text)."""
         tmpl = tuple(_field_template(reg, partial, compact) for _, _, reg, partial in self.parts)
         args = []
+        env: dict[str, Any] = {}
+        for j, (_, _, reg, partial) in enumerate(self.parts):
+            env[f"V{j}"] = _value_text(reg, partial)
         if not self.records:
             for j, (start, size, reg, partial) in enumerate(self.parts):
-                args += ["s", f"h[{2 * start}:{2 * (start + size)}]", _JSON_OF[_value_kind(reg, partial)].format(f"v[{j}]")]
+                args += ["s", f"h[{2 * start}:{2 * (start + size)}]", f"V{j}[r[{j}]]"]
             fmt = ("," if compact else ", ").join(tmpl)
         else:
             stride, n = self.size + 1, len(self.parts)
             for rec in range(self.records):
                 base = rec * stride + 1
                 for j, (start, size, reg, partial) in enumerate(self.parts):
+                    # unpack_raw gives each record's VID, then its parts
                     args += [f"str(d[{base - 1}])", f"h[{2 * (base + start)}:{2 * (base + start + size)}]",
-                             _JSON_OF[_value_kind(reg, partial)].format(f"v[{rec * n + j}]")]
+                             f"V{j}[r[{rec * (n + 1) + 1 + j}]]"]
             fmt = ("," if compact else ", ").join(tmpl * self.records)
         if not args:
-            return tmpl, lambda d, h, v, s: ""
-        src = f"lambda d, h, v, s: F % ({', '.join(args)},)"
-        return tmpl, eval(src, {"F": fmt, "J": _json_scalar})  # noqa: S307 - generated from the validated memory map
+            return tmpl, lambda d, h, r, s: ""
+        env["F"] = fmt
+        src = f"lambda d, h, r, s: F % ({', '.join(args)},)"
+        return tmpl, eval(src, env)  # noqa: S307 - generated from the validated memory map
 
     def named_values(self, data: bytes, values: tuple, servo_id: int | None = None) -> list[tuple[Any, str, Any]]:
         """``(servo id, register name, value)`` of every whole, named register in ``data``: what the
@@ -324,7 +330,7 @@ class Layout:
             cache = self._json = (self._compile_json(False), self._compile_json(True))
         tmpl, whole = cache[compact]
         if only is None:
-            return whole(data, data.hex(), values, "null" if servo_id is None else str(servo_id))
+            return whole(data, data.hex(), self.unpack_raw(data), "null" if servo_id is None else str(servo_id))
         sep = "," if compact else ", "
         parts = self.parts
         out = []
@@ -347,6 +353,36 @@ class Layout:
             for j, ((start, size, _, _), t) in enumerate(zip(parts, tmpl)):
                 out.append(t % (sid, data[base + start:base + start + size].hex(), _json_scalar(values[rec * n + j])))
         return sep.join(out)
+
+
+class _TextByRaw(dict):
+    """A part's JSON value text by raw value, made on first sight (a register has at most 65,536)."""
+
+    __slots__ = ("make", "register")
+
+    def __init__(self, make: Any, register: Register) -> None:
+        super().__init__()
+        self.make = make
+        self.register = register  # kept alive: the cache below is keyed by its id
+
+    def __missing__(self, raw: int) -> str:
+        text = self[raw] = self.make(raw)
+        return text
+
+
+_VALUE_TEXT: dict[tuple[int, str | None], _TextByRaw] = {}
+
+
+def _value_text(reg: Register, partial: str | None) -> _TextByRaw:
+    """The JSON text of a part's engineering value, by raw value: the register's conversion
+    (_conversion) and then the JSON of its kind (_JSON_OF), as fields_json wrote them per value."""
+    key = (id(reg), partial)
+    table = _VALUE_TEXT.get(key)
+    if table is None or table.register is not reg:
+        env: dict[str, Any] = {"J": _json_scalar}
+        text = _JSON_OF[_value_kind(reg, partial)].format(_conversion(reg, partial, "x", env, 0))
+        table = _VALUE_TEXT[key] = _TextByRaw(eval(f"lambda x: {text}", env), reg)  # noqa: S307 - as above
+    return table
 
 
 def _value_kind(reg: Register, partial: str | None) -> str:
