@@ -1,12 +1,15 @@
 """Benchmark: decode + lint with every rule on, against the bare split-and-XOR loop (and plain decode).
 
 Run: python bench/lint.py [--frames N] [--repeat R]
-Target (issue 3): linting reaches at least 0.5 of the bare loop's frames/s.
+Target (issues 3, 12): linting reaches at least 0.5 of the bare loop's frames/s. Both paths are
+measured: the record path (a live port) and the columnar path (a file: `rs30x-sniff lint`), where a
+Block no rule speaks about is linted on its columns (rs30x_sniff.lint.batch).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from pathlib import Path
 
@@ -16,25 +19,44 @@ from decode import bare_loop, best_of  # noqa: E402
 from traffic import bench_inputs  # noqa: E402
 
 from rs30x_sniff.lint import LintConfig, Linter  # noqa: E402
-from rs30x_sniff.pipeline import Decoder  # noqa: E402
+from rs30x_sniff.pipeline import GROUP_BYTES, Decoder  # noqa: E402
 
 
-def decode_only(chunks) -> int:
-    dec = Decoder()
+def decode_only(chunks, columnar: bool = False) -> int:
+    dec = Decoder(columnar=columnar)
+    if columnar:
+        return _grouped(dec, chunks)
     n = 0
     for data, t in chunks:
         n += len(dec.feed(data, t))
     return n + len(dec.close())
 
 
-def decode_lint(chunks) -> tuple[int, int]:
+def decode_lint(chunks, columnar: bool = False) -> tuple[int, int]:
     linter = Linter(LintConfig())  # every rule
-    dec = Decoder(None, linter)
+    dec = Decoder(None, linter, columnar=columnar)
+    if columnar:
+        return _grouped(dec, chunks), len(linter.findings)
     n = 0
     for data, t in chunks:
         n += len(dec.feed(data, t))
     n += len(dec.close())
     return n, len(linter.findings)
+
+
+def _grouped(dec, chunks) -> int:
+    """As Pipeline feeds a file to a columnar decoder: about 64 KiB of chunks at a time."""
+    n = size = 0
+    group = []
+    for chunk in chunks:
+        group.append(chunk)
+        size += len(chunk[0])
+        if size >= GROUP_BYTES:
+            n += dec.feed_many(group).count
+            group, size = [], 0
+    if group:
+        n += dec.feed_many(group).count
+    return n + dec.close().count
 
 
 def main() -> None:
@@ -45,11 +67,12 @@ def main() -> None:
     chunks, data, blocks = bench_inputs(args.frames)
     t_bare, n_bare = best_of(bare_loop, data, args.repeat)
     rows = []
-    for label, feed in (("4 KiB blocks, no timestamps", blocks), ("one chunk per frame, timestamped", chunks)):
-        t_dec, n_dec = best_of(decode_only, feed, args.repeat)
-        t_lint, (n_lint, n_find) = best_of(decode_lint, feed, args.repeat)
-        assert n_dec == n_lint == args.frames, (n_dec, n_lint)
-        rows.append((label, n_dec / t_dec, n_lint / t_lint, n_find))
+    for path, columnar in (("record path", False), ("columnar path", True)):
+        for label, feed in (("4 KiB blocks, no timestamps", blocks), ("one chunk per frame, timestamped", chunks)):
+            t_dec, n_dec = best_of(functools.partial(decode_only, columnar=columnar), feed, args.repeat)
+            t_lint, (n_lint, n_find) = best_of(functools.partial(decode_lint, columnar=columnar), feed, args.repeat)
+            assert n_dec == n_lint == args.frames, (n_dec, n_lint)
+            rows.append((f"{path}, {label}", n_dec / t_dec, n_lint / t_lint, n_find))
     bare = n_bare / t_bare
     print(f"capture: {args.frames} frames, {len(data) / 1e6:.1f} MB (bench/traffic.py hexapod_frames)")
     print(f"bare split+XOR loop:              {bare:12,.0f} frames/s")

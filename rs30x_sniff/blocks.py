@@ -69,6 +69,47 @@ class Block:
         out[req + 1] = np.where(lat > 0.0, lat, 0.0)
         return out
 
+    def data_matrix(self, rows: np.ndarray, width: int) -> np.ndarray:
+        """The data bytes (after the 7-byte header, before the Sum) of ``rows``, all ``width`` long."""
+        at = self.run.starts[self.lo:self.hi][rows] + 7
+        return self.run.bytes_array[at[:, None] + np.arange(width)]
+
+    def value_columns(self) -> list[tuple[np.ndarray, Any, list[np.ndarray]]]:
+        """Every row's field values as numpy columns (rs30x_sniff.value_columns), per shape of data:
+        ``(rows, layout, columns)``, equal to ``layout.values(data)`` row by row (Record.values)."""
+        from .value_columns import value_columns
+
+        c = self.cols
+        kind, sid, address, length, count, dlen = (c["kind"], c["id"], c["address"], c["length"], c["count"],
+                                                    c["data_len"])
+        out = []
+        has_data = np.flatnonzero(dlen > 0)
+        if not len(has_data):
+            return out
+        # One shape: kind, address, data length, Length x Count for long packets, and the servo's model.
+        key = (kind[has_data].astype(np.int64) << 40 | address[has_data].astype(np.int64) << 32
+               | length[has_data].astype(np.int64) << 24 | count[has_data].astype(np.int64) << 16
+               | dlen[has_data])
+        for k in np.unique(key).tolist():
+            rows = has_data[key == k]
+            r0 = int(rows[0])
+            width = int(dlen[r0])
+            if kind[r0] == LONG:
+                if self.vid_models is not None:
+                    continue  # servos of mixed models: per record (Record.values)
+                groups = [(rows, self.default.long_layout(int(address[r0]), int(length[r0]), int(count[r0])))]
+            else:
+                groups = [(rows[sid[rows] == s], self.models[s].layout(int(address[r0]), width))
+                          for s in np.unique(sid[rows]).tolist()]
+                # Servos of one model share a layout: decode them together.
+                merged: dict[int, list] = {}
+                for r, lay in groups:
+                    merged.setdefault(id(lay), [lay, []])[1].append(r)
+                groups = [(np.sort(np.concatenate(rs)), lay) for lay, rs in merged.values()]
+            for r, lay in groups:
+                out.append((r, lay, value_columns(lay, self.data_matrix(r, width))))
+        return out
+
     def records(self) -> list[Record]:
         """The rows as the Records the tracker would have made (built once, then kept)."""
         recs = self._records
