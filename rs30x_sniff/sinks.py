@@ -6,6 +6,7 @@ import json
 from typing import IO, Any, Callable
 
 from .block_json import block_json_lines
+from .block_text import block_text
 from .blocks import Block
 from .bus import Record
 from .frame_runs import LONG
@@ -99,6 +100,9 @@ class TextSink(_LineSink):
         if self.verbose:
             return text_line(rec, self.ids) + "\n" + "\n".join(verbose_lines(rec)) + "\n"
         return text_line(rec, self.ids) + "\n"
+
+    def block_lines(self, blk: Block, rows: list[int] | None) -> str:
+        return block_text(blk, self.ids, self.verbose, rows)
 
     def finding_line(self, f: Any) -> str:
         ts = f"{f.t:12.6f}" if f.t is not None else f"{'-':>12}"
