@@ -10,10 +10,15 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
+import numpy as np
+
+from .blocks import Block
+from .bus import Record
 from .events import Ack, Garbage, LongPacket, ReturnPacket, ShortPacket
-from .health import HealthRecorder, servo_health, timer, what_happened
+from .frame_runs import LONG, RETURN, SHORT
+from .health import _FLUSH_ROWS, HealthRecorder, servo_health, timer, what_happened
 from .pipeline import Sink, Step
-from .wire import BITS_PER_BYTE, byte_time
+from .wire import BITS_PER_BYTE, RETURN_FLAG_BITS, byte_time
 
 # Latencies are counted in 1 us bins: exact enough for percentiles of a bus whose return delay
 # steps by 50 us (table 4.6 No. 7), with memory bounded by the spread, not by the capture length.
@@ -85,6 +90,8 @@ class CaptureStats(Sink):
     byte count at the configured baud rate, as if the bus had never been idle.
     """
 
+    takes_blocks = True  # a Block's rows are counted on its columns (add_block), as add() counts each
+
     def __init__(self, baud: int) -> None:
         self.baud = baud
         self.bytes = 0
@@ -95,6 +102,8 @@ class CaptureStats(Sink):
         self.bad_checksums = 0
         self.garbage_bytes = 0
         self.servos: dict[int, ServoStats] = {}
+        self._known = np.zeros(256, dtype=bool)  # IDs in self.servos, for add_block
+        self._op_table = np.zeros(512, dtype=bool)  # flag * 2 + carries data -> reads (of _OPS seen)
         self.latency = LatencyHistogram()
         self.findings: Counter = Counter()
         self.finding_codes: Counter = Counter()
@@ -117,7 +126,10 @@ class CaptureStats(Sink):
     def batch(self, step: Step) -> None:
         add = self.add
         for rec in step:
-            add(rec)
+            if type(rec) is Block:
+                self.add_block(rec)
+            else:
+                add(rec)
         if step.findings:
             self.add_findings(step.findings)
 
@@ -128,6 +140,7 @@ class CaptureStats(Sink):
         st = self.servos.get(sid)
         if st is None:
             st = self.servos[sid] = ServoStats(sid)
+            self._known[sid] = True
         return st
 
     def add(self, rec: Any) -> None:
@@ -213,6 +226,232 @@ class CaptureStats(Sink):
             lat = rec.latency
             if lat is not None and rec.status == "paired":
                 self.latency.add(lat)
+
+    def add_block(self, blk: Block) -> None:
+        """Count a Block's rows (rs30x_sniff.blocks) on its columns: the same figures as :meth:`add` of
+        each of its records, in order. Every row is an intact short, long or return packet, and each
+        request asking for a reply is followed by its (paired) return."""
+        n = len(blk)
+        if not n:
+            return
+        cols = blk.cols
+        kind, sid, flag, dlen = cols["kind"], cols["id"], cols["flag"], cols["data_len"]
+        run, lo, hi = blk.run, blk.lo, blk.hi
+        starts, ends = run.starts[lo:hi], run.ends[lo:hi]
+        self.records += n
+        counts = np.bincount(kind, minlength=3).tolist()
+        by_kind = self.by_kind
+        for code, name in ((SHORT, "short"), (LONG, "long"), (RETURN, "return")):
+            if counts[code]:
+                by_kind[name] += counts[code]
+        end_offset = run.base + int(ends[-1])  # rows are in wire order
+        if end_offset > self.bytes:
+            self.bytes = end_offset
+        t0 = blk.t0
+        if t0 is not None:
+            self.timed = True
+            if self.first_t is None:
+                self.first_t = float(t0[0])
+            last = float(blk.t1.max())
+            if self.last_t is None or last > self.last_t:
+                self.last_t = last
+            self._load_rows(t0, ends - starts)
+        is_short = kind == SHORT
+        to_servo = is_short & (sid != 0xFF)
+        is_return = kind == RETURN
+        # Long packets by shape: (rows, VID of each of their records).
+        long_rows = np.flatnonzero(kind == LONG) if counts[LONG] else None
+        longs = _long_vids(blk, long_rows) if counts[LONG] else []
+        named = sid[to_servo | is_return]
+        known = self._known
+        if not known[named].all() or not all(known[v].all() for _, v in longs):
+            self._new_servos(blk, to_servo | is_return, longs)
+        servos, health = self.servos, self.health
+        models = blk.models
+        if counts[SHORT]:
+            keys = flag.astype(np.intp) * 2 + (dlen > 0)
+            by_key = np.bincount(keys[is_short], minlength=512)
+            table = self._op_table
+            for key in np.flatnonzero(by_key).tolist():
+                op = _OPS.get((key >> 1, bool(key & 1)))
+                if op is None:  # the op and whether it reads depend on the flag and on data being there
+                    ev = run.event(lo + int(np.flatnonzero(is_short & (keys == key))[0]))
+                    op = _OPS[key >> 1, bool(key & 1)] = (ev.op, ev.read_range is not None)
+                table[key] = op[1]
+                self.by_op[op[0]] += int(by_key[key])
+            req_counts = np.bincount(sid[to_servo], minlength=256)
+            for i in np.flatnonzero(req_counts).tolist():
+                st = servos[i]
+                if st.requests == 0:  # the model it is decoded as, even if it never answers
+                    health.servo(i).model = models[i]
+                st.requests += int(req_counts[i])
+            read_rows = np.flatnonzero(to_servo & table[keys])
+            if read_rows.size:
+                rs = sid[read_rows]
+                read_counts = np.bincount(rs, minlength=256)
+                if t0 is None:
+                    for i in np.flatnonzero(read_counts).tolist():
+                        servos[i].reads += int(read_counts[i])
+                else:
+                    tr = t0[read_rows]
+                    last_row = np.full(256, -1)
+                    np.maximum.at(last_row, rs, np.arange(len(rs)))
+                    first_row = np.full(256, len(rs))
+                    np.minimum.at(first_row, rs, np.arange(len(rs)))
+                    for i in np.flatnonzero(read_counts).tolist():
+                        st = servos[i]
+                        st.reads += int(read_counts[i])
+                        if st.first_read_t is None:
+                            st.first_read_t = float(tr[first_row[i]])
+                        st.last_read_t = float(tr[last_row[i]])
+            writes = np.flatnonzero(to_servo & (dlen > 0))
+            if writes.size:
+                self._health_rows(blk, writes, health._wr, False)
+        if counts[LONG]:
+            self.by_op["long-write"] += counts[LONG]
+            for _, vids in longs:
+                vc = np.bincount(vids.ravel(), minlength=256)
+                for i in np.flatnonzero(vc).tolist():
+                    servos[i].long_writes += int(vc[i])
+            if blk.vid_models is None:
+                self._health_rows(blk, long_rows, health._long, None)
+            else:  # servos of mixed models: each packet on its own, as the record path does
+                made = blk._records if isinstance(blk._records, dict) else {}
+                for k in long_rows.tolist():
+                    rec = made.get(k) or _row_record(blk, k)
+                    health.long_written(rec, rec.event)
+        if counts[RETURN]:
+            rc = np.bincount(sid[is_return], minlength=256)
+            for i in np.flatnonzero(rc).tolist():
+                servos[i].returns += int(rc[i])
+            with_data = np.flatnonzero(is_return & (dlen > 0))
+            if with_data.size:
+                self._health_rows(blk, with_data, health._ret, True)
+            flagged = np.flatnonzero(is_return & (flag != 0))
+            if flagged.size:
+                self._flags(blk, flagged)
+            if t0 is not None:
+                replies = np.flatnonzero(blk.answered) + 1
+                if replies.size:
+                    lat = t0[replies] - blk.t1[replies - 1]
+                    self._latencies(np.where(lat > 0.0, lat, 0.0))
+
+    def _new_servos(self, blk: Block, named: np.ndarray, longs: list) -> None:
+        """Create the ServoStats of the IDs the Block names first, in the order add() would."""
+        sid = blk.cols["id"]
+        first: dict[int, tuple[int, int]] = {}  # ID -> (row, place in the row) of its first mention
+        rows = np.flatnonzero(named)
+        for i, k in zip(*np.unique(sid[rows], return_index=True)):
+            first[int(i)] = (int(rows[k]), 0)
+        for rws, vids in longs:
+            flat = vids.ravel()
+            for i, k in zip(*np.unique(flat, return_index=True)):
+                at = (int(rws[k // vids.shape[1]]), int(k % vids.shape[1]) + 1)
+                i = int(i)
+                if i not in first or at < first[i]:
+                    first[i] = at
+        for i in sorted((i for i in first if i not in self.servos), key=first.__getitem__):
+            self.servo(i)
+
+    def _load_rows(self, t0: np.ndarray, sizes: np.ndarray) -> None:
+        """The bus-load windows over rows starting at ``t0`` of ``sizes`` bytes (as add() rolls them)."""
+        n = len(t0)
+        if n > 1 and not (t0[1:] >= t0[:-1]).all():
+            for ts, size in zip(t0.tolist(), sizes.tolist()):  # a clock that steps back: row by row
+                if ts >= self._win_end:
+                    self._roll(ts)
+                self._win_bytes += size
+            return
+        if float(t0[-1]) < self._win_end:  # the usual: the whole Block within the current window
+            self._win_bytes += int(sizes.sum())
+            return
+        cum = np.concatenate(([0], np.cumsum(sizes))).tolist()
+        pos = 0
+        while pos < n:
+            ts = float(t0[pos])
+            if ts >= self._win_end:
+                self._roll(ts)
+            stop = pos + 1 + int(np.searchsorted(t0[pos + 1:], self._win_end, "left"))
+            self._win_bytes += cum[stop] - cum[pos]
+            pos = stop
+
+    def _health_rows(self, blk: Block, rows: np.ndarray, bufs: dict, present: bool | None) -> None:
+        """Rows of the Block into the health recorder's buffers, as returned() / written() /
+        long_written() put them (``present`` True, False, None): by shape, each shape in the order
+        its first row came, flushed every _FLUSH_ROWS rows of a shape as they are."""
+        cols, run = blk.cols, blk.run
+        address = cols["address"][rows].astype(np.int64)
+        if present is None:  # long packets: (address, length, records)
+            length = cols["length"][rows].astype(np.int64)
+            dl = cols["data_len"][rows].astype(np.int64)
+            nrec = np.where(length > 0, -(-dl // np.maximum(length, 1)), 0)
+            keys = (address * 256 + length) * (1 << 20) + nrec
+        else:  # returns and short writes: (servo, address, data length)
+            keys = (cols["id"][rows].astype(np.int64) * 256 + address) * (1 << 20) + cols["data_len"][rows]
+        order = np.argsort(keys, kind="stable")
+        sk = keys[order]
+        cut = np.flatnonzero(sk[1:] != sk[:-1]) + 1
+        bounds = [0, *cut.tolist(), len(sk)]
+        groups = sorted(zip(order[bounds[:-1]].tolist(), bounds[:-1], bounds[1:]))  # by first row
+        health = self.health
+        blob = run.blob
+        rows = rows + blk.lo
+        starts, ends = run.starts, run.ends
+        for _, g0, g1 in groups:
+            key = int(sk[g0])
+            rws = rows[order[g0:g1]]
+            rest, third = divmod(key, 1 << 20)
+            key_t = (rest >> 8, rest & 255, third)
+            model = blk.default if present is None else blk.models[key_t[0]]
+            raws = [blob[s:e] for s, e in zip(starts[rws].tolist(), ends[rws].tolist())]
+            b = bufs.get(key_t)
+            if b is None or b[0] is not model:
+                b = health._open(bufs, key_t, model)
+            i = 0
+            while i < len(raws):
+                take = _FLUSH_ROWS - len(b[1])
+                b[1] += raws[i:i + take] if i or take < len(raws) else raws
+                i += take
+                if len(b[1]) >= _FLUSH_ROWS:
+                    if present is None:
+                        health._flush_long(key_t, b)
+                    else:
+                        health._flush_short(key_t, b, present)
+
+    def _flags(self, blk: Block, rows: np.ndarray) -> None:
+        """Status flags of a Block's returns (rows), counted per servo and flag with the first seen."""
+        cols = blk.cols
+        flags, ids = cols["flag"][rows], cols["id"][rows]
+        t0 = blk.t0
+        offsets = blk.run.base + blk.run.starts[blk.lo:blk.hi][rows]
+        health = self.health
+        for i in np.unique(ids).tolist():
+            mine = ids == i
+            h = health.servos.get(i) or health.servo(i)
+            for bit, name in RETURN_FLAG_BITS.items():
+                hit = np.flatnonzero(mine & ((flags & bit) != 0))
+                if not hit.size:
+                    continue
+                seen = h.flags.get(name)
+                if seen is None:
+                    k = int(hit[0])
+                    h.flags[name] = [len(hit), None if t0 is None else float(t0[rows[k]]), int(offsets[k])]
+                else:
+                    seen[0] += len(hit)
+
+    def _latencies(self, lat: np.ndarray) -> None:
+        """Paired replies' latencies into the histogram, as LatencyHistogram.add of each."""
+        hist = self.latency
+        bins = hist.bins
+        keys = np.rint(lat / _LATENCY_BIN).astype(np.int64)
+        k0 = int(keys.min())
+        cnt = np.bincount(keys - k0)
+        for k in np.flatnonzero(cnt).tolist():
+            bins[k + k0] += int(cnt[k])
+        hist.count += len(lat)
+        top = float(lat.max())
+        if hist.max is None or top > hist.max:
+            hist.max = top
 
     def add_findings(self, findings: Iterable[Any]) -> None:
         findings = list(findings)
@@ -327,6 +566,33 @@ class CaptureStats(Sink):
                                                         "window_s": _LOAD_WINDOW},
             "what_happened": what_happened(self, health, when),
         }
+
+
+def _long_vids(blk: Block, rows: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The long packets among ``rows`` of a Block, by shape: (their rows, the VID of each of their
+    records, one row of VIDs per packet); packets that carry no record are left out."""
+    cols = blk.cols
+    length = cols["length"][rows].astype(np.int64)
+    dlen = cols["data_len"][rows].astype(np.int64)
+    keep = (length > 0) & (dlen > 0)
+    rows, length, dlen = rows[keep], length[keep], dlen[keep]
+    if not rows.size:
+        return []
+    a, starts = blk.run.bytes_array, blk.run.starts[blk.lo:blk.hi]
+    keys = length * (1 << 20) + dlen
+    shapes = [int(keys[0])] if (keys == keys[0]).all() else np.unique(keys).tolist()
+    out = []
+    for key in shapes:
+        ln, dl = divmod(key, 1 << 20)
+        rws = rows if len(shapes) == 1 else rows[keys == key]
+        nrec = -(-dl // ln)  # the last record of a ragged packet is cut short
+        out.append((rws, a[(starts[rws] + 7)[:, None] + np.arange(nrec) * ln]))
+    return out
+
+
+def _row_record(blk: Block, k: int) -> Record:
+    """Row ``k`` of a Block as a Record, built without keeping it (no pairing: only its model matters here)."""
+    return blk._record(blk.run.event(blk.lo + k), int(blk.cols["kind"][k]), k)
 
 
 class RecentLoad:
