@@ -25,16 +25,22 @@ _MAX_TEMPLATES = 4096
 
 def block_json_lines(blk: Any, only: set[int] | None = None, compact: bool = False, rows: Any = None) -> str:
     """The JSON line of each row (or of ``rows``, ascending indexes) of ``blk``, newline-terminated."""
+    return "".join(block_json_rows(blk, only, compact, rows, "\n"))
+
+
+def block_json_rows(blk: Any, only: set[int] | None = None, compact: bool = False, rows: Any = None,
+                    end: str = "") -> list[str]:
+    """The JSON text of each row (or of ``rows``), each followed by ``end``."""
     recs = blk._records
     if isinstance(recs, list) or blk.vid_models is not None:
         # Rows checked one by one (they may carry findings), or servos of mixed models: the records.
         recs = blk.records()
         chosen = recs if rows is None else [recs[k] for k in rows]
-        return "".join([record_json_text(r, only, compact) + "\n" for r in chosen])
-    return "".join(_lines(blk, only, compact, rows))
+        return [record_json_text(r, only, compact) + end for r in chosen]
+    return _lines(blk, only, compact, rows, end)
 
 
-def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any) -> list[str]:
+def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) -> list[str]:
     run = blk.run
     blob, lo = run.blob, blk.lo
     starts = run.starts[lo:blk.hi].tolist()
@@ -86,7 +92,7 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any) -> list[st
                     data = raw[7:-1]
                     vals.append(layout.fields_json(data, layout.values(data), 0 if kind == LONG else raw[2],
                                                    only, compact))
-        out.append(fmt % tuple(vals) + "\n")
+        out.append(fmt % tuple(vals) + end)
     return out
 
 

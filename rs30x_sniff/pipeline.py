@@ -220,10 +220,13 @@ class Pipeline:
 
     def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> Step:
         """Several plain chunks through the decoder at once (Decoder.feed_many) into every sink."""
-        sinks = self.sinks
-        for data, t in chunks:
-            for s in sinks:
-                s.chunk(data, t, None, None)
+        for s in self.sinks:
+            group = getattr(s, "chunk_group", None)
+            if group is not None:
+                group(chunks)  # a sink that takes the group's chunks at once (McapSink orders its messages)
+            else:
+                for data, t in chunks:
+                    s.chunk(data, t, None, None)
         step = self.decoder.feed_many(chunks)
         if step or step.findings:
             self._hand_out(step)
@@ -292,23 +295,28 @@ class Pipeline:
         group: list[tuple[bytes, float | None]] = []
         size = 0
         feed_many = self.feed_many
-        for chunk in chunks:
-            if type(chunk) is Marked or not chunk[0]:
-                if group:
-                    feed_many(group)
-                    group, size = [], 0
-                if type(chunk) is Marked:
-                    self.feed(chunk[0], chunk[1], chunk.sender, chunk.error)
-                else:
-                    self.feed(*chunk)
-                continue
-            group.append(chunk)
-            size += len(chunk[0])
-            if size >= GROUP_BYTES:
+        try:
+            for chunk in chunks:
+                if type(chunk) is Marked or not chunk[0]:
+                    if group:
+                        group, pending = [], group
+                        size = 0
+                        feed_many(pending)
+                    if type(chunk) is Marked:
+                        self.feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+                    else:
+                        self.feed(*chunk)
+                    continue
+                group.append(chunk)
+                size += len(chunk[0])
+                if size >= GROUP_BYTES:
+                    group, pending = [], group
+                    size = 0
+                    feed_many(pending)
+        finally:
+            # What was read is decoded, also when the source fails or the run is stopped midway.
+            if group:
                 feed_many(group)
-                group, size = [], 0
-        if group:
-            feed_many(group)
 
 
 def drive(chunks: Iterable[tuple[bytes, float | None]], decoder: Decoder, *sinks: Sink) -> Decoder:

@@ -13,7 +13,7 @@ from ..io.captures import Chunk, detect_format
 from ..pipeline import Decoder, drive
 from ..settings import Settings
 from ..sinks import ProgressSink
-from .common import CliError, add_decode_options, add_lint_options, make_linter, open_input, settings_for
+from .common import CliError, add_decode_options, add_lint_options, is_live, make_linter, open_input, settings_for
 from .outputs import check_output, output_path, report_end
 
 
@@ -100,7 +100,8 @@ def run(args: argparse.Namespace) -> int:
         when = found.get("start_time")
         if when is not None:
             start_time = when.timestamp()
-    decoder = Decoder(settings.decode_options(), linter=linter)
+    # A file takes the columnar path (the same messages, in log-time order within each 64 KiB group).
+    decoder = Decoder(settings.decode_options(), linter=linter, columnar=not is_live(src))
     source = "stdin" if args.input == "-" else args.input
     total = os.path.getsize(args.input) if os.path.isfile(args.input) and (
         (args.input_format or detect_format(args.input)) == "bin") else None

@@ -15,6 +15,8 @@ from ..events import Garbage, ShortPacket
 from ..render import record_json_text
 from ..schemas import schema_bytes
 from .captures import MCAP_MAGIC as _MAGIC
+from ..blocks import Block
+from .mcap_blocks import block_messages
 from .servo_states import ServoStates
 from ..stats import CaptureStats
 from ..wire import byte_time
@@ -39,6 +41,10 @@ _MESSAGE_OVERHEAD = 31
 RAW_SPLIT = 4096  # largest /rs30x/raw message for a capture without timestamps
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
+
+
+def _by_time(msg: tuple) -> tuple[int, int]:
+    return msg[0], msg[1]
 
 
 def _ns(t: float) -> int:
@@ -71,6 +77,17 @@ class JsonChannels:
         self._states: dict[int, dict[str, str]] = {}  # servo -> register name -> '"name":value'
         self._held: dict[int, dict[str, Any]] = {}    # servo -> register values not yet in _states
         self._state_channels: dict[int, Any] = {}
+        # A columnar group's raw messages (chunk_group), held until its step's messages are made, then
+        # written with them in log-time order; None: every message is written as it is made.
+        self._raw_held: list[tuple[int, int, Any, bytes]] | None = None
+        self._made: list[tuple[int, int, Any, bytes]] | None = None
+
+    def _emit(self, cid: Any, log_time: int, data: bytes) -> None:
+        made = self._made
+        if made is None:
+            self._write(cid, log_time, data)
+        else:
+            made.append((log_time, len(made), cid, data))
 
     def _channel(self, topic: str, schema_name: str) -> Any:
         """The handle ``_write`` takes for ``topic`` (registered on first use)."""
@@ -110,7 +127,7 @@ class JsonChannels:
         marks = (f',"sender":"{sender}"' if sender else "") + (f',"error":"{error}"' if error else "")
         body = (f'{{"offset":{offset},"t":{ts},"length":{len(data)},"data":"'
                 f'{base64.b64encode(data).decode("ascii")}"{marks}}}').encode()
-        self._write(cid, _ns(self._time(t, offset)), body)
+        self._emit(cid, _ns(self._time(t, offset)), body)
 
     def record(self, rec: Any) -> None:
         """A decoded record: its /rs30x/packets message, the state of every servo it changes, and
@@ -120,7 +137,7 @@ class JsonChannels:
         every = self._every_message
         cid = self._channel(PACKETS_TOPIC, "rs30x.Packet")
         if every or self._live(cid):
-            self._write(cid, log_time, record_json_text(rec, compact=True).encode())
+            self._emit(cid, log_time, record_json_text(rec, compact=True).encode())
         if type(ev) is Garbage:
             return
         changed = self._servos.changes(rec)
@@ -129,7 +146,7 @@ class JsonChannels:
         if rec.expects is not None:
             cid = self._channel(TRANSACTIONS_TOPIC, "rs30x.Transaction")
             if every or self._live(cid):
-                self._write(cid, log_time, _encode(transaction_json(rec)).encode())
+                self._emit(cid, log_time, _encode(transaction_json(rec)).encode())
 
     def _update_state(self, rec: Any, changed: dict[int, list[tuple[str, Any]]], log_time: int) -> None:
         # Each servo's state is kept as its JSON fragments ('"name":value'), so a packet that changes
@@ -168,7 +185,7 @@ class JsonChannels:
         models = self._models
         for tid, cid, st in live:
             body = f'{{"id":{tid},"model":"{models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
-            self._write(cid, log_time, body.encode())
+            self._emit(cid, log_time, body.encode())
 
     def findings(self, findings: Iterable[Any]) -> None:
         """Lint findings as foxglove.Log messages on /rs30x/diagnostics."""
@@ -182,21 +199,59 @@ class JsonChannels:
                    "level": _LOG_LEVEL.get(f.severity, 0),
                    "message": f.message if f.id is None else f"id {f.id}: {f.message}",
                    "name": f"{f.code} {f.name}", "file": self.source, "line": f.offset}
-            self._write(cid, ns, _encode(msg).encode())
+            self._emit(cid, ns, _encode(msg).encode())
 
     # ---- as a sink of the drive loop (rs30x_sniff.pipeline) ----------------------------------------
     def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         self.raw(data, t, sender, error)
 
+    def chunk_group(self, chunks: list[tuple[bytes, float | None]]) -> None:
+        """A columnar Pipeline's group of plain chunks (Pipeline.feed_many): their raw messages wait for
+        the step they decode to, so the file gets both in log-time order (the record path interleaves
+        them chunk by chunk; a group's records come after all its chunks)."""
+        self._made = self._raw_held if self._raw_held is not None else []
+        try:
+            for data, t in chunks:
+                self.raw(data, t)
+        finally:
+            self._raw_held, self._made = self._made, None
+
     def batch(self, step: Any) -> None:
+        held = self._raw_held
+        if held is None and not step.blocks:
+            self._batch(step)
+            return
+        self._raw_held = None
+        made = self._made = []
+        try:
+            self._batch(step)
+        finally:
+            self._made = None
+            # Raw messages first where times tie (as the record path writes a chunk before its records).
+            msgs = sorted((held or []) + [(lt, len(held or ()) + k, cid, d) for lt, k, cid, d in made],
+                          key=_by_time)
+            write = self._write
+            for lt, _, cid, data in msgs:
+                write(cid, lt, data)
+
+    def _batch(self, step: Any) -> None:
         record = self.record
         for rec in step:
-            record(rec)
+            if type(rec) is Block:
+                block_messages(self, rec, self._emit)
+            else:
+                record(rec)
         if step.findings:
             self.findings(step.findings)
 
+    def flush_held(self) -> None:
+        """Write raw messages still held (a group that decoded to nothing yet)."""
+        held, self._raw_held = self._raw_held, None
+        for lt, _, cid, data in held or ():
+            self._write(cid, lt, data)
+
     def idle(self) -> None:
-        pass
+        self.flush_held()
 
 
 class McapSink(JsonChannels):
@@ -332,11 +387,19 @@ class McapSink(JsonChannels):
         super().chunk(data, t, sender, error)
         self.stats.chunk(data, t)
 
+    takes_blocks = True  # a file: a Block's messages come from templates (io/mcap_blocks.py)
+
+    def chunk_group(self, chunks: list[tuple[bytes, float | None]]) -> None:
+        super().chunk_group(chunks)
+        for data, t in chunks:
+            self.stats.chunk(data, t)
+
     def batch(self, step: Any) -> None:
         super().batch(step)
-        self.stats.batch(step)
+        self.stats.batch(step if getattr(self.stats, "takes_blocks", False) else step.expanded())
 
     def close(self) -> None:
+        self.flush_held()
         self.finish()
 
     def finish(self) -> None:

@@ -180,3 +180,22 @@ def test_value_columns_are_the_records_values():
             mixed = blk.vid_models is not None
             assert all(not r.values or (mixed and r.kind == "long") for k2, r in enumerate(recs) if k2 not in seen)
     assert checked > 100
+
+
+def test_a_failing_source_loses_nothing_already_read():
+    """The columnar Pipeline holds up to 64 KiB of chunks before decoding them: a source that fails
+    midway still has every chunk it gave decoded and handed to the sinks."""
+    from rs30x_sniff.pipeline import Pipeline
+    from rs30x_sniff.sinks import FindingsSink
+
+    chunks = traffic(4, 50, timed=True, gaps=False, faults=False, rare=0.0)
+
+    def source():
+        yield from chunks
+        raise OSError("adapter unplugged")
+
+    found = FindingsSink()
+    with pytest.raises(OSError):
+        Pipeline(Decoder(None, Linter(), columnar=True), [found]).run(source())
+    whole, _ = record_path(chunks, lint=True)
+    assert found.records == len(whole) > 50
