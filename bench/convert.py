@@ -33,13 +33,14 @@ from rs30x_sniff.lint import Linter  # noqa: E402
 from rs30x_sniff.pipeline import Decoder  # noqa: E402
 
 
-def run_convert(frames: list, lint: bool) -> tuple[float, int, bytes]:
-    """Seconds to convert ``frames`` (as the convert command does), messages written, the file."""
+def run_convert(frames: list, lint: bool, columnar: bool = True) -> tuple[float, int, bytes]:
+    """Seconds to convert ``frames`` (as the convert command does a file: columnar; a port: the record
+    path), messages written, the file."""
     buf = io.BytesIO()
     gc.collect()
     t0 = time.perf_counter()
     with McapSink(buf, source="bench", baud=115200, time_base="capture", chunk_size=CHUNK_SIZE) as sink:
-        drive(iter(frames), Decoder(linter=Linter() if lint else None), sink)
+        drive(iter(frames), Decoder(linter=Linter() if lint else None, columnar=columnar), sink)
     return time.perf_counter() - t0, sink.messages, buf.getvalue()
 
 
@@ -136,13 +137,14 @@ def speed(n_frames: int) -> None:
     frames = hexapod_frames(n_frames)
     print(f"capture: {n_frames} frames, {sum(len(d) for d, _ in frames)} bytes, "
           f"{frames[-1][1]:.1f} s of hexapod traffic at 115200 bit/s")
-    for lint in (True, False):
-        secs, n, blob = run_convert(frames, lint)
+    for lint, columnar in ((True, True), (False, True), (True, False)):
+        secs, n, blob = run_convert(frames, lint, columnar)
         bare_secs, bare_n = run_bare(blob)
         sdk_secs = run_bare_sdk(blob)
         assert bare_n == n
         ours, bare = n / secs, bare_n / bare_secs
-        print(f"convert{'' if lint else ' --no-lint'}: {n} messages in {secs:.2f} s = {ours:,.0f} msg/s; "
+        path = "columnar path (a file)" if columnar else "record path (a port)"
+        print(f"convert{'' if lint else ' --no-lint'}, {path}: {n} messages in {secs:.2f} s = {ours:,.0f} msg/s; "
               f"bare mcap Writer: {bare_secs:.2f} s = {bare:,.0f} msg/s; ratio {ours / bare:.2f} (target >= 0.5); "
               f"bare SDK writer: {sdk_secs:.2f} s = {n / sdk_secs:,.0f} msg/s, ratio {sdk_secs / secs:.2f}; "
               f"{len(blob) / 1e6:.1f} MB written")
