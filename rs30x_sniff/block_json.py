@@ -19,7 +19,7 @@ _COMPACT = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 # Stand-ins for what varies between rows of one shape: JSON escapes NUL, and no real value holds one.
 _SLOTS = ("offset", "t", "t_end", "raw", "reply_to", "reply", "latency_s")
 _MARK = {k: f"\x00{k}\x00" for k in _SLOTS}
-_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any]] = {}
+_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any, Any]] = {}  # key -> (format, slots, layout, model)
 _MAX_TEMPLATES = 4096
 
 
@@ -66,9 +66,9 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
             model = models[raw[2]]
             key = (raw[2:7], e - s, id(model), b"", timed, compact, only_key)
         tpl = get(key)
-        if tpl is None:
+        if tpl is None or tpl[3] is not model:  # (an id is reused once its model is gone)
             tpl = _template(blk, k, key, only, compact)
-        fmt, slots, layout = tpl
+        fmt, slots, layout, _ = tpl
         vals = []
         for name in slots:
             if name == "offset":
@@ -128,7 +128,7 @@ def _template(blk: Any, k: int, key: tuple, only: set[int] | None, compact: bool
         put = empty[:-1] + "%s]" if name == "fields" else ('"%s"' if name == "raw" else "%s")  # raw: a string
         text = text.replace(mark, put, 1)
         slots.append(name)
-    tpl = (text, tuple(slots), layout)
+    tpl = (text, tuple(slots), layout, rec.model)
     if len(_TEMPLATES) >= _MAX_TEMPLATES:
         _TEMPLATES.clear()
     _TEMPLATES[key] = tpl

@@ -13,7 +13,7 @@ from ..memmap import Layout, _value_text
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 _MARK = "\x00{}\x00"
 _TX_SLOTS = ("request_offset", "t_request", "request_raw", "reply_offset", "t_reply", "reply_raw", "latency_s")
-_TX_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...]] | None] = {}
+_TX_TEMPLATES: dict[tuple, tuple[str | None, tuple[str, ...], Any]] = {}  # key -> (format or None, slots, model)
 _NAMED: dict[int, tuple[Layout, tuple]] = {}
 _MAX = 4096
 
@@ -38,13 +38,13 @@ def _named_plan(layout: Layout) -> tuple:
     return plan
 
 
-def _tx_template(blk: Any, k: int, key: tuple) -> tuple[str, tuple[str, ...]] | None:
-    """The /rs30x/transactions body of row ``k``'s shape with a %s where each row differs; None when
-    the row's request expects no reply (no message)."""
+def _tx_template(blk: Any, k: int, key: tuple) -> tuple[str | None, tuple[str, ...], Any]:
+    """The /rs30x/transactions body of row ``k``'s shape with a %s where each row differs (None when
+    the row's request expects no reply: no message), the slots, and the model it was made for."""
     from .mcap_sink import transaction_json
 
     rec = blk.record(k)
-    tpl = None
+    tpl = (None, (), rec.model)
     if rec.expects is not None:
         obj = transaction_json(rec)
         for name in _TX_SLOTS:
@@ -55,7 +55,7 @@ def _tx_template(blk: Any, k: int, key: tuple) -> tuple[str, tuple[str, ...]] | 
         for _, name in found:
             put = '"%s"' if name.endswith("_raw") else "%s"
             text = text.replace(_encode(_MARK.format(name)), put, 1)
-        tpl = (text, tuple(n for _, n in found))
+        tpl = (text, tuple(n for _, n in found), rec.model)
     if len(_TX_TEMPLATES) >= _MAX:
         _TX_TEMPLATES.clear()
     _TX_TEMPLATES[key] = tpl
@@ -132,11 +132,11 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
                     emit(cid, log_time, body.encode())
         if answered[k]:
             key = (raw[2:7], e - s, id(model), timed)
-            tpl = _TX_TEMPLATES.get(key, False)
-            if tpl is False:
+            tpl = _TX_TEMPLATES.get(key)
+            if tpl is None or tpl[2] is not model:  # (an id is reused once its model is gone)
                 tpl = _tx_template(blk, k, key)
-            if tpl is not None:
-                fmt, slots = tpl
+            if tpl[0] is not None:
+                fmt, slots, _ = tpl
                 vals = []
                 for name in slots:
                     if name == "request_offset":

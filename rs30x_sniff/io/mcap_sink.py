@@ -224,7 +224,7 @@ class JsonChannels:
         self._raw_held = None
         made = self._made = []
         try:
-            self._batch(step)
+            self._records(step)
         finally:
             self._made = None
             # Raw messages first where times tie (as the record path writes a chunk before its records).
@@ -233,16 +233,21 @@ class JsonChannels:
             write = self._write
             for lt, _, cid, data in msgs:
                 write(cid, lt, data)
+        if step.findings:  # after the step's records, in the order found, as the record path writes them
+            self.findings(step.findings)
 
     def _batch(self, step: Any) -> None:
+        self._records(step)
+        if step.findings:
+            self.findings(step.findings)
+
+    def _records(self, step: Any) -> None:
         record = self.record
         for rec in step:
             if type(rec) is Block:
                 block_messages(self, rec, self._emit)
             else:
                 record(rec)
-        if step.findings:
-            self.findings(step.findings)
 
     def flush_held(self) -> None:
         """Write raw messages still held (a group that decoded to nothing yet)."""
