@@ -627,6 +627,21 @@ class RecentLoad:
         while items and items[0][0] < horizon:
             self._bytes -= items.popleft()[1]
 
+    def extend_arrays(self, ts: np.ndarray, sizes: np.ndarray) -> None:
+        """:meth:`extend` with ``zip(ts, sizes)`` (a Block's rows): the items the window would drop at
+        once (older than it, once all held before them are dropped too) are not made at all."""
+        n = len(ts)
+        if not n:
+            return
+        last = float(ts[-1])
+        horizon = (last if self._last_t is None or last > self._last_t else self._last_t) - self.window
+        p = 0
+        items = self._items
+        if not items or max(t for t, _ in items) < horizon:
+            old = ts[:-1] < horizon  # the last item is always handed over: extend() settles the window on it
+            p = n - 1 if old.all() else int(np.argmin(old))
+        self.extend(zip(ts[p:].tolist(), sizes[p:].tolist()))
+
     @property
     def value(self) -> float | None:
         """Fraction of the window the wire was busy, 0..1 (None until there is a span to measure)."""

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from queue import Empty, SimpleQueue
 from typing import Any, Callable, Iterator
 
+from ..blocks import MIN_BLOCK, Block
 from ..bus import Record
 from ..io.captures import CaptureError
 from ..pipeline import DecodeOptions, Decoder, Pipeline, Sink, Step
@@ -26,7 +27,7 @@ LOAD_INTERVAL = 1.0
 class Batch:
     """What the capture thread hands to the screen: new records, new findings, the servos' state."""
 
-    records: list[Record]
+    records: list[Record | Block]  # in wire order; a Block (file sources) stands for its rows
     findings: list = field(default_factory=list)
     servos: dict[int, ServoRow] | None = None
     bytes_in: int = 0
@@ -47,21 +48,75 @@ def default_linter() -> Any:
 
 
 class _Collect(Sink):
-    """Gathers the pipeline's records and findings between posts to the screen."""
+    """Gathers the pipeline's records (and, from a columnar decoder, Blocks) and findings between posts."""
+
+    takes_blocks = True
 
     def __init__(self) -> None:
-        self.records: list[Record] = []
+        self.records: list[Record | Block] = []
         self.findings: list = []
+        self.count = 0  # rows collected (a Block counts its rows)
+        self.steps = 0  # steps taken so far (tells the feeder something arrived)
 
     def batch(self, step: Step) -> None:
         self.records += step
+        self.count += step.count
+        self.steps += 1
         if step.findings:
             self.findings += step.findings
 
-    def take(self) -> tuple[list[Record], list]:
-        out = self.records, self.findings
-        self.records, self.findings = [], []
-        return out
+    def take(self, limit: int | None = None) -> tuple[list[Record | Block], list, int]:
+        """(items, findings, rows) collected so far, or only the first ``limit`` rows of them (a Block
+        across that line is split; the rest stays, and so do the findings)."""
+        if limit is None or self.count <= limit:
+            out = self.records, self.findings, self.count
+            self.records, self.findings, self.count = [], [], 0
+            return out
+        items, rows = [], 0
+        rest = self.records
+        i = 0
+        while rows < limit:
+            x = rest[i]
+            n = len(x) if type(x) is Block else 1
+            if rows + n > limit:
+                head, tail = split_block(x, limit - rows)
+                items += head
+                rows += sum(len(h) if type(h) is Block else 1 for h in head)
+                rest[i] = tail  # what is left of the Block (a Block, or a list of Records)
+                if type(tail) is list:
+                    rest[i:i + 1] = tail
+                break
+            items.append(x)
+            rows += n
+            i += 1
+        del rest[:i]
+        self.count -= rows
+        return items, [], rows
+
+
+def split_block(blk: Block, k: int) -> tuple[list, Block | list]:
+    """A Block cut before row ``k`` (moved past a reply so a pair stays together): (the head, the
+    tail), each a Block, or its rows as Records when shorter than blocks.MIN_BLOCK. Records the Block
+    already built are kept by both parts, so each row stays one object."""
+    k = max(1, min(k, len(blk) - 1))
+    if blk.answered[k - 1]:
+        k += 1  # a reply goes with its request
+    if k >= len(blk):
+        return [blk], []
+    parts = [_sub_block(blk, 0, k), _sub_block(blk, k, len(blk))]
+    out = [[p] if len(p) >= MIN_BLOCK else p.records() for p in parts]
+    return out[0], out[1][0] if len(out[1]) == 1 and type(out[1][0]) is Block else out[1]
+
+
+def _sub_block(blk: Block, a: int, b: int) -> Block:
+    sub = Block(blk.run, blk.lo + a, blk.lo + b, blk.index0 + a, blk.answered[a:b], blk.models, blk.default,
+                blk.vid_models)
+    made = blk._records
+    if isinstance(made, list):
+        sub._records = made[a:b]
+    elif made:
+        sub._records = {k - a: r for k, r in made.items() if a <= k < b}
+    return sub
 
 
 class _Recording(Sink):
@@ -104,7 +159,11 @@ class Feeder:
         self.options = options
         self.post = post
         self.linter = linter
-        self.decoder = Decoder(options, linter=linter)
+        # A file is decoded columnar (rs30x_sniff.blocks): clean stretches come as Blocks, which the
+        # screen keeps as columns and makes Records of only for the rows it shows; a live source
+        # (port, simulator, replay) goes record by record as it comes.
+        self.loading = getattr(source, "kind", None) == "file"
+        self.decoder = Decoder(options, linter=linter, columnar=self.loading)
         self.stats = CaptureStats(options.baud)
         self._collect = _Collect()
         self.pipeline = Pipeline(self.decoder, [self._collect, self.stats])
@@ -146,15 +205,25 @@ class Feeder:
         """The source's chunks, with the screen's commands applied and batches posted between them."""
         self._last_post = self.clock()
         warnings = getattr(self.source, "warnings", None)
-        loading = getattr(self.source, "kind", None) == "file"
+        loading = self.loading
+        collect = self._collect
+        seen = -1  # steps of the collector when last looked at (a file's arrive a group at a time)
         for chunk in self.source.chunks(self.stop_event):
-            self._apply_commands()
+            if self._commands_waiting:
+                self._apply_commands()
             yield chunk
             if warnings:
                 self._note = "; ".join(warnings)  # shown on the screen, not printed behind it
                 warnings.clear()
+            if loading and collect.steps == seen and self._note is None:
+                if self.stop_event.is_set():
+                    return
+                continue
+            seen = collect.steps
             now = self.clock()
-            n = len(self._collect.records)
+            # Posted when the interval is up, or sooner when the screen would have many objects to take
+            # (a Record each; a Block is one, its rows being columns); a post holds max_batch rows a batch.
+            n = len(collect.records)
             interval = self.interval if not loading or self._posts < 2 else max(self.interval, LOAD_INTERVAL)
             if n and (now - self._last_post >= interval or n >= self.max_batch) or self._note is not None:
                 self._post()
@@ -187,8 +256,18 @@ class Feeder:
         self._post(done=True, error=error)
 
     def _post(self, done: bool = False, error: str | None = None) -> None:
+        """Hand what was collected to the screen, in batches of ``max_batch`` rows at most (a Block
+        across the line is split); the findings go with the last."""
+        collect = self._collect
+        while True:
+            more = collect.count > self.max_batch
+            records, findings, _ = collect.take(self.max_batch if more else None)
+            self._post_one(records, findings, done and not more, None if more else error)
+            if not more:
+                return
+
+    def _post_one(self, records: list, findings: list, done: bool, error: str | None) -> None:
         note, self._note = self._note, None
-        records, findings = self._collect.take()
         self._posts += 1
         self.post(Batch(records, findings, servo_snapshot(self.decoder.bus), self.decoder.bytes_in,
                         stats=self.stats.as_dict(), done=done, error=error, recording=self.recording, note=note))

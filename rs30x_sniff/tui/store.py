@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import sys
 from array import array
-from bisect import bisect_left
+from bisect import bisect_left, bisect_right
 from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
+import numpy as np
+
+from ..blocks import Block, _pair
 from ..bus import BusTracker, Record
 from ..events import LongPacket, ReturnPacket, ShortPacket
+from ..frame_runs import LONG, RETURN, SHORT, FrameRun
 from ..stats import RecentLoad
 from .filter import SEVERITY_RANK, Filter
 
@@ -24,6 +28,7 @@ PLOT_REGISTERS = ("present_position", "present_speed", "present_current", "prese
 SERVO_COLUMNS = ("torque_enable", "goal_position", "present_position", "present_speed", "present_current",
                  "present_temperature", "present_voltage")
 LATENCY_SAMPLES = 1000  # percentiles over the most recent replies
+CHUNK_RECORDS = 1 << 16  # Records held per list of the history (eviction trims the first list only)
 
 # Python object sizes on this interpreter, for the memory estimate (measured once, not guessed).
 _EMPTY_LIST = sys.getsizeof([])
@@ -119,6 +124,172 @@ def register_value(rec: Record, servo_id: int, name: str) -> Any:
         return None
 
 
+# ---- Blocks (rs30x_sniff.blocks): rows kept as columns ---------------------------------------------------
+_BLOCK_BASE = sys.getsizeof(Block.__new__(Block)) + sys.getsizeof({}) + 8 * 112  # the object, cols, views
+
+
+def run_nbytes(run: FrameRun) -> int:
+    """Bytes a FrameRun holds: its bytes and its columns (shared by the Blocks cut from it)."""
+    n = sys.getsizeof(run.blob) + 256
+    for a in (run.starts, run.ends, run.t0, run.t1):
+        if a is not None:
+            n += a.nbytes + 112
+    for a in (run._cols or {}).values():
+        if a.base is None:
+            n += a.nbytes + 112
+    return n
+
+
+def built_nbytes(blk: Block) -> int:
+    """Bytes of the Records a Block has built and keeps (a row shown, or every row the linter read)."""
+    made = blk._records
+    if not made:
+        return 0
+    recs = made if isinstance(made, list) else made.values()
+    return sum(record_size(r) for r in recs) + sys.getsizeof(made)
+
+
+def block_rows(blk: Block, a: int, b: int) -> list[Record]:
+    """Rows ``a``..``b`` of a Block as Records, paired as the tracker pairs them, built for the moment:
+    the Block does not keep them (:meth:`Block.record` does). The Records it already keeps are used
+    as they are (a finding may be on one), so a row is never two different objects at once."""
+    made = blk._records
+    if isinstance(made, list):
+        return made[a:b]
+    answered = blk.answered
+    a0 = a - 1 if a > 0 and answered[a - 1] else a        # a reply is made with its request
+    b0 = b + 1 if b < len(blk) and answered[b - 1] else b  # and a request with its reply
+    events = blk.run.events(blk.lo + a0, blk.lo + b0)
+    kinds = blk.cols["kind"][a0:b0].tolist()
+    make = blk._record
+    if made:
+        get = made.get
+        recs = [get(k) or make(ev, kind, k) for k, ev, kind in zip(range(a0, b0), events, kinds)]
+    else:
+        recs = [make(ev, kind, k) for k, ev, kind in zip(range(a0, b0), events, kinds)]
+    n = len(recs)
+    for k in np.flatnonzero(answered[a0:b0]).tolist():
+        if k + 1 < n and not (made and (a0 + k) in made):  # kept ones are paired already
+            _pair(recs[k], recs[k + 1])
+    return recs[a - a0:b - a0]
+
+
+_LUTS: dict[int, tuple[Any, np.ndarray, np.ndarray]] = {}
+
+
+def _value_table(reg: Any) -> tuple[np.ndarray, np.ndarray]:
+    """For a 1- or 2-byte register, indexed by the raw bytes as an unsigned little-endian number: the
+    value register_value gives as a float, and whether it is a number (an enum's label is not)."""
+    hit = _LUTS.get(id(reg))
+    if hit is not None and hit[0] is reg:
+        return hit[1], hit[2]
+    bits = 8 * reg.size
+    values = np.zeros(1 << bits)
+    ok = np.zeros(1 << bits, dtype=bool)
+    convert = reg.convert
+    for u in range(1 << bits):
+        v = convert(u - (1 << bits) if reg.signed and u >= 1 << (bits - 1) else u)
+        if isinstance(v, (int, float)):
+            values[u] = float(v)
+            ok[u] = True
+    _LUTS[id(reg)] = (reg, values, ok)
+    return values, ok
+
+
+def _register_of(model: Any, name: str) -> Any:
+    if model is None:
+        return None
+    try:
+        return model.register(name)
+    except KeyError:
+        return None
+
+
+def _values_at(blob_array: np.ndarray, blob: bytes, at: np.ndarray, reg: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(values, is a number) of ``reg`` whose bytes start at ``at`` in the blob."""
+    if reg.size <= 2:
+        raw = blob_array[at].astype(np.intp)
+        if reg.size == 2:
+            raw |= blob_array[at + 1].astype(np.intp) << 8
+        values, ok = _value_table(reg)
+        return values[raw], ok[raw]
+    vals, oks = [], []
+    for p in at.tolist():  # a wider register: as Register.value_in reads it
+        v = reg.convert(int.from_bytes(blob[p:p + reg.size], "little", signed=reg.signed))
+        good = isinstance(v, (int, float))
+        vals.append(float(v) if good else 0.0)
+        oks.append(good)
+    return np.array(vals, dtype=float), np.array(oks, dtype=bool)
+
+
+def block_points(blk: Block, ids: Iterable[int], name: str, byte_seconds: float,
+                 a: int = 0) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """For each servo of ``ids``: (times, values) of register ``name`` in rows ``a``.. of a Block, as
+    register_value reads it from each row's record (a servo's returns and the writes to it, and its
+    record of each long packet), in row order."""
+    cols, run = blk.cols, blk.run
+    kind, sid = cols["kind"][a:], cols["id"][a:]
+    dlen = cols["data_len"][a:].astype(np.int64)
+    address = cols["address"][a:].astype(np.int64)
+    starts = run.starts[blk.lo + a:blk.hi]
+    t0 = None if run.t0 is None else run.t0[blk.lo + a:blk.hi]
+    arr, blob = run.bytes_array, run.blob
+    out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    own = (kind != LONG) & (dlen > 0)
+    long_rows = np.flatnonzero((kind == LONG) & (cols["length"][a:] > 0) & (dlen > 0))
+    long_reg = _register_of(blk.default, name)
+    for servo in ids:
+        rows_parts, at_parts, regs = [], [], []
+        rows = np.flatnonzero(own & (sid == servo))
+        reg = _register_of(blk.models.get(servo), name) if rows.size else None
+        if reg is not None:
+            start = reg.address - address[rows]
+            fits = (start >= 0) & (start + reg.size <= dlen[rows])
+            rows_parts.append(rows[fits])
+            at_parts.append(starts[rows[fits]] + 7 + start[fits])
+            regs.append(reg)
+        if long_reg is not None and long_rows.size:
+            ln = cols["length"][a:][long_rows].astype(np.int64)
+            dl = dlen[long_rows]
+            nrec = -(-dl // ln)
+            width = int(nrec.max())
+            j = np.arange(width)
+            vid_at = starts[long_rows][:, None] + 7 + j * ln[:, None]
+            valid = j < nrec[:, None]
+            hit = valid & (arr[np.minimum(vid_at, len(arr) - 1)] == servo)
+            has = hit.any(axis=1)
+            if has.any():
+                first = hit.argmax(axis=1)[has]  # the first record for the servo, as register_value takes
+                r = long_rows[has]
+                lnr, dlr = ln[has], dl[has]
+                data_len = np.minimum(lnr - 1, dlr - first * lnr - 1)
+                start = long_reg.address - address[r]
+                fits = (start >= 0) & (start + long_reg.size <= data_len)
+                rows_parts.append(r[fits])
+                at_parts.append(starts[r[fits]] + 7 + first[fits] * lnr[fits] + 1 + start[fits])
+                regs.append(long_reg)
+        if not rows_parts:
+            continue
+        got_rows, got_vals = [], []
+        for rws, at, reg in zip(rows_parts, at_parts, regs):
+            if rws.size:
+                vals, ok = _values_at(arr, blob, at, reg)
+                got_rows.append(rws[ok])
+                got_vals.append(vals[ok])
+        if not got_rows:
+            continue
+        rws = np.concatenate(got_rows)
+        vals = np.concatenate(got_vals)
+        if len(got_rows) > 1:
+            order = np.argsort(rws, kind="stable")
+            rws, vals = rws[order], vals[order]
+        if not rws.size:
+            continue
+        times = t0[rws] if t0 is not None else (run.base + starts[rws]) * byte_seconds
+        out[servo] = (times, vals)
+    return out
+
+
 @dataclass
 class Stats:
     """Running counts since the last clear."""
@@ -149,7 +320,13 @@ class Stats:
 
 class Store:
     """The monitor's model. Records are numbered by ``seq`` (0 for the first one since the last clear);
-    only the newest ``history`` are held, so a seq below :attr:`first_seq` has been dropped."""
+    only the newest ``history`` are held, so a seq below :attr:`first_seq` has been dropped.
+
+    The history is a list of segments in wire order: lists of Records, and Blocks (rs30x_sniff.blocks:
+    a file's clean stretches, kept as columns). A Block's row becomes a Record only when it is asked
+    for (:meth:`get`, and the Block keeps it); counts, load, plot series and the memory figure come
+    from its columns, and a filter scan makes its rows' Records for the moment and lets them go.
+    """
 
     def __init__(self, history: int = DEFAULT_HISTORY, *, baud: int = 115200, plot_points: int = PLOT_POINTS) -> None:
         if history < 1:
@@ -167,13 +344,16 @@ class Store:
     # ---- contents --------------------------------------------------------------------------------
     def clear(self) -> None:
         """Forget every record, finding and count (the source keeps running)."""
-        self.rows: list[Record] = []
+        self._segs: list[list[Record] | Block] = []  # the history: lists of Records and Blocks
+        self._starts: list[int] = []  # the seq of each segment's first row (a Block's may be dropped)
+        self._runs: dict[int, list] = {}  # id of a FrameRun -> [run, Blocks held of it, its bytes]
         self.first_seq = 0
+        self.end_seq = 0
         self.stats = Stats()
         self.findings: deque = deque(maxlen=self.history)
         self.findings_total = 0
         self.findings_by_id: Counter = Counter()
-        self.memory = 0
+        self.memory = 0  # bytes of the held Records, Blocks and runs (not of Records Blocks build later)
         self.bytes_base = self.bytes_in  # bytes counted from here on
         self.servos = {}
         self.capture_stats: dict[str, Any] = {}  # the feeder's CaptureStats.as_dict(): info's figures
@@ -186,31 +366,71 @@ class Store:
         self._scan_seq: int | None = None  # where a filter scan resumes; None when it is complete
         self.generation = getattr(self, "generation", -1) + 1  # bumps on clear, so views can tell
 
-    @property
-    def end_seq(self) -> int:
-        return self.first_seq + len(self.rows)
-
     def __len__(self) -> int:
-        return len(self.rows)
+        return self.end_seq - self.first_seq
+
+    def _segment(self, seq: int) -> int:
+        """The index of the segment holding ``seq`` (which must be held)."""
+        return bisect_right(self._starts, seq) - 1
 
     def get(self, seq: int) -> Record | None:
-        i = seq - self.first_seq
-        if 0 <= i < len(self.rows):
-            return self.rows[i]
-        return None
+        if not self.first_seq <= seq < self.end_seq:
+            return None
+        starts = self._starts
+        j = len(starts) - 1
+        if seq < starts[j]:
+            j = bisect_right(starts, seq) - 1
+        seg = self._segs[j]
+        k = seq - starts[j]
+        return seg[k] if type(seg) is list else seg.record(k)
 
-    def add(self, records: Iterable[Record], findings: Iterable = (), servos: dict[int, ServoRow] | None = None,
+    def add(self, records: Iterable[Record | Block], findings: Iterable = (), servos: dict[int, ServoRow] | None = None,
             bytes_in: int | None = None, capture_stats: dict[str, Any] | None = None) -> None:
-        """Take a batch from the decoding thread: records in wire order, new findings, servo rows."""
-        rows = self.rows
+        """Take a batch from the decoding thread: records (and Blocks) in wire order, new findings, servo rows."""
+        stats = self.stats
+        run: list[Record] = []
+        loads: list = []  # (t, bytes) tuples of Records, and (t0, sizes) arrays of Blocks, in order
+        blocks = False
+        for x in records:
+            if type(x) is Block:
+                if run:
+                    self._add_records(run, loads)
+                    run = []
+                self._add_block(x, loads)
+                blocks = True
+            else:
+                run.append(x)
+        if run:
+            self._add_records(run, loads)
+        stats.records = self.end_seq
+        if blocks and loads:
+            self.recent_load.extend_arrays(*_load_arrays(loads))
+        elif loads:
+            self.recent_load.extend(loads[0] if len(loads) == 1 else [x for part in loads for x in part])
+        for f in findings:
+            self.findings.append(f)
+            self.findings_total += 1
+            stats.severities[f.severity] += 1
+            if f.id is not None:
+                self.findings_by_id[f.id] += 1
+        if servos is not None:
+            self.servos = servos
+        if capture_stats is not None:
+            self.capture_stats = capture_stats
+        if bytes_in is not None:
+            self.bytes_in = bytes_in
+        self._evict()
+
+    def _add_records(self, records: list[Record], loads: list) -> None:
+        segs, starts = self._segs, self._starts
         stats = self.stats
         kinds = stats.kinds
         flt = self.filter if self._scan_seq is None else None
         view = self.view
         seq = self.end_seq
         memory = 0
-        loads: list[tuple[float, int]] = []
-        load = loads.append
+        timed: list[tuple[float, int]] = []
+        load = timed.append
         series, plot_reg = self.plot_series, self.plot_register
         byte_seconds = 10 / self.baud  # a capture without times is plotted against line time
         # This loop runs on the screen's thread for every record: keep it lean.
@@ -218,7 +438,6 @@ class Store:
         first_t = stats.first_t
         last_t = None
         for rec in records:
-            rows.append(rec)
             ev = rec.event
             kinds[ev.kind] += 1
             memory += record_size(rec)
@@ -248,39 +467,121 @@ class Store:
             if flt is not None and flt.matches(rec):
                 view.append(seq)
             seq += 1
+        # Into the history: the last list filled up to CHUNK_RECORDS, then new lists.
+        i = 0
+        if segs and type(segs[-1]) is list and len(segs[-1]) < CHUNK_RECORDS:
+            i = CHUNK_RECORDS - len(segs[-1])
+            segs[-1] += records[:i]
+        at = self.end_seq + i
+        while i < len(records):
+            segs.append(records[i:i + CHUNK_RECORDS])
+            starts.append(at)
+            at += len(segs[-1])
+            i += CHUNK_RECORDS
+        self.end_seq = seq
         stats.missing += missing
         stats.first_t = first_t
         if last_t is not None:
             stats.last_t = last_t
-        stats.records = seq
         self.memory += memory
-        self.recent_load.extend(loads)
-        for f in findings:
-            self.findings.append(f)
-            self.findings_total += 1
-            stats.severities[f.severity] += 1
-            if f.id is not None:
-                self.findings_by_id[f.id] += 1
-        if servos is not None:
-            self.servos = servos
-        if capture_stats is not None:
-            self.capture_stats = capture_stats
-        if bytes_in is not None:
-            self.bytes_in = bytes_in
-        self._evict()
+        if timed:
+            loads.append(timed)
+
+    def _add_block(self, blk: Block, loads: list) -> None:
+        """A Block into the history: a few array operations, whatever its length."""
+        n = len(blk)
+        if not n:
+            return
+        seq = self.end_seq
+        stats = self.stats
+        kinds = stats.kinds
+        counts = np.bincount(blk.cols["kind"], minlength=3).tolist()
+        for code, name in ((SHORT, "short"), (LONG, "long"), (RETURN, "return")):
+            if counts[code]:
+                kinds[name] += counts[code]
+        t0 = blk.t0
+        if t0 is not None:
+            if stats.first_t is None:
+                stats.first_t = float(t0[0])
+            stats.last_t = float(t0[-1])
+            run = blk.run
+            loads.append((t0, run.ends[blk.lo:blk.hi] - run.starts[blk.lo:blk.hi]))
+        if self.plot_series:
+            byte_seconds = 10 / self.baud
+            for sid, (ts, vs) in block_points(blk, list(self.plot_series), self.plot_register, byte_seconds).items():
+                pts = self.plot_series[sid]
+                pts[0].extend(ts[-self.plot_points:].tolist())
+                pts[1].extend(vs[-self.plot_points:].tolist())
+        if self.filter is not None and self._scan_seq is None:
+            matches = self.filter.matches
+            view = self.view
+            for k, rec in enumerate(block_rows(blk, 0, n)):
+                if matches(rec):
+                    view.append(seq + k)
+        self._segs.append(blk)
+        self._starts.append(seq)
+        self.end_seq = seq + n
+        self.memory += _BLOCK_BASE + blk.answered.nbytes
+        held = self._runs.get(id(blk.run))
+        if held is None:
+            size = run_nbytes(blk.run)
+            self._runs[id(blk.run)] = [blk.run, 1, size]
+            self.memory += size
+        else:
+            held[1] += 1
+
+    def _drop(self, seg: list[Record] | Block) -> None:
+        """The memory figure without a segment that leaves the history."""
+        if type(seg) is list:
+            self.memory -= sum(record_size(r) for r in seg)
+            return
+        self.memory -= _BLOCK_BASE + seg.answered.nbytes
+        held = self._runs[id(seg.run)]
+        held[1] -= 1
+        if not held[1]:
+            del self._runs[id(seg.run)]
+            self.memory -= held[2]
 
     def _evict(self) -> None:
-        excess = len(self.rows) - self.history
+        excess = len(self) - self.history
         if excess <= 0:
             return
-        dropped = self.rows[:excess]
-        self.memory -= sum(record_size(r) for r in dropped)
-        del self.rows[:excess]
-        self.first_seq += excess
+        first = self.first_seq + excess
+        segs, starts = self._segs, self._starts
+        drop = 0
+        while drop < len(segs) and starts[drop] + len(segs[drop]) <= first:
+            self._drop(segs[drop])
+            drop += 1
+        del segs[:drop], starts[:drop]
+        if segs and starts[0] < first:
+            seg, cut = segs[0], first - starts[0]
+            if type(seg) is list:
+                self.memory -= sum(record_size(r) for r in seg[:cut])
+                del seg[:cut]
+                starts[0] = first
+            elif isinstance(seg._records, dict):
+                # The Block stays whole, its first rows hidden; Records built of those go.
+                for k in [k for k in seg._records if k < cut and not (k + 1 < len(seg) and seg.answered[k]
+                                                                       and k + 1 >= cut)]:
+                    del seg._records[k]
+        self.first_seq = first
         if self.view is not None:
             del self.view[:bisect_left(self.view, self.first_seq)]
         if self._scan_seq is not None:
             self._scan_seq = max(self._scan_seq, self.first_seq)
+
+    def _rows(self, start: int, stop: int) -> Iterable[tuple[int, list[Record]]]:
+        """(seq of the first, Records) of the held rows from ``start`` to ``stop``, segment by segment
+        (a Block's made for the moment)."""
+        if start >= stop:
+            return
+        segs, starts = self._segs, self._starts
+        j = self._segment(start)
+        while j < len(segs) and starts[j] < stop:
+            seg, s0 = segs[j], starts[j]
+            a, b = max(start, s0) - s0, min(stop, s0 + len(seg)) - s0
+            yield s0 + a, seg[a:b] if type(seg) is list else block_rows(seg, a, b)
+            j += 1
 
     # ---- figures for the header --------------------------------------------------------------------
     @property
@@ -306,8 +607,12 @@ class Store:
         return self.capture_stats.get("bus_load")
 
     def memory_estimate(self) -> int:
-        """Bytes the held history costs, roughly (records, events, byte strings, the list itself)."""
-        return self.memory + sys.getsizeof(self.rows) + (self.view.itemsize * len(self.view) if self.view else 0)
+        """Bytes the held history costs, roughly (records, events, byte strings, Blocks and their runs,
+        the Records Blocks have built, the lists themselves)."""
+        total = self.memory + sys.getsizeof(self._segs) + 2 * sys.getsizeof(self._starts)
+        for seg in self._segs:
+            total += sys.getsizeof(seg) if type(seg) is list else built_nbytes(seg)
+        return total + (self.view.itemsize * len(self.view) if self.view else 0)
 
     def poll_rate(self, row: ServoRow) -> float | None:
         """Reads per second to one servo since the start (or the last clear), as `info` computes it."""
@@ -336,10 +641,11 @@ class Store:
             return True
         start = max(self._scan_seq, self.first_seq)
         stop = min(self.end_seq, start + budget)
-        flt, view, rows, base = self.filter, self.view, self.rows, self.first_seq
-        for seq in range(start, stop):
-            if flt.matches(rows[seq - base]):
-                view.append(seq)
+        matches, view = self.filter.matches, self.view
+        for seq, recs in self._rows(start, stop):
+            for k, rec in enumerate(recs):
+                if matches(rec):
+                    view.append(seq + k)
         if stop >= self.end_seq:
             self._scan_seq = None
             return True
@@ -351,7 +657,7 @@ class Store:
         """How far a filter scan has got (0..1), or None when no scan is running."""
         if self._scan_seq is None:
             return None
-        n = len(self.rows)
+        n = len(self)
         return (self._scan_seq - self.first_seq) / n if n else 1.0
 
     def view_len(self, before: int | None = None) -> int:
@@ -391,10 +697,20 @@ class Store:
     # ---- lookups ---------------------------------------------------------------------------------
     def seq_of_offset(self, offset: int) -> int | None:
         """The record that starts at byte ``offset`` of the stream (records are in wire order)."""
-        i = bisect_left(self.rows, offset, key=lambda r: r.event.offset)
-        if i < len(self.rows) and self.rows[i].event.offset == offset:
-            return self.first_seq + i
-        return None
+        segs = self._segs
+        j = bisect_right(range(len(segs)), offset, key=lambda j: _first_offset(segs[j])) - 1
+        if j < 0:
+            return None
+        seg = segs[j]
+        if type(seg) is list:
+            i = bisect_left(seg, offset, key=lambda r: r.event.offset)
+            found = i < len(seg) and seg[i].event.offset == offset
+        else:
+            offsets = seg.offsets
+            i = int(np.searchsorted(offsets, offset))
+            found = i < len(offsets) and int(offsets[i]) == offset
+        seq = self._starts[j] + i
+        return seq if found and seq >= self.first_seq else None
 
     def seq_of(self, rec: Record) -> int | None:
         seq = self.seq_of_offset(rec.event.offset)
@@ -403,20 +719,43 @@ class Store:
     def finding_seq(self, after: int | None, forward: bool = True, min_severity: str = "info") -> int | None:
         """The next (or previous) record after seq ``after`` that has a finding, in the view."""
         rank = SEVERITY_RANK[min_severity]
-        rows, base = self.rows, self.first_seq
-        if not rows:
+        base, end = self.first_seq, self.end_seq
+        if base == end:
             return None
         if after is None:
-            after = base - 1 if forward else self.end_seq
+            after = base - 1 if forward else end
+        segs, starts = self._segs, self._starts
         if forward:
-            rng = range(max(after + 1, base), self.end_seq)
+            lo, hi = max(after + 1, base), end
+            if lo >= hi:
+                return None
+            order = range(self._segment(lo), len(segs))
         else:
-            rng = range(min(after, self.end_seq) - 1, base - 1, -1)
-        for seq in rng:
-            rec = rows[seq - base]
-            if rec.findings and any(SEVERITY_RANK.get(f.severity, 0) >= rank for f in rec.findings):
-                if self.view is None or self.view_index(seq) is not None:
-                    return seq
+            lo, hi = base, min(after, end)
+            if lo >= hi:
+                return None
+            order = range(self._segment(hi - 1), -1, -1)
+        for j in order:
+            seg, s0 = segs[j], starts[j]
+            if s0 >= hi or s0 + len(seg) <= lo:
+                break
+            a, b = max(lo, s0) - s0, min(hi, s0 + len(seg)) - s0
+            if type(seg) is list or isinstance(seg._records, list):
+                recs = seg if type(seg) is list else seg._records
+                ks = range(a, b) if forward else range(b - 1, a - 1, -1)
+            elif seg._records:
+                # A Block the linter passed whole has no finding of its own; one of the Records it keeps may
+                # have got one later.
+                recs = seg._records
+                ks = sorted((k for k in recs if a <= k < b and recs[k].findings), reverse=not forward)
+            else:
+                continue
+            for k in ks:
+                rec = recs[k]
+                if rec.findings and any(SEVERITY_RANK.get(f.severity, 0) >= rank for f in rec.findings):
+                    seq = s0 + k
+                    if self.view is None or self.view_index(seq) is not None:
+                        return seq
         return None
 
     # ---- plot ------------------------------------------------------------------------------------
@@ -438,23 +777,61 @@ class Store:
         if servo_id is None:
             return
         ids = [servo_id] + ([i for i in sorted(self.servos) if i != servo_id] if self.plot_all else [])
-        found: dict[int, tuple[list[float], list[float]]] = {i: ([], []) for i in ids}
+        found: dict[int, tuple[list[float], list[float]]] = {i: ([], []) for i in ids}  # newest first
         full: set[int] = set()
         byte_seconds = 10 / self.baud
-        for rec in reversed(self.rows):
-            ev = rec.event
-            for sid in ids if type(ev) is LongPacket else ((ev.id,) if getattr(ev, "id", None) in found else ()):
-                if sid in full:
-                    continue
-                v = register_value(rec, sid, self.plot_register)
-                if isinstance(v, (int, float)):
-                    ts, vs = found[sid]
-                    ts.append(ev.offset * byte_seconds if ev.t_start is None else ev.t_start)
-                    vs.append(float(v))
-                    if len(vs) >= self.plot_points:
+        points = self.plot_points
+        for j in range(len(self._segs) - 1, -1, -1):
+            seg = self._segs[j]
+            if type(seg) is not list:
+                hidden = max(0, self.first_seq - self._starts[j])
+                wanted = [i for i in ids if i not in full]
+                for sid, (ts, vs) in block_points(seg, wanted, self.plot_register, byte_seconds, hidden).items():
+                    fts, fvs = found[sid]
+                    need = points - len(fvs)
+                    fts += ts[::-1][:need].tolist()
+                    fvs += vs[::-1][:need].tolist()
+                    if len(fvs) >= points:
                         full.add(sid)
+                if len(full) == len(ids):
+                    break
+                continue
+            for rec in reversed(seg):
+                ev = rec.event
+                for sid in ids if type(ev) is LongPacket else ((ev.id,) if getattr(ev, "id", None) in found else ()):
+                    if sid in full:
+                        continue
+                    v = register_value(rec, sid, self.plot_register)
+                    if isinstance(v, (int, float)):
+                        ts, vs = found[sid]
+                        ts.append(ev.offset * byte_seconds if ev.t_start is None else ev.t_start)
+                        vs.append(float(v))
+                        if len(vs) >= points:
+                            full.add(sid)
+                if len(full) == len(ids):
+                    break
             if len(full) == len(ids):
                 break
         for sid, (ts, vs) in found.items():
-            self.plot_series[sid] = (deque(reversed(ts), maxlen=self.plot_points),
-                                     deque(reversed(vs), maxlen=self.plot_points))
+            self.plot_series[sid] = (deque(reversed(ts), maxlen=points), deque(reversed(vs), maxlen=points))
+
+
+def _first_offset(seg: list[Record] | Block) -> int:
+    if type(seg) is list:
+        return seg[0].event.offset
+    return seg.run.base + int(seg.run.starts[seg.lo])
+
+
+def _load_arrays(loads: list) -> tuple[np.ndarray, np.ndarray]:
+    """The (t, bytes) of a batch's Records and Blocks, in order, as two arrays."""
+    ts, ns = [], []
+    for part in loads:
+        if type(part) is list:
+            ts.append(np.array([t for t, _ in part], dtype=float))
+            ns.append(np.array([n for _, n in part], dtype=np.int64))
+        else:
+            ts.append(part[0])
+            ns.append(part[1])
+    if len(ts) == 1:
+        return ts[0], ns[0]
+    return np.concatenate(ts), np.concatenate(ns)

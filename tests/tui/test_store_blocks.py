@@ -12,6 +12,9 @@ from rs30x_sniff.lint import Linter
 from rs30x_sniff.pipeline import DecodeOptions, Decoder, Sink, drive
 from rs30x_sniff.sim import scenarios
 from rs30x_sniff.stats import CaptureStats
+from rs30x_sniff.tui.feed import split_block
+from rs30x_sniff.tui.filter import parse_filter
+from rs30x_sniff.tui.store import PLOT_REGISTERS, Store
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from bench.traffic import hexapod_frames  # noqa: E402
@@ -86,3 +89,193 @@ def test_capture_stats_of_servos_of_mixed_models():
     drive(chunks, Decoder(opts, Linter(), columnar=True), by_block, keep)
     assert any(type(x) is Block and x.vid_models is not None for s in keep.steps for x in s)
     assert by_record.as_dict() == by_block.as_dict()
+
+
+# ---- the Store ---------------------------------------------------------------------------------------
+FILTERS = ("id:3", "id:0", "kind:return", "kind:read", "kind:long", "latency>0.12ms", "reg:present_position",
+           "present_position>0", "goal_position<0", "sev>=warning", "-id:1-6", "t>1", "READ")
+
+
+def stores(name: str, history: int = 1_000_000, plot: int | None = None, split: bool = False):
+    """Two Stores fed the same capture: the record path's Records and the columnar path's steps."""
+    chunks = capture(name)
+    out = []
+    for columnar in (False, True):
+        steps, dec = decoded(chunks, columnar)
+        stats = CaptureStats(115200)
+        store = Store(history)
+        if plot is not None:
+            store.servos = {plot: None}
+            store.set_plot(plot)
+        for step in steps:
+            stats.batch(step)
+            items = list(step)
+            if split and columnar:  # Blocks cut as the feeder cuts them at max_batch
+                items = [y for x in items for y in (_halves(x) if type(x) is Block else [x])]
+            store.add(items, step.findings, capture_stats=stats.as_dict())
+        out.append(store)
+    return out
+
+
+def _halves(blk):
+    head, tail = split_block(blk, len(blk) // 2)
+    return head + (tail if type(tail) is list else [tail])
+
+
+def record_key(r):
+    return (r.event, r.index, r.status, r.latency, r.model and r.model.name, r.request and r.request.index,
+            r.reply and r.reply.index, tuple(f.code for f in r.findings))
+
+
+def held(store):
+    return [store.get(s) for s in range(store.first_seq, store.end_seq)]
+
+
+BLOCKED = [n for n in CAPTURES if n not in NO_BLOCKS]
+
+
+@pytest.mark.parametrize("name", BLOCKED)
+def test_a_store_of_blocks_answers_as_a_store_of_records(name):
+    a, b = stores(name)
+    assert any(type(x) is Block for x in b._segs)
+    assert (len(a), a.first_seq, a.end_seq) == (len(b), b.first_seq, b.end_seq)
+    sa, sb = a.stats, b.stats
+    assert (sa.records, sa.kinds, sa.missing, sa.severities, sa.first_t, sa.last_t) == \
+        (sb.records, sb.kinds, sb.missing, sb.severities, sb.first_t, sb.last_t)
+    assert (a.span, a.bus_load, a.average_load) == (b.span, b.bus_load, b.average_load)
+    assert list(a.recent_load._items) == list(b.recent_load._items)
+    # Filters and findings first: they make no Record a Block keeps (the linter's samples are kept).
+    built = [len(x._records or ()) for x in b._segs if type(x) is Block]
+    for text in FILTERS:
+        flt = parse_filter(text)
+        a.set_filter(flt)
+        b.begin_filter(flt)
+        while not b.filter_step(700):  # steps that end inside Blocks
+            pass
+        assert list(a.view) == list(b.view), text
+        assert [len(x._records or ()) for x in b._segs if type(x) is Block] == built
+        for sev in ("info", "warning", "error"):
+            assert finding_walk(a, sev) == finding_walk(b, sev)
+    a.set_filter(None)
+    b.set_filter(None)
+    for sev in ("info", "warning", "error"):
+        assert finding_walk(a, sev) == finding_walk(b, sev)
+    # Every row, as a Record.
+    ra, rb = held(a), held(b)
+    assert [record_key(r) for r in ra] == [record_key(r) for r in rb]
+    assert all(b.get(s) is r for s, r in zip(range(b.first_seq, b.end_seq), rb))  # kept once built
+    for r in ra[::7]:
+        seq = a.seq_of_offset(r.offset)
+        assert seq == b.seq_of_offset(r.offset) and seq is not None
+        assert b.seq_of(b.get(seq)) == seq
+        assert a.seq_of_offset(r.offset + 1) == b.seq_of_offset(r.offset + 1) is None
+    # With the Records built, a filter reads them (and their findings).
+    b.set_filter(parse_filter("sev>=info"))
+    a.set_filter(parse_filter("sev>=info"))
+    assert list(a.view) == list(b.view)
+    assert finding_walk(a, "info") == finding_walk(b, "info")
+
+
+def finding_walk(store, sev):
+    """Every seq `n` and `N` stop at, from either end."""
+    fwd, seq = [], None
+    while (seq := store.finding_seq(seq, True, sev)) is not None:
+        fwd.append(seq)
+    back, seq = [], None
+    while (seq := store.finding_seq(seq, False, sev)) is not None:
+        back.append(seq)
+    return fwd, back, store.finding_seq(store.end_seq // 2, True, sev), store.finding_seq(store.end_seq // 2, False, sev)
+
+
+@pytest.mark.parametrize("name", ["bench", "bench-untimed", "hexapod", "overheat"])
+def test_plot_series_of_blocks(name):
+    for servo in (1, 4):
+        a, b = stores(name, plot=servo)  # series grown batch by batch
+        assert a.plot_series.keys() == b.plot_series.keys()
+        for sid in a.plot_series:
+            assert list(a.plot_series[sid][0]) == list(b.plot_series[sid][0])
+            assert list(a.plot_series[sid][1]) == list(b.plot_series[sid][1])
+        assert len(a.plot) > 5
+        for register in PLOT_REGISTERS:  # and refilled from the history
+            for store in (a, b):
+                store.servos = {i: None for i in range(1, 19)}
+                store.set_plot(servo, register, all_servos=register == "goal_position")
+            assert {k: (list(t), list(v)) for k, (t, v) in a.plot_series.items()} == \
+                {k: (list(t), list(v)) for k, (t, v) in b.plot_series.items()}, register
+
+
+def test_plot_points_are_bounded_in_blocks():
+    a, b = stores("bench", plot=2)
+    for store in (a, b):
+        store.plot_points = 50
+        store.set_plot(2, "goal_position", all_servos=True)
+    assert len(b.plot) == 50
+    assert {k: (list(t), list(v)) for k, (t, v) in a.plot_series.items()} == \
+        {k: (list(t), list(v)) for k, (t, v) in b.plot_series.items()}
+
+
+@pytest.mark.parametrize("history", [1, 333, 2500])
+@pytest.mark.parametrize("name", ["bench", "overheat"])
+def test_eviction_of_blocks(name, history):
+    a, b = stores(name, history=history, split=True)
+    assert (len(a), a.first_seq, a.end_seq) == (len(b), b.first_seq, b.end_seq) and len(b) == min(history, b.end_seq)
+    if b.first_seq:
+        gone = a.get(a.first_seq) and capture_offsets(a)
+        assert b.get(b.first_seq - 1) is None
+        assert b.seq_of_offset(gone[0]) == a.seq_of_offset(gone[0])
+    for text in FILTERS[:6]:
+        flt = parse_filter(text)
+        a.set_filter(flt)
+        b.set_filter(flt)
+        assert list(a.view) == list(b.view), text
+    for sev in ("info", "warning"):
+        assert finding_walk(a, sev) == finding_walk(b, sev)
+    a.set_filter(None)
+    b.set_filter(None)
+    for store in (a, b):
+        store.servos = {i: None for i in range(1, 19)}
+        store.set_plot(3, "present_position", all_servos=True)
+    assert {k: (list(t), list(v)) for k, (t, v) in a.plot_series.items()} == \
+        {k: (list(t), list(v)) for k, (t, v) in b.plot_series.items()}
+    assert [record_key(r) for r in held(a)] == [record_key(r) for r in held(b)]
+    # Held Records and Blocks weigh what they weigh: dropping them takes their weight off.
+    assert b.memory > 0 and b.memory_estimate() > 0
+
+
+def capture_offsets(store):
+    """The offset of the first held record and of one before it (dropped), if any."""
+    first = store.get(store.first_seq).offset
+    return [first - 1, first]
+
+
+def test_a_store_of_blocks_is_smaller():
+    a, b = stores("bench")
+    assert b.memory_estimate() < a.memory_estimate() / 3
+    held(b)  # every row built: about the record path's weight again, plus the columns
+    assert b.memory_estimate() > 0.8 * a.memory_estimate()
+
+
+def test_adding_a_block_takes_no_python_work_per_row():
+    """A Block goes into the store with a fixed number of operations (an untimed one: a timed one's
+    rows of the last second also go to the recent load), whatever its length."""
+    import time
+
+    steps, _ = decoded([(d, None) for d, _ in hexapod_frames(30_000)], True, lint=False)
+    blocks = [x for s in steps for x in s if type(x) is Block]
+    big = max(blocks, key=len)
+    assert len(big) > 1000
+
+    def cost(blk, n=30):
+        store = Store()
+        store.servos = {1: None}
+        store.set_plot(1)
+        t = time.perf_counter()
+        for _ in range(n):
+            store.add([blk])
+        return (time.perf_counter() - t) / n
+
+    small = _halves(big)[0]
+    while len(small) > 100:
+        small = _halves(small)[0]
+    cost(small)
+    assert cost(big) < 3 * cost(small) + 2e-4
