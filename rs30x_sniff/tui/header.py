@@ -122,4 +122,5 @@ class StatusHeader(Static):
     """
 
     def show(self, store: Store, info: SessionInfo) -> None:
-        self.update(status_text(store, info))
+        # Two lines of fixed height: new text needs no layout of the screen (a tick would cost a full one).
+        self.update(status_text(store, info), layout=False)

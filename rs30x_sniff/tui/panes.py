@@ -76,11 +76,12 @@ class ServosPane(DataTable):
                 continue
             for col, c in cells.items():
                 old = self._shown.get((sid, col))
-                if old != c:
+                if old != c:  # an unchanged cell keeps its paint (tick() ends a flash): each update_cell
+                    # has the table measure its columns again
                     if old is not None and old != "-":
                         self._changed[(sid, col)] = now
                     self._shown[(sid, col)] = c
-                self._paint(sid, col, now)
+                    self._paint(sid, col, now)
         if new_rows:
             self.sort("ID", key=lambda v: int(v.plain))
 
