@@ -48,15 +48,26 @@ def default_linter() -> Any:
 
 
 class _Collect(Sink):
-    """Gathers the pipeline's records (and, from a columnar decoder, Blocks) and findings between posts."""
+    """Gathers the pipeline's records (and, from a columnar decoder, Blocks) and findings between posts,
+    and hands each step to the capture statistics (one sink for both: the pipeline calls every sink
+    for every chunk, and the statistics need no chunk but the byte count, which the decoder keeps)."""
 
     takes_blocks = True
 
-    def __init__(self) -> None:
+    def __init__(self, stats: CaptureStats, bytes_in: Callable[[], int],
+                 on_step: Callable[[], None] | None = None) -> None:
         self.records: list[Record | Block] = []
         self.findings: list = []
         self.count = 0  # rows collected (a Block counts its rows)
-        self.steps = 0  # steps taken so far (tells the feeder something arrived)
+        self.steps = 0  # steps taken so far
+        self.bytes_in = bytes_in
+        self.on_step = on_step
+        self.set_stats(stats)
+
+    def set_stats(self, stats: CaptureStats) -> None:
+        """Count from here on into ``stats``."""
+        self.stats = stats
+        self._base = self.bytes_in()
 
     def batch(self, step: Step) -> None:
         self.records += step
@@ -64,6 +75,13 @@ class _Collect(Sink):
         self.steps += 1
         if step.findings:
             self.findings += step.findings
+        self.stats.batch(step)
+        if self.on_step is not None:
+            self.on_step()
+
+    def close(self) -> None:
+        self.stats.bytes_in = self.bytes_in() - self._base
+        self.stats.close()
 
     def take(self, limit: int | None = None) -> tuple[list[Record | Block], list, int]:
         """(items, findings, rows) collected so far, or only the first ``limit`` rows of them (a Block
@@ -164,9 +182,9 @@ class Feeder:
         # (port, simulator, replay) goes record by record as it comes.
         self.loading = getattr(source, "kind", None) == "file"
         self.decoder = Decoder(options, linter=linter, columnar=self.loading)
-        self.stats = CaptureStats(options.baud)
-        self._collect = _Collect()
-        self.pipeline = Pipeline(self.decoder, [self._collect, self.stats])
+        self._collect = _Collect(CaptureStats(options.baud), lambda: self.decoder.bytes_in,
+                                 self._step if self.loading else None)
+        self.pipeline = Pipeline(self.decoder, [self._collect])
         self.interval = interval
         self.max_batch = max_batch
         self.clock = clock
@@ -201,13 +219,15 @@ class Feeder:
         self._command("clear-stats")
 
     # ---- the thread --------------------------------------------------------------------------------
+    @property
+    def stats(self) -> CaptureStats:
+        """The capture statistics since the start or the last clear."""
+        return self._collect.stats
+
     def _chunks(self) -> Iterator[tuple[bytes, float | None]]:
-        """The source's chunks, with the screen's commands applied and batches posted between them."""
+        """A live source's chunks, with the screen's commands applied and batches posted between them."""
         self._last_post = self.clock()
         warnings = getattr(self.source, "warnings", None)
-        loading = self.loading
-        collect = self._collect
-        seen = -1  # steps of the collector when last looked at (a file's arrive a group at a time)
         for chunk in self.source.chunks(self.stop_event):
             if self._commands_waiting:
                 self._apply_commands()
@@ -215,27 +235,42 @@ class Feeder:
             if warnings:
                 self._note = "; ".join(warnings)  # shown on the screen, not printed behind it
                 warnings.clear()
-            if loading and collect.steps == seen and self._note is None:
-                if self.stop_event.is_set():
-                    return
-                continue
-            seen = collect.steps
-            now = self.clock()
-            # Posted when the interval is up, or sooner when the screen would have many objects to take
-            # (a Record each; a Block is one, its rows being columns); a post holds max_batch rows a batch.
-            n = len(collect.records)
-            interval = self.interval if not loading or self._posts < 2 else max(self.interval, LOAD_INTERVAL)
-            if n and (now - self._last_post >= interval or n >= self.max_batch) or self._note is not None:
-                self._post()
-                self._last_post = now
+            self._maybe_post(self.interval)
             if self.stop_event.is_set():
                 return
+
+    def _step(self) -> None:
+        """After each step of a file (the decoder takes a file ~64 KiB at a time, so between chunks
+        there is nothing new to do): the screen's commands, the reader's warnings, a post when due.
+        The source itself stops when told (Source.chunks)."""
+        if self._commands_waiting:
+            self._apply_commands()
+        warnings = getattr(self.source, "warnings", None)
+        if warnings:
+            self._note = "; ".join(warnings)
+            warnings.clear()
+        # The first batches come at once, so the screen fills quickly; then the screen is told less
+        # often: each redraw holds the GIL the decoding thread needs.
+        self._maybe_post(self.interval if self._posts < 2 else max(self.interval, LOAD_INTERVAL))
+
+    def _maybe_post(self, interval: float) -> None:
+        # Posted when the interval is up, or sooner when the screen would have many objects to take
+        # (a Record each; a Block is one, its rows being columns); a post holds max_batch rows a batch.
+        n = len(self._collect.records)
+        now = self.clock()
+        if n and (now - self._last_post >= interval or n >= self.max_batch) or self._note is not None:
+            self._post()
+            self._last_post = now
 
     def run(self) -> None:
         self.running = True
         error = None
         try:
-            self.pipeline.run(self._chunks())
+            if self.loading:
+                self._last_post = self.clock()
+                self.pipeline.run(self.source.chunks(self.stop_event))
+            else:
+                self.pipeline.run(self._chunks())
         except (CaptureError, OSError) as e:
             error = str(e)
         except Exception as e:  # noqa: BLE001 - a bug must not cost the records decoded so far
@@ -287,9 +322,7 @@ class Feeder:
             elif cmd == "stop-record":
                 self._close_sink()
             elif cmd == "clear-stats":
-                self.pipeline.remove(self.stats)
-                self.stats = CaptureStats(self.options.baud)
-                self.pipeline.add(self.stats)
+                self._collect.set_stats(CaptureStats(self.options.baud))
 
     def _open_sink(self, path: str) -> None:
         if self._sink is not None or self.pipeline.closed:

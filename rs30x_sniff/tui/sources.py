@@ -84,12 +84,18 @@ class FileSource:
         return _rest(self)
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
-        for chunk in self._all():
-            if chunk[1] is None:
-                self.time_base = "synthetic"
-            yield chunk  # as read: a foreign log's marks (who sent it, UART errors) go on to the decoder
-            if stop.is_set():
-                return
+        # Per chunk on files of millions of lines: the reader's own iterator, and ``stop`` looked at
+        # every few dozen chunks (microseconds apart as a file is read).
+        first, self._first = self._first, None
+        n = 0
+        for part in ((first,) if first is not None else (), self._it):
+            for chunk in part:
+                if chunk[1] is None:
+                    self.time_base = "synthetic"
+                yield chunk  # as read: a foreign log's marks (who sent it, UART errors) go on to the decoder
+                n += 1
+                if not n & 31 and stop.is_set():
+                    return
 
     def close(self) -> None:
         close = getattr(self._it, "close", None)
