@@ -65,7 +65,7 @@ def _tx_template(blk: Any, k: int, key: tuple) -> tuple[str | None, tuple[str, .
 def block_messages(ch: Any, blk: Any, emit: Any) -> None:
     """Emit (channel, log_time, body) for each row of ``blk`` as ``ch.record`` would, in the same order:
     the packet, the state of each servo it sets, the transaction of a request that expects a reply."""
-    from .mcap_sink import PACKETS_TOPIC, STATE_TOPIC, TRANSACTIONS_TOPIC, _ns
+    from .mcap_sink import PACKETS_TOPIC, TRANSACTIONS_TOPIC, _ns
 
     if isinstance(blk._records, list) or blk.vid_models is not None:
         for rec in blk.records():
@@ -85,7 +85,7 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
     cid_tx = None
     servos = ch._servos
     models, known = servos.models, servos.known
-    states, channels = ch._states, ch._state_channels
+    slot = ch._state_slot
     state_models = ch._models
     blk_models, default = blk.models, blk.default
     for k, (s, e, kind) in enumerate(zip(starts, ends, kinds)):
@@ -120,12 +120,7 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
                 tail = f',"t":{"null" if t is None else repr(t)},"offset":{offset},'
                 fallback = model.name
                 for tid, pairs in changed.items():
-                    cid = channels.get(tid)
-                    if cid is None:
-                        cid = channels[tid] = ch._channel(STATE_TOPIC.format(id=tid), "rs30x.ServoState")
-                    st = states.get(tid)
-                    if st is None:
-                        st = states[tid] = {}
+                    cid, st = slot(tid)
                     for name, frag in pairs:
                         st[name] = frag
                     body = f'{{"id":{tid},"model":"{state_models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'

@@ -148,22 +148,26 @@ class JsonChannels:
             if every or self._live(cid):
                 self._emit(cid, log_time, _encode(transaction_json(rec)).encode())
 
+    def _state_slot(self, tid: int) -> tuple[Any, dict[str, str]]:
+        """Servo ``tid``'s state channel and its fragments ('"name":value' by name), made on first use."""
+        cid = self._state_channels.get(tid)
+        if cid is None:
+            cid = self._state_channels[tid] = self._channel(STATE_TOPIC.format(id=tid), "rs30x.ServoState")
+        st = self._states.get(tid)
+        if st is None:
+            st = self._states[tid] = {}
+        return cid, st
+
     def _update_state(self, rec: Any, changed: dict[int, list[tuple[str, Any]]], log_time: int) -> None:
         # Each servo's state is kept as its JSON fragments ('"name":value'), so a packet that changes
         # two registers re-encodes two values, not the whole object (a long packet changes 18 servos).
         # A servo whose channel nobody watches keeps its new values as they are (``_held``), encoded
         # when someone does: its state stays whole without a value encoded for nobody.
-        states = self._states
-        channels = self._state_channels
         every = self._every_message
         live = []
+        slot = self._state_slot
         for tid, pairs in changed.items():
-            cid = channels.get(tid)
-            if cid is None:
-                cid = channels[tid] = self._channel(STATE_TOPIC.format(id=tid), "rs30x.ServoState")
-            st = states.get(tid)
-            if st is None:
-                st = states[tid] = {}
+            cid, st = slot(tid)
             if every or self._live(cid):
                 held = self._held.pop(tid, None)
                 if held:
