@@ -8,7 +8,7 @@ from typing import Any
 
 from ..pipeline import Decoder, drive
 from ..stats import CaptureStats
-from .common import (add_decode_options, add_lint_options, add_live_options, check_positive, live_sinks, make_linter, no_data,
+from .common import (add_decode_options, add_lint_options, add_live_options, check_positive, is_live, live_sinks, make_linter, no_data,
                      open_input, settings_for)
 from .outputs import add_output_options, check_output, output_stream
 
@@ -35,7 +35,8 @@ def run(args: argparse.Namespace) -> int:
     linter = make_linter(args, settings)
     source = open_input(args.input, args.input_format, settings, duration=args.duration)
     stats = CaptureStats(opts.baud)
-    drive(source, Decoder(opts, linter), stats, *live_sinks(settings, source, args.input))
+    # A file takes the columnar path (the same figures); a port, record by record.
+    drive(source, Decoder(opts, linter, columnar=not is_live(source)), stats, *live_sinks(settings, source, args.input))
     no_data(args.input, stats, source)
     shown = settings.as_json()
     time_ref = getattr(source, "time_ref", None) if stats.timed else None  # what the times mark, and why
