@@ -10,7 +10,7 @@ from ..io.tables import CSV, KINDS, PARQUET, SINKS, TABLE_FORMATS, MissingPyarro
     table_format
 from ..memmap import default_registry
 from ..pipeline import Decoder, drive
-from .common import CliError, add_decode_options, add_lint_options, make_linter, no_data, open_input, settings_for
+from .common import CliError, add_decode_options, add_lint_options, is_live, make_linter, no_data, open_input, settings_for
 from .outputs import STDOUT, check_output, output_path, report_end
 
 
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     # Only the findings table needs the rules run; the others read the records alone.
     linter = make_linter(args, settings) if args.of == "findings" else None
     chunks = open_input(args.input, args.input_format, settings)
-    decoder = Decoder(opts, linter)
+    decoder = Decoder(opts, linter, columnar=not is_live(chunks))  # a file: the columnar path, the same rows
     kw: dict = {"baud": settings.baud}
     if args.of == "states":
         kw.update(registry=opts.registry or default_registry(), models=dict(settings.models))
