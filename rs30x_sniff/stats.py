@@ -16,7 +16,8 @@ from .blocks import Block
 from .bus import Record
 from .events import Ack, Garbage, LongPacket, ReturnPacket, ShortPacket
 from .frame_runs import LONG, RETURN, SHORT
-from .health import _FLUSH_ROWS, HealthRecorder, servo_health, timer, what_happened
+from .health import (_FLUSH_ROWS, PRESENT, WRITTEN, HealthRecorder, _joined, _where, servo_health, timer,
+                     what_happened)
 from .pipeline import Sink, Step
 from .wire import BITS_PER_BYTE, RETURN_FLAG_BITS, byte_time
 
@@ -403,20 +404,60 @@ class CaptureStats(Sink):
             rest, third = divmod(key, 1 << 20)
             key_t = (rest >> 8, rest & 255, third)
             model = blk.default if present is None else blk.models[key_t[0]]
-            raws = [blob[s:e] for s, e in zip(starts[rws].tolist(), ends[rws].tolist())]
             b = bufs.get(key_t)
             if b is None or b[0] is not model:
                 b = health._open(bufs, key_t, model)
-            i = 0
-            while i < len(raws):
-                take = _FLUSH_ROWS - len(b[1])
-                b[1] += raws[i:i + take] if i or take < len(raws) else raws
-                i += take
-                if len(b[1]) >= _FLUSH_ROWS:
-                    if present is None:
-                        health._flush_long(key_t, b)
-                    else:
-                        health._flush_short(key_t, b, present)
+            g, i = len(rws), 0
+            while True:
+                room = _FLUSH_ROWS - len(b[1])
+                if g - i < room:  # the rest waits in the buffer, as raw frames
+                    b[1] += [blob[s:e] for s, e in zip(starts[rws[i:]].tolist(), ends[rws[i:]].tolist())]
+                    break
+                # These rows fill the buffer: the record path's flush, their bytes read in place.
+                self._flush(key_t, b, run, rws[i:i + room], present)
+                i += room
+                if i == g:
+                    break
+
+    def _flush(self, key: tuple, b: list, run: Any, rows: np.ndarray, present: bool | None) -> None:
+        """HealthRecorder._flush_short (``present`` True or False) / _flush_long (None) of buffer ``b``
+        with ``rows`` of ``run`` appended, the registers' ranges taken with numpy: the same ranges,
+        counts and models."""
+        raws, b[1] = b[1], []
+        model = b[0]
+        health = self.health
+        if present is None:
+            address, length, count = key
+            where = _where(model, WRITTEN, address, length - 1)
+            if not where or length < 2:
+                return
+            mat = _frames(raws, run, rows, 8 + length * count)
+            if not len(mat):
+                return
+            for j in range(count):
+                base = 7 + j * length
+                vids = mat[:, base]
+                one = vids.min() == vids.max()
+                for reg, off in where:
+                    col = _register_column(mat, base + 1 + off, reg)
+                    if one:  # the usual: record j is the same servo in every packet
+                        _take(health._written_to(int(vids[0]), model), reg, col)
+                        continue
+                    ids, first = np.unique(vids, return_index=True)
+                    for vid in ids[np.argsort(first)].tolist():
+                        _take(health._written_to(vid, model), reg, col[vids == vid])
+            return
+        sid, address, n = key
+        h = health.servo(sid)
+        if present:
+            h.model = model  # the latest: a return of the model number may have taught it
+        where = _where(model, PRESENT if present else WRITTEN, address, n)
+        if not where:
+            return
+        mat = _frames(raws, run, rows, 8 + n)
+        if len(mat):
+            for reg, off in where:
+                _take(h, reg, _register_column(mat, 7 + off, reg))
 
     def _flags(self, blk: Block, rows: np.ndarray) -> None:
         """Status flags of a Block's returns (rows), counted per servo and flag with the first seen."""
@@ -588,6 +629,44 @@ def _long_vids(blk: Block, rows: np.ndarray) -> list[tuple[np.ndarray, np.ndarra
         nrec = -(-dl // ln)  # the last record of a ragged packet is cut short
         out.append((rws, a[(starts[rws] + 7)[:, None] + np.arange(nrec) * ln]))
     return out
+
+
+def _frames(raws: list[bytes], run: Any, rows: np.ndarray, size: int) -> np.ndarray:
+    """Frames of ``size`` bytes as rows of a matrix: the buffered ones, then ``rows`` of ``run`` (a
+    frame of another size is left out, as health._joined leaves it)."""
+    a = run.bytes_array
+    starts = run.starts[rows]
+    starts = starts[run.ends[rows] - starts == size]
+    mat = a[starts[:, None] + np.arange(size)]
+    if raws:
+        block, _ = _joined(raws, size)
+        mat = np.concatenate((np.frombuffer(block, dtype=np.uint8).reshape(-1, size), mat))
+    return mat
+
+
+def _register_column(mat: np.ndarray, at: int, reg: Any) -> np.ndarray:
+    """A 1- or 2-byte register's raw values at byte ``at`` of every row (health._column's values)."""
+    if reg.size == 1:
+        col = mat[:, at]
+        return col.view(np.int8) if reg.signed else col
+    col = mat[:, at].astype(np.uint16) | mat[:, at + 1].astype(np.uint16) << 8
+    return col.view(np.int16) if reg.signed else col
+
+
+def _take(h: Any, reg: Any, col: np.ndarray) -> None:
+    """ServoHealth.take, the column's range taken by numpy."""
+    if not len(col):
+        return
+    name = reg.name
+    lo, hi = int(col.min()), int(col.max())
+    if name in h.lo:
+        if lo < h.lo[name]:
+            h.lo[name] = lo
+        if hi > h.hi[name]:
+            h.hi[name] = hi
+    else:
+        h.lo[name], h.hi[name] = lo, hi
+    h.samples[name] += len(col)
 
 
 def _row_record(blk: Block, k: int) -> Record:

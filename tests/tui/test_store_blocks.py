@@ -279,3 +279,22 @@ def test_adding_a_block_takes_no_python_work_per_row():
         small = _halves(small)[0]
     cost(small)
     assert cost(big) < 3 * cost(small) + 2e-4
+
+
+@pytest.mark.parametrize("rows", [1, 37, 500])
+def test_capture_stats_flush_health_buffers_as_the_record_path(monkeypatch, rows):
+    """The health recorder's buffers flushed every few rows: inside Blocks, across them, on numpy."""
+    import rs30x_sniff.health
+    import rs30x_sniff.stats
+
+    monkeypatch.setattr(rs30x_sniff.health, "_FLUSH_ROWS", rows)
+    monkeypatch.setattr(rs30x_sniff.stats, "_FLUSH_ROWS", rows)
+    for name, opts in (("bench", DecodeOptions()), ("overheat", DecodeOptions()),
+                       ("bench", DecodeOptions(models={4: "RS304MD"}))):
+        chunks = capture(name)
+        by_record, by_block = CaptureStats(115200), CaptureStats(115200)
+        drive(chunks, Decoder(opts, Linter()), by_record)
+        drive(chunks, Decoder(opts, Linter(), columnar=True), by_block)
+        assert by_record.as_dict() == by_block.as_dict()
+        assert {i: (h.model, h.lo, h.hi, h.samples) for i, h in by_record.health.servos.items()} == \
+            {i: (h.model, h.lo, h.hi, h.samples) for i, h in by_block.health.servos.items()}
