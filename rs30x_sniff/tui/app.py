@@ -196,6 +196,8 @@ class MonitorApp(App):
             self.info.state = "live"
         elif self.source.kind == "replay":
             self.info.state = "replaying"
+        if b.more:
+            return  # the rest of the post follows at once: one redraw, after it
         if store.plot_id is None and store.servos:
             store.set_plot(min(store.servos))
         self._refresh_views(new_findings=bool(b.findings))

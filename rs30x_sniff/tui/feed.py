@@ -36,6 +36,7 @@ class Batch:
     error: str | None = None     # why it ended early, in one line
     recording: str | None = None  # the MCAP file being written, if any
     note: str | None = None      # a one-line message for the user (recording started/stopped, ...)
+    more: bool = False           # another batch of the same post follows at once (redraw after that one)
 
 
 def default_linter() -> Any:
@@ -297,13 +298,17 @@ class Feeder:
         while True:
             more = collect.count > self.max_batch
             records, findings, _ = collect.take(self.max_batch if more else None)
-            self._post_one(records, findings, done and not more, None if more else error)
+            self._post_one(records, findings, done and not more, None if more else error, more)
             if not more:
                 return
 
-    def _post_one(self, records: list, findings: list, done: bool, error: str | None) -> None:
+    def _post_one(self, records: list, findings: list, done: bool, error: str | None, more: bool = False) -> None:
         note, self._note = self._note, None
         self._posts += 1
+        if more:  # the screen redraws after the last batch of a post: what it needs is in that one
+            self.post(Batch(records, findings, bytes_in=self.decoder.bytes_in, more=True, note=note,
+                            recording=self.recording))
+            return
         self.post(Batch(records, findings, servo_snapshot(self.decoder.bus), self.decoder.bytes_in,
                         stats=self.stats.as_dict(), done=done, error=error, recording=self.recording, note=note))
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import textwrap
 from typing import Any, Callable
 
+from rich.cells import cell_len
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
@@ -76,12 +77,11 @@ class ServosPane(DataTable):
                 continue
             for col, c in cells.items():
                 old = self._shown.get((sid, col))
-                if old != c:  # an unchanged cell keeps its paint (tick() ends a flash): each update_cell
-                    # has the table measure its columns again
+                if old != c:  # an unchanged cell keeps its paint (tick() ends a flash)
                     if old is not None and old != "-":
                         self._changed[(sid, col)] = now
                     self._shown[(sid, col)] = c
-                    self._paint(sid, col, now)
+                    self._paint(sid, col, now, old is None or cell_len(old) != cell_len(c))
         if new_rows:
             self.sort("ID", key=lambda v: int(v.plain))
 
@@ -93,13 +93,15 @@ class ServosPane(DataTable):
                 del self._changed[(sid, col)]
                 self._paint(sid, col, now)
 
-    def _paint(self, sid: int, col: str, now: float) -> None:
+    def _paint(self, sid: int, col: str, now: float, resized: bool = False) -> None:
         c = self._shown.get((sid, col))
         if c is None or str(sid) not in self.rows:
             return
         at = self._changed.get((sid, col))
         style = "bold black on yellow" if at is not None and now - at < FLASH_SECONDS else ""
-        self.update_cell(str(sid), col, Text(c, style), update_width=True)
+        # The column is measured again only when the cell's width changed (the table measures every
+        # cell of a column that might have narrowed); the same width leaves the column as it is.
+        self.update_cell(str(sid), col, Text(c, style), update_width=resized)
 
     def _cells(self, store: Store, row: ServoRow) -> dict[str, str]:
         cells = {"ID": str(row.id), "model": clean(row.model)}

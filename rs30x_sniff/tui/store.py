@@ -347,6 +347,7 @@ class Store:
         self._segs: list[list[Record] | Block] = []  # the history: lists of Records and Blocks
         self._starts: list[int] = []  # the seq of each segment's first row (a Block's may be dropped)
         self._runs: dict[int, list] = {}  # id of a FrameRun -> [run, Blocks held of it, its bytes]
+        self._built: dict[int, tuple] = {}  # id of a Block -> (it, what it keeps, bytes of that)
         self.first_seq = 0
         self.end_seq = 0
         self.stats = Stats()
@@ -536,6 +537,7 @@ class Store:
             self.memory -= sum(record_size(r) for r in seg)
             return
         self.memory -= _BLOCK_BASE + seg.answered.nbytes
+        self._built.pop(id(seg), None)
         held = self._runs[id(seg.run)]
         held[1] -= 1
         if not held[1]:
@@ -610,8 +612,18 @@ class Store:
         """Bytes the held history costs, roughly (records, events, byte strings, Blocks and their runs,
         the Records Blocks have built, the lists themselves)."""
         total = self.memory + sys.getsizeof(self._segs) + 2 * sys.getsizeof(self._starts)
+        built = self._built
         for seg in self._segs:
-            total += sys.getsizeof(seg) if type(seg) is list else built_nbytes(seg)
+            if type(seg) is list:
+                total += sys.getsizeof(seg)
+                continue
+            made = seg._records
+            if made:
+                key = (type(made), len(made))
+                hit = built.get(id(seg))
+                if hit is None or hit[0] is not seg or hit[1] != key:  # what it holds changed: weigh it again
+                    hit = built[id(seg)] = (seg, key, built_nbytes(seg))
+                total += hit[2]
         return total + (self.view.itemsize * len(self.view) if self.view else 0)
 
     def poll_rate(self, row: ServoRow) -> float | None:
