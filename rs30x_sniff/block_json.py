@@ -61,10 +61,10 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
         kind = kinds[k]
         if kind == LONG:
             model = default
-            key = (raw[2:7], e - s, id(model), raw[7:-1:raw[5] or 1], timed, compact, only_key)
+            key = (raw[:7], e - s, id(model), raw[7:-1:raw[5] or 1], timed, compact, only_key)
         else:
             model = models[raw[2]]
-            key = (raw[2:7], e - s, id(model), b"", timed, compact, only_key)
+            key = (raw[:7], e - s, id(model), b"", timed, compact, only_key)
         tpl = get(key)
         if tpl is None or tpl[3] is not model:  # (an id is reused once its model is gone)
             tpl = _template(blk, k, key, only, compact)

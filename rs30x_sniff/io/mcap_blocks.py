@@ -126,7 +126,7 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
                     body = f'{{"id":{tid},"model":"{state_models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
                     emit(cid, log_time, body.encode())
         if answered[k]:
-            key = (raw[2:7], e - s, id(model), timed)
+            key = (raw[:7], e - s, id(model), timed)
             tpl = _TX_TEMPLATES.get(key)
             if tpl is None or tpl[2] is not model:  # (an id is reused once its model is gone)
                 tpl = _tx_template(blk, k, key)

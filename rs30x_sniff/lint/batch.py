@@ -168,8 +168,8 @@ def _headers_quiet(lint: Any, blk: Any, run: list, vid_groups: list) -> bool:
         ev = rec.event
         raw = ev[1]
         asked = rec.request.event[1] if rec.request is not None else b""
-        key = (raw[2:7], len(raw), id(rec.model), raw[7:-1:ev.length or 1] if ev.kind == "long" else b"",
-               asked[2:7], len(asked))
+        key = (raw[:7], len(raw), id(rec.model), raw[7:-1:ev.length or 1] if ev.kind == "long" else b"",
+               asked[:7], len(asked))
         quiet = memo.get(key)
         if quiet is None:
             quiet = memo[key] = _header_sample_quiet(lint, run, rec, ev)

@@ -65,3 +65,19 @@ def test_random_traffic(monkeypatch, seed, n, timed, rare, lint):
     monkeypatch.setattr(blocks, "MIN_BLOCK", 1)
     monkeypatch.setattr(block_json, "_MAX_TEMPLATES", 8)  # the template cache fills and clears too
     check_blocks(traffic(seed, n, timed=timed, gaps=True, faults=False, rare=rare), lint, group=50)
+
+
+def test_a_write_and_a_return_with_the_same_header_bytes():
+    """FA AF 02 00 1E 04 01 (a write of 4 bytes at 30) and FD DF 02 00 1E 04 01 (a return of the same)
+    share everything after the sync bytes: their templates must not."""
+    from rs30x_sniff.wire import byte_time, encode_read, encode_return, encode_short
+
+    bt = byte_time(115200)
+    chunks, t = [], 0.0
+    for k in range(200):
+        for frame in (encode_short(2, 0x00, 30, bytes([k, 0, 5, 0])), encode_read(2, 30, 4),
+                      encode_return(2, 30, bytes([k, 0, 5, 0]))):
+            chunks.append((frame, t))
+            t += len(frame) * bt + 0.0001
+    assert check_blocks(chunks, lint=True) > 0
+    assert check_blocks([(d, None) for d, _ in chunks], lint=False) > 0
