@@ -295,16 +295,15 @@ class CaptureStats(Sink):
                         servos[i].reads += int(read_counts[i])
                 else:
                     tr = t0[read_rows]
-                    last_row = np.full(256, -1)
-                    np.maximum.at(last_row, rs, np.arange(len(rs)))
-                    first_row = np.full(256, len(rs))
-                    np.minimum.at(first_row, rs, np.arange(len(rs)))
-                    for i in np.flatnonzero(read_counts).tolist():
+                    ids, first = np.unique(rs, return_index=True)
+                    _, last = np.unique(rs[::-1], return_index=True)
+                    firsts, lasts = tr[first].tolist(), tr[len(rs) - 1 - last].tolist()
+                    for i, c, f, la in zip(ids.tolist(), read_counts[ids].tolist(), firsts, lasts):
                         st = servos[i]
-                        st.reads += int(read_counts[i])
+                        st.reads += c
                         if st.first_read_t is None:
-                            st.first_read_t = float(tr[first_row[i]])
-                        st.last_read_t = float(tr[last_row[i]])
+                            st.first_read_t = f
+                        st.last_read_t = la
             writes = np.flatnonzero(to_servo & (dlen > 0))
             if writes.size:
                 self._health_rows(blk, writes, health._wr, False)
@@ -393,30 +392,31 @@ class CaptureStats(Sink):
         sk = keys[order]
         cut = np.flatnonzero(sk[1:] != sk[:-1]) + 1
         bounds = [0, *cut.tolist(), len(sk)]
-        groups = sorted(zip(order[bounds[:-1]].tolist(), bounds[:-1], bounds[1:]))  # by first row
+        heads = bounds[:-1]
+        groups = sorted(zip(order[heads].tolist(), heads, bounds[1:], sk[heads].tolist()))  # by first row
         health = self.health
         blob = run.blob
-        rows = rows + blk.lo
-        starts, ends = run.starts, run.ends
-        for _, g0, g1 in groups:
-            key = int(sk[g0])
-            rws = rows[order[g0:g1]]
+        grouped = rows[order] + blk.lo  # rows of the run, shape by shape
+        # Each row's frame, as the buffers keep them (those a flush takes are read in place instead).
+        raws = [blob[s:e] for s, e in zip(run.starts[grouped].tolist(), run.ends[grouped].tolist())]
+        models = blk.models
+        for _, g0, g1, key in groups:
             rest, third = divmod(key, 1 << 20)
             key_t = (rest >> 8, rest & 255, third)
-            model = blk.default if present is None else blk.models[key_t[0]]
+            model = blk.default if present is None else models[key_t[0]]
             b = bufs.get(key_t)
             if b is None or b[0] is not model:
                 b = health._open(bufs, key_t, model)
-            g, i = len(rws), 0
+            i = g0
             while True:
                 room = _FLUSH_ROWS - len(b[1])
-                if g - i < room:  # the rest waits in the buffer, as raw frames
-                    b[1] += [blob[s:e] for s, e in zip(starts[rws[i:]].tolist(), ends[rws[i:]].tolist())]
+                if g1 - i < room:  # the rest waits in the buffer, as raw frames
+                    b[1] += raws[i:g1]
                     break
                 # These rows fill the buffer: the record path's flush, their bytes read in place.
-                self._flush(key_t, b, run, rws[i:i + room], present)
+                self._flush(key_t, b, run, grouped[i:i + room], present)
                 i += room
-                if i == g:
+                if i == g1:
                     break
 
     def _flush(self, key: tuple, b: list, run: Any, rows: np.ndarray, present: bool | None) -> None:

@@ -210,7 +210,7 @@ class MonitorApp(App):
         if timeline.follow:
             # Show the newest record now rather than after the next batch (the Selected message queues behind it).
             self.detail.show(self.store.get(timeline.cursor_seq) if timeline.cursor_seq is not None else None)
-        self.servos.update_from(self.store)
+        self.servos.update_from(self.store, flash=self.done or self.source.kind != "file")
         self.findings.update_from(self.store)
         self.plot.update_from(self.store)
         self._refresh_header()

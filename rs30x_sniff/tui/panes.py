@@ -62,7 +62,9 @@ class ServosPane(DataTable):
         self._shown.clear()
         self._changed.clear()
 
-    def update_from(self, store: Store) -> None:
+    def update_from(self, store: Store, flash: bool = True) -> None:
+        """Show the store's servo rows; a changed value flashes unless ``flash`` is False (a file
+        loading: every value changes every batch, and each flash costs the table a redraw to end)."""
         now = self.clock()
         new_rows = False
         for sid in sorted(store.servos):
@@ -78,7 +80,7 @@ class ServosPane(DataTable):
             for col, c in cells.items():
                 old = self._shown.get((sid, col))
                 if old != c:  # an unchanged cell keeps its paint (tick() ends a flash)
-                    if old is not None and old != "-":
+                    if flash and old is not None and old != "-":
                         self._changed[(sid, col)] = now
                     self._shown[(sid, col)] = c
                     self._paint(sid, col, now, old is None or cell_len(old) != cell_len(c))
