@@ -419,7 +419,16 @@ class CaptureStats(Sink):
                 if i == g1:
                     break
 
-    def _flush(self, key: tuple, b: list, run: Any, rows: np.ndarray, present: bool | None) -> None:
+    def _flush_health(self) -> None:
+        """HealthRecorder.flush, each buffer taken with numpy (the monitor asks for the figures every
+        second, and the buffers hold most of what came since)."""
+        health = self.health
+        for bufs, present in ((health._ret, True), (health._wr, False), (health._long, None)):
+            for key, b in bufs.items():
+                if b[1]:
+                    self._flush(key, b, None, None, present)
+
+    def _flush(self, key: tuple, b: list, run: Any, rows: np.ndarray | None, present: bool | None) -> None:
         """HealthRecorder._flush_short (``present`` True or False) / _flush_long (None) of buffer ``b``
         with ``rows`` of ``run`` appended, the registers' ranges taken with numpy: the same ranges,
         counts and models."""
@@ -592,7 +601,7 @@ class CaptureStats(Sink):
 
     def health_dict(self) -> dict[str, Any]:
         """Per-servo health, the busiest second and the "what happened" lines (keys of :meth:`as_dict`)."""
-        self.health.flush()
+        self._flush_health()
         when = timer(self.first_t, self.timed, byte_time(self.baud))
         hs = self.health.servos
         # The servos of the traffic table, and any whose registers were seen; not IDs only a finding
@@ -632,16 +641,18 @@ def _long_vids(blk: Block, rows: np.ndarray) -> list[tuple[np.ndarray, np.ndarra
 
 
 def _frames(raws: list[bytes], run: Any, rows: np.ndarray, size: int) -> np.ndarray:
-    """Frames of ``size`` bytes as rows of a matrix: the buffered ones, then ``rows`` of ``run`` (a
-    frame of another size is left out, as health._joined leaves it)."""
-    a = run.bytes_array
-    starts = run.starts[rows]
-    starts = starts[run.ends[rows] - starts == size]
-    mat = a[starts[:, None] + np.arange(size)]
+    """Frames of ``size`` bytes as rows of a matrix: the buffered ones, then ``rows`` of ``run`` (if
+    any; a frame of another size is left out, as health._joined leaves it)."""
+    mat = None
+    if run is not None:
+        starts = run.starts[rows]
+        starts = starts[run.ends[rows] - starts == size]
+        mat = run.bytes_array[starts[:, None] + np.arange(size)]
     if raws:
         block, _ = _joined(raws, size)
-        mat = np.concatenate((np.frombuffer(block, dtype=np.uint8).reshape(-1, size), mat))
-    return mat
+        held = np.frombuffer(block, dtype=np.uint8).reshape(-1, size)
+        mat = held if mat is None else np.concatenate((held, mat))
+    return mat if mat is not None else np.zeros((0, size), dtype=np.uint8)
 
 
 def _register_column(mat: np.ndarray, at: int, reg: Any) -> np.ndarray:
