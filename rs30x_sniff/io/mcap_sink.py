@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import heapq
 import json
 import struct
 from typing import IO, Any, Iterable
@@ -43,8 +44,8 @@ RAW_SPLIT = 4096  # largest /rs30x/raw message for a capture without timestamps
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 
 
-def _by_time(msg: tuple) -> tuple[int, int]:
-    return msg[0], msg[1]
+def _log_time(msg: tuple) -> int:
+    return msg[0]
 
 
 def _ns(t: float) -> int:
@@ -231,11 +232,11 @@ class JsonChannels:
             self._records(step)
         finally:
             self._made = None
-            # Raw messages first where times tie (as the record path writes a chunk before its records).
-            msgs = sorted((held or []) + [(lt, len(held or ()) + k, cid, d) for lt, k, cid, d in made],
-                          key=_by_time)
+            # Interleaved by log time, each side kept in its own order (the raw bytes in stream order
+            # even where a capture's clock went back); raw first where times tie, as the record path
+            # writes a chunk before its records.
             write = self._write
-            for lt, _, cid, data in msgs:
+            for lt, _, cid, data in heapq.merge(held or (), made, key=_log_time):
                 write(cid, lt, data)
         if step.findings:  # after the step's records, in the order found, as the record path writes them
             self.findings(step.findings)
