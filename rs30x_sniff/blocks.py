@@ -297,19 +297,18 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
             for i in np.flatnonzero(last >= 0).tolist():
                 r = int(last[i])
                 stores.setdefault(i, []).append((r, int(starts[r]) + 7, ad, nb))
-    for rows, vids, ln in vid_groups:
-        cnt = vids.shape[1]
-        flat_rows = np.repeat(rows, cnt)
-        flat_k = np.tile(np.arange(cnt), len(rows))
-        last = np.full(256, -1, dtype=np.int64)
-        seq = flat_rows * 256 + flat_k
-        np.maximum.at(last, vids.ravel(), seq)
-        ad = None
-        for i in np.flatnonzero(last >= 0).tolist():
-            r, k = divmod(int(last[i]), 256)
-            if ad is None:
-                ad = int(address[r])
-            stores.setdefault(i, []).append((r, int(starts[r]) + 7 + k * int(ln) + 1, ad, int(ln) - 1))
+    for group_rows, group_vids, ln in vid_groups:
+        cnt = group_vids.shape[1]
+        # Each address of these long packets on its own: the last write there to each servo wins.
+        for ad in np.unique(address[group_rows]).tolist():
+            at_ad = address[group_rows] == ad
+            rows, vids = group_rows[at_ad], group_vids[at_ad]
+            seq = np.repeat(rows, cnt) * 256 + np.tile(np.arange(cnt), len(rows))
+            last = np.full(256, -1, dtype=np.int64)
+            np.maximum.at(last, vids.ravel(), seq)
+            for i in np.flatnonzero(last >= 0).tolist():
+                r, k = divmod(int(last[i]), 256)
+                stores.setdefault(i, []).append((r, int(starts[r]) + 7 + k * int(ln) + 1, ad, int(ln) - 1))
     blob = run.blob
     for i, items in stores.items():
         st = servos[i]

@@ -77,8 +77,9 @@ def transaction(rng: random.Random, clean: bool = False) -> list[bytes]:
     if r < 0.35:
         return [encode_short(sid, 0x09, 0, b"", length=0, count=1),
                 encode_return(sid, 42, bytes(rng.randrange(256) for _ in range(18)))]
-    if r < 0.6:
-        return [encode_long(30, [(v, bytes(rng.randrange(256) for _ in range(4))) for v in (1, 2, 3, 5)])]
+    if r < 0.6:  # goals; sometimes the same shape at another address (each address keeps its own writes)
+        address = 30 if r < 0.55 else 44
+        return [encode_long(address, [(v, bytes(rng.randrange(256) for _ in range(4))) for v in (1, 2, 3, 5)])]
     if r < 0.7:
         return [encode_read(sid, 30, 4), encode_return(sid, 30, bytes(4), rng.choice([0, 0, 0x20]))]
     rare = [

@@ -50,10 +50,11 @@ def test_untimed_and_mixed_models():
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                   HealthCheck.function_scoped_fixture])
-@given(seed=st.integers(0, 10**6), n=st.integers(1, 300), timed=st.booleans(), rare=st.sampled_from([0.3, 0.03]))
-def test_random_traffic(monkeypatch, seed, n, timed, rare):
+@given(seed=st.integers(0, 10**6), n=st.integers(1, 300), timed=st.booleans(), rare=st.sampled_from([0.3, 0.03]),
+       faults=st.booleans())
+def test_random_traffic(monkeypatch, seed, n, timed, rare, faults):
     monkeypatch.setattr(blocks, "MIN_BLOCK", 1)
-    assert_same_content(traffic(seed, n, timed=timed, gaps=True, faults=False, rare=rare))
+    assert_same_content(traffic(seed, n, timed=timed, gaps=True, faults=faults, rare=rare))
 
 
 def test_raw_messages_keep_stream_order_when_the_clock_goes_back():
