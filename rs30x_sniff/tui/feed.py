@@ -240,6 +240,15 @@ class Feeder:
             if self.stop_event.is_set():
                 return
 
+    def _collect_last(self) -> None:
+        """The collecting sink after every other (a recording, Foxglove): a file's batches are posted
+        from it, so a Block reaches the screen only once no other sink will touch it (one that takes
+        Records has the Block build them all, on this thread)."""
+        pipeline = self.pipeline
+        if pipeline.sinks[-1] is not self._collect:
+            pipeline.remove(self._collect)
+            pipeline.add(self._collect)
+
     def _step(self) -> None:
         """After each step of a file (the decoder takes a file ~64 KiB at a time, so between chunks
         there is nothing new to do): the screen's commands, the reader's warnings, a post when due.
@@ -269,6 +278,8 @@ class Feeder:
         try:
             if self.loading:
                 self._last_post = self.clock()
+                self._apply_commands()  # a recording asked for before the start takes it all
+                self._collect_last()
                 self.pipeline.run(self.source.chunks(self.stop_event))
             else:
                 self.pipeline.run(self._chunks())
@@ -345,6 +356,7 @@ class Feeder:
             return
         self._sink = _Recording(self, sink, path)
         self.pipeline.add(self._sink)
+        self._collect_last()
         self.recording = path
         self._note = f"recording to {path}"
 
