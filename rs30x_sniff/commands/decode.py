@@ -8,7 +8,7 @@ from ..filters import FilterError, parse_filter
 from ..pipeline import Decoder, drive
 from ..sinks import JsonlSink, TextSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, is_live,
-                     live_sinks, make_linter, no_data, open_input, settings_for)
+                     is_whole_file, live_sinks, make_linter, no_data, open_input, settings_for)
 from .outputs import add_output_options, output_stream
 
 
@@ -52,8 +52,8 @@ def run(args: argparse.Namespace) -> int:
             sink = JsonlSink(out, ids=ids, filter=flt, flush=is_live(chunks))
         else:
             sink = TextSink(out, ids=ids, filter=flt, flush=is_live(chunks), verbose=args.verbose)
-        # A file takes the columnar path (the same lines); a port, record by record as they come.
-        dec = drive(chunks, Decoder(opts, linter, columnar=not is_live(chunks)), sink,
+        # A file takes the columnar path (the same lines); a port or a pipe, record by record as they come.
+        dec = drive(chunks, Decoder(opts, linter, columnar=is_whole_file(args.input, chunks)), sink,
                     *live_sinks(settings, chunks, args.input))
     no_data(args.input, dec, chunks)
     return 1 if getattr(chunks, "lost", False) else 0  # a live port that failed (the source said why)
