@@ -174,26 +174,29 @@ def block_rows(blk: Block, a: int, b: int) -> list[Record]:
     return recs[a - a0:b - a0]
 
 
-_LUTS: dict[int, tuple[Any, np.ndarray, np.ndarray]] = {}
+_LUTS: dict[int, list] = {}  # id of a register -> [it, values, is a number, worked out], by raw bytes
 
 
-def _value_table(reg: Any) -> tuple[np.ndarray, np.ndarray]:
-    """For a 1- or 2-byte register, indexed by the raw bytes as an unsigned little-endian number: the
-    value register_value gives as a float, and whether it is a number (an enum's label is not)."""
-    hit = _LUTS.get(id(reg))
-    if hit is not None and hit[0] is reg:
-        return hit[1], hit[2]
-    bits = 8 * reg.size
-    values = np.zeros(1 << bits)
-    ok = np.zeros(1 << bits, dtype=bool)
-    convert = reg.convert
-    for u in range(1 << bits):
-        v = convert(u - (1 << bits) if reg.signed and u >= 1 << (bits - 1) else u)
-        if isinstance(v, (int, float)):
-            values[u] = float(v)
-            ok[u] = True
-    _LUTS[id(reg)] = (reg, values, ok)
-    return values, ok
+def _values_of(reg: Any, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For a 1- or 2-byte register's raw bytes (as an unsigned little-endian number): the value
+    register_value gives, as a float, and whether it is a number (an enum's label is not). Each raw
+    value is converted once, when first seen."""
+    lut = _LUTS.get(id(reg))
+    if lut is None or lut[0] is not reg:
+        size = 1 << 8 * reg.size
+        lut = _LUTS[id(reg)] = [reg, np.zeros(size), np.zeros(size, dtype=bool), np.zeros(size, dtype=bool)]
+    _, values, ok, known = lut
+    new = raw[~known[raw]]
+    if new.size:
+        bits = 8 * reg.size
+        convert = reg.convert
+        for u in np.unique(new).tolist():
+            v = convert(u - (1 << bits) if reg.signed and u >= 1 << (bits - 1) else u)
+            if isinstance(v, (int, float)):
+                values[u] = float(v)
+                ok[u] = True
+            known[u] = True
+    return values[raw], ok[raw]
 
 
 def _register_of(model: Any, name: str) -> Any:
@@ -211,8 +214,7 @@ def _values_at(blob_array: np.ndarray, blob: bytes, at: np.ndarray, reg: Any) ->
         raw = blob_array[at].astype(np.intp)
         if reg.size == 2:
             raw |= blob_array[at + 1].astype(np.intp) << 8
-        values, ok = _value_table(reg)
-        return values[raw], ok[raw]
+        return _values_of(reg, raw)
     vals, oks = [], []
     for p in at.tolist():  # a wider register: as Register.value_in reads it
         v = reg.convert(int.from_bytes(blob[p:p + reg.size], "little", signed=reg.signed))
