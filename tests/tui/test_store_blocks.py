@@ -385,3 +385,30 @@ def test_recording_while_a_file_loads_gets_records(tmp_path):
     rows = [r for x in items for r in (x.records() if type(x) is Block else [x])]
     assert len(seen) == len(rows) == 20_000
     assert all(a is b for a, b in zip(seen, rows))
+
+
+def test_the_memory_figure_of_blocks_is_what_they_hold():
+    """Blocks and their runs, and the Records built of them as rows are shown: the header's figure is
+    close to what tracemalloc sees held (within a factor of two), and far under the record path's."""
+    import gc
+    import tracemalloc
+
+    frames = hexapod_frames(60_000)
+    gc.collect()
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        store = Store()
+        for step in decoded(frames, True)[0]:
+            store.add(list(step), step.findings)
+        gc.collect()
+        held = tracemalloc.get_traced_memory()[0] - base
+        assert 0.5 * held < store.memory_estimate() < 2 * held
+        assert held < 60_000 * 150  # the record path holds ~700 bytes a row
+        for seq in range(0, len(store), 3):
+            store.get(seq)
+        gc.collect()
+        held = tracemalloc.get_traced_memory()[0] - base
+        assert 0.5 * held < store.memory_estimate() < 2 * held
+    finally:
+        tracemalloc.stop()
