@@ -134,23 +134,28 @@ class FrameDecoder:
         """
         if self.closed:
             raise RuntimeError("feed_many() after close()")
-        chunks = [c for c in chunks if c[0]]
+        datas = [c[0] for c in chunks]
+        lens = list(map(len, datas))
+        if 0 in lens:
+            chunks = [c for c in chunks if c[0]]
+            datas = [c[0] for c in chunks]
+            lens = list(map(len, datas))
         if not chunks:
             return []
-        if not (len(chunks) > 8 and self._add_many(chunks)):
+        if not (len(chunks) > 8 and self._add_many(chunks, datas, lens)):
             for data, t in chunks:
                 self._add(data, t)
         return self._parse(final=False)
 
-    def _add_many(self, chunks: list[tuple[bytes, float | None]]) -> bool:
+    def _add_many(self, chunks: list[tuple[bytes, float | None]], datas: list[bytes], sizes: list[int]) -> bool:
         """:meth:`_add` for a list of chunks at once, when all are timestamped and the clock keeps pace
         (no time fault); False, having changed nothing, otherwise. Same floating-point operations in
         the same order as ``_add``, so every time is bit-identical."""
-        times = [t for _, t in chunks]
+        times = [c[1] for c in chunks]
         if None in times:
             return False
         bt = self.byte_time
-        lens = np.fromiter((len(d) for d, _ in chunks), dtype=np.int64, count=len(chunks))
+        lens = np.array(sizes, dtype=np.int64)
         ts = np.array(times, dtype=np.float64)
         last = ts + (lens - 1) * bt              # _last_t after each chunk
         prev = np.empty_like(ts)
@@ -166,7 +171,7 @@ class FrameDecoder:
         self._chunk_times += times
         self._last_t = float(last[-1])
         self._chunk_t = self._start_t = times[-1]
-        self._buf += b"".join([d for d, _ in chunks])
+        self._buf += b"".join(datas)
         return True
 
     def feed_fault(self, data: bytes, t: float | None, reason: str) -> list[AnyEvent]:

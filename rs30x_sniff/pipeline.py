@@ -117,7 +117,7 @@ class Decoder:
         records as feeding them one by one, in one step (the columnar path's way in)."""
         if self.senders:
             self.senders.note(self.bytes_in, None)
-        self.bytes_in += sum(len(d) for d, _ in chunks)
+        self.bytes_in += sum(map(len, [c[0] for c in chunks]))
         return self._decided(self.frames.feed_many(chunks))
 
     def _track(self, events: list, out: Step) -> Step:

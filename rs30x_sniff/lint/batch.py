@@ -206,6 +206,17 @@ def _parts(a: np.ndarray, at: np.ndarray, plan: Any, j: int) -> np.ndarray:
     return lo - (lo >= 0x80) * 0x100 if reg.signed and not partial else lo
 
 
+def _by_model(blk: Any, rows: np.ndarray, sid: np.ndarray) -> list[tuple[Any, np.ndarray]]:
+    """``rows`` split by their servo's model (one part when every servo has the same)."""
+    by: dict[int, tuple[Any, list[int]]] = {}
+    for s in np.unique(sid[rows]).tolist():
+        model = blk.models[s]
+        by.setdefault(id(model), (model, []))[1].append(s)
+    if len(by) == 1:
+        return [(next(iter(by.values()))[0], rows)]
+    return [(model, rows[np.isin(sid[rows], ids)]) for model, ids in by.values()]
+
+
 def _writes(lint, blk, is_short, is_long, is_return, address, length, dlen, vid_groups):
     """The block's writes and position reports as columns: (targets, pos_sets, goal_time_sets, shadow
     creation order), or None when one of them needs the record path (a followed register other than
@@ -221,10 +232,8 @@ def _writes(lint, blk, is_short, is_long, is_return, address, length, dlen, vid_
     short_rows = np.flatnonzero(is_short & (dlen > 0))
     skey = address[short_rows] * 4096 + dlen[short_rows]
     for key in np.unique(skey).tolist():
-        rows = short_rows[skey == key]
-        for s in np.unique(sid[rows]).tolist():
-            r2 = rows[sid[rows] == s]
-            groups.append((blk.models[s], key // 4096, key % 4096, r2, np.zeros(len(r2), np.int64), sid[r2],
+        for model, r2 in _by_model(blk, short_rows[skey == key], sid):
+            groups.append((model, key // 4096, key % 4096, r2, np.zeros(len(r2), np.int64), sid[r2],
                            starts[r2] + 7, "write"))
     for rows, vids, ln in vid_groups:
         if ln < 2:
@@ -242,9 +251,8 @@ def _writes(lint, blk, is_short, is_long, is_return, address, length, dlen, vid_
         rows = ret_rows[rkey == key]
         if key % 4096 == 0:
             continue
-        for s in np.unique(sid[rows]).tolist():
-            r2 = rows[sid[rows] == s]
-            groups.append((blk.models[s], key // 4096, key % 4096, r2, np.zeros(len(r2), np.int64), sid[r2],
+        for model, r2 in _by_model(blk, rows, sid):
+            groups.append((model, key // 4096, key % 4096, r2, np.zeros(len(r2), np.int64), sid[r2],
                            starts[r2] + 7, "return"))
     for model, ad, n, rows, subs, sids, at, what in groups:
         if model is None:
