@@ -219,10 +219,10 @@ def test_plot_points_are_bounded_in_blocks():
 def test_eviction_of_blocks(name, history):
     a, b = stores(name, history=history, split=True)
     assert (len(a), a.first_seq, a.end_seq) == (len(b), b.first_seq, b.end_seq) and len(b) == min(history, b.end_seq)
-    if b.first_seq:
-        gone = a.get(a.first_seq) and capture_offsets(a)
-        assert b.get(b.first_seq - 1) is None
-        assert b.seq_of_offset(gone[0]) == a.seq_of_offset(gone[0])
+    assert b.get(b.first_seq - 1) is None
+    first = a.get(a.first_seq).offset  # offsets before it are gone (or inside a frame): no seq
+    for off in range(max(0, first - 200), first + 200):
+        assert a.seq_of_offset(off) == b.seq_of_offset(off)
     for text in FILTERS[:6]:
         flt = parse_filter(text)
         a.set_filter(flt)
@@ -240,12 +240,6 @@ def test_eviction_of_blocks(name, history):
     assert [record_key(r) for r in held(a)] == [record_key(r) for r in held(b)]
     # Held Records and Blocks weigh what they weigh: dropping them takes their weight off.
     assert b.memory > 0 and b.memory_estimate() > 0
-
-
-def capture_offsets(store):
-    """The offset of the first held record and of one before it (dropped), if any."""
-    first = store.get(store.first_seq).offset
-    return [first - 1, first]
 
 
 def test_a_store_of_blocks_is_smaller():
