@@ -76,8 +76,10 @@ class ServoHealth:
         self.findings: Counter = Counter()
 
     def take(self, reg: Any, col: Any) -> None:
-        name = reg.name
-        lo, hi = min(col), max(col)
+        self.take_range(reg.name, min(col), max(col), len(col))
+
+    def take_range(self, name: str, lo: Any, hi: Any, n: int) -> None:
+        """A register's range over ``n`` more samples (the columnar path finds lo and hi with numpy)."""
         if name in self.lo:
             if lo < self.lo[name]:
                 self.lo[name] = lo
@@ -85,7 +87,7 @@ class ServoHealth:
                 self.hi[name] = hi
         else:
             self.lo[name], self.hi[name] = lo, hi
-        self.samples[name] += len(col)
+        self.samples[name] += n
 
 
 class HealthRecorder:
@@ -196,19 +198,23 @@ class HealthRecorder:
             if b[1]:
                 self._flush_long(key, b)
 
+    def short_target(self, key: tuple, model: Any, present: bool) -> tuple[Any, list]:
+        """The servo of a (servo, address, length) buffer and where its followed registers sit in the
+        data (_where); a return's model is the servo's latest (a model-number return may have taught it)."""
+        sid, address, n = key
+        h = self.servo(sid)
+        if present:
+            h.model = model
+        return h, _where(model, PRESENT if present else WRITTEN, address, n)
+
     def _flush_short(self, key: tuple, b: list, present: bool) -> None:
         """Returns (``present``) or short writes of one servo, address and length: raw frames whose
         data starts at byte 7 (header, ID, flags, address, length, count)."""
         rows, b[1] = b[1], []
-        model = b[0]
-        sid, address, n = key
-        h = self.servo(sid)
-        if present:
-            h.model = model  # the latest: a return of the model number may have taught it
-        where = _where(model, PRESENT if present else WRITTEN, address, n)
+        h, where = self.short_target(key, b[0], present)
         if not where:
             return
-        block, stride = _joined(rows, 8 + n)
+        block, stride = _joined(rows, 8 + key[2])
         for reg, off in where:
             h.take(reg, _column(block, 7 + off, stride, reg))
 

@@ -16,7 +16,7 @@ from .blocks import Block
 from .bus import Record
 from .events import Ack, Garbage, LongPacket, ReturnPacket, ShortPacket
 from .frame_runs import LONG, RETURN, SHORT
-from .health import (_FLUSH_ROWS, PRESENT, WRITTEN, HealthRecorder, _joined, _where, servo_health, timer,
+from .health import (_FLUSH_ROWS, WRITTEN, HealthRecorder, _joined, _where, servo_health, timer,
                      what_happened)
 from .pipeline import Sink, Step
 from .wire import BITS_PER_BYTE, RETURN_FLAG_BITS, byte_time
@@ -456,14 +456,10 @@ class CaptureStats(Sink):
                     for vid in ids[np.argsort(first)].tolist():
                         _take(health._written_to(vid, model), reg, col[vids == vid])
             return
-        sid, address, n = key
-        h = health.servo(sid)
-        if present:
-            h.model = model  # the latest: a return of the model number may have taught it
-        where = _where(model, PRESENT if present else WRITTEN, address, n)
+        h, where = health.short_target(key, model, present)
         if not where:
             return
-        mat = _frames(raws, run, rows, 8 + n)
+        mat = _frames(raws, run, rows, 8 + key[2])
         if len(mat):
             for reg, off in where:
                 _take(h, reg, _register_column(mat, 7 + off, reg))
@@ -666,18 +662,8 @@ def _register_column(mat: np.ndarray, at: int, reg: Any) -> np.ndarray:
 
 def _take(h: Any, reg: Any, col: np.ndarray) -> None:
     """ServoHealth.take, the column's range taken by numpy."""
-    if not len(col):
-        return
-    name = reg.name
-    lo, hi = int(col.min()), int(col.max())
-    if name in h.lo:
-        if lo < h.lo[name]:
-            h.lo[name] = lo
-        if hi > h.hi[name]:
-            h.hi[name] = hi
-    else:
-        h.lo[name], h.hi[name] = lo, hi
-    h.samples[name] += len(col)
+    if len(col):
+        h.take_range(reg.name, int(col.min()), int(col.max()), len(col))
 
 
 def _row_record(blk: Block, k: int) -> Record:
