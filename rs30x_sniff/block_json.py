@@ -16,9 +16,8 @@ from .render import _NO_FIELDS, record_json, record_json_text
 
 _SPACED = json.JSONEncoder(check_circular=False).encode
 _COMPACT = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
-# Stand-ins for what varies between rows of one shape: JSON escapes NUL, and no real value holds one.
+# What varies between rows of one shape (besides the fields).
 _SLOTS = ("offset", "t", "t_end", "raw", "reply_to", "reply", "latency_s")
-_MARK = {k: f"\x00{k}\x00" for k in _SLOTS}
 _TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any, Any]] = {}  # key -> (format, slots, layout, model)
 _MAX_TEMPLATES = 4096
 
@@ -96,23 +95,31 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
     return out
 
 
+def json_template(obj: dict[str, Any], slots: tuple[str, ...], encode: Any, strings: tuple[str, ...] = (),
+                  literals: tuple[tuple[str, str, str], ...] = ()) -> tuple[str, tuple[str, ...]]:
+    """``encode(obj)`` as a ``%`` format: a ``%s`` where each key of ``slots`` that is not None goes (in
+    quotes for those in ``strings``), and where each ``(name, text, replacement)`` of ``literals`` is,
+    with the slots' names in the order they appear. Each slot is stood in for by its name between NULs,
+    which JSON escapes and no real value holds."""
+    obj = dict(obj)
+    marks = list(literals)
+    for name in slots:
+        if obj.get(name) is not None:
+            obj[name] = f"\x00{name}\x00"
+            marks.append((name, encode(obj[name]), '"%s"' if name in strings else "%s"))
+    text = encode(obj).replace("%", "%%")
+    found = sorted((text.find(mark), name, mark, put) for name, mark, put in marks)
+    for _, _, mark, put in found:
+        text = text.replace(mark, put, 1)
+    return text, tuple(name for _, name, _, _ in found)
+
+
 def _template(blk: Any, k: int, key: tuple, only: set[int] | None, compact: bool) -> tuple:
     """The line of row ``k``'s shape with a %s for each part that varies, and the layout of its fields."""
     rec = blk.record(k)
-    obj = record_json(rec, only, fields=False)
-    slots = []
-    for name in _SLOTS:
-        if obj.get(name) is not None:
-            obj[name] = _MARK[name]
-    encode = _COMPACT if compact else _SPACED
-    text = encode(obj).replace("%", "%%")
-    # Where each stand-in sits, in order of appearance in the line.
-    found = []
-    for name in _SLOTS:
-        mark = encode(_MARK[name])
-        at = text.find(mark)
-        if at >= 0:
-            found.append((at, name, mark))
+    empty = _NO_FIELDS[compact]
+    text, slots = json_template(record_json(rec, only, fields=False), _SLOTS, _COMPACT if compact else _SPACED,
+                                strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
     layout = None
     ev = rec.event
     if ev.kind == "long":
@@ -120,15 +127,7 @@ def _template(blk: Any, k: int, key: tuple, only: set[int] | None, compact: bool
             layout = rec.model.long_layout(ev.address, ev.length, ev.count)
     elif ev[9]:
         layout = rec.model.layout(ev.address, len(ev[9]))
-    empty = _NO_FIELDS[compact]
-    at = text.find(empty)
-    found.append((at, "fields", empty))
-    found.sort()
-    for _, name, mark in found:
-        put = empty[:-1] + "%s]" if name == "fields" else ('"%s"' if name == "raw" else "%s")  # raw: a string
-        text = text.replace(mark, put, 1)
-        slots.append(name)
-    tpl = (text, tuple(slots), layout, rec.model)
+    tpl = (text, slots, layout, rec.model)
     if len(_TEMPLATES) >= _MAX_TEMPLATES:
         _TEMPLATES.clear()
     _TEMPLATES[key] = tpl

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .bus import ANSWERED, PAIRED, BusTracker, Record
+from .bus import ANSWERED, PAIRED, BusTracker, Record, reply_latency
 from .frame_runs import LONG, RETURN, SHORT, FrameRun
 from .wire import BROADCAST_ID, FLAG_WANTS_REPLY
 
@@ -28,7 +28,8 @@ class Block:
     """Rows ``lo``..``hi`` of a FrameRun, paired and annotated: each request asking for a reply is
     directly followed by its return. ``index0`` is the first row's record index."""
 
-    __slots__ = ("run", "lo", "hi", "index0", "cols", "answered", "models", "default", "vid_models", "_records")
+    __slots__ = ("run", "lo", "hi", "index0", "cols", "answered", "models", "default", "vid_models", "_records",
+                 "_latencies")
 
     def __init__(self, run: FrameRun, lo: int, hi: int, index0: int, answered: np.ndarray,
                  models: dict[int, Any], default: Any, vid_models: dict[int, Any] | None) -> None:
@@ -39,6 +40,7 @@ class Block:
         self.default = default        # the model a long packet's record carries
         self.vid_models = vid_models  # servo id -> model, for long packets when servos differ in model
         self._records: list[Record] | dict[int, Record] | None = None  # all rows, or those asked for one by one
+        self._latencies: tuple[np.ndarray, np.ndarray] | None = None
 
     def __len__(self) -> int:
         return self.hi - self.lo
@@ -58,15 +60,24 @@ class Block:
     def offsets(self) -> np.ndarray:
         return self.run.base + self.run.starts[self.lo:self.hi]
 
+    def reply_latencies(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(rows of the replies, their latencies) as bus.reply_latency computes them, in row order;
+        None for an untimed capture. Made once: the tracker, the linter and the statistics read it."""
+        got = self._latencies
+        if got is None and self.run.t0 is not None:
+            t0, t1 = self.t0, self.t1
+            replies = np.flatnonzero(self.answered) + 1
+            lat = t0[replies] - t1[replies - 1]
+            got = self._latencies = (replies, np.where(lat > 0.0, lat, 0.0))
+        return got
+
     def latencies(self) -> np.ndarray | None:
         """Per row: the reply latency of a return (NaN elsewhere), as the tracker computes it; None untimed."""
-        t0, t1 = self.t0, self.t1
-        if t0 is None:
+        got = self.reply_latencies()
+        if got is None:
             return None
         out = np.full(len(self), np.nan)
-        req = np.flatnonzero(self.answered)
-        lat = t0[req + 1] - t1[req]
-        out[req + 1] = np.where(lat > 0.0, lat, 0.0)
+        out[got[0]] = got[1]
         return out
 
     def data_matrix(self, rows: np.ndarray, width: int) -> np.ndarray:
@@ -160,10 +171,7 @@ def _pair(req: Record, rep: Record) -> None:
     rep.status = PAIRED
     req.reply = rep
     rep.request = req
-    t0, t1 = rep.event[2], req.event[3]
-    if t0 is not None and t1 is not None:
-        latency = t0 - t1
-        rep.latency = latency if latency > 0.0 else 0.0
+    rep.latency = reply_latency(req.event, rep.event)
 
 
 def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> None:
@@ -276,12 +284,12 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
         servos[i].requests += int(req_counts[i])
     for i in np.flatnonzero(ret_counts).tolist():
         servos[i].returns += int(ret_counts[i])
+    blk = Block(run, lo, hi, tracker._index, answered, models, tracker.default, vid_models)
     # Latencies of the paired returns, in order, per servo.
-    if t0 is not None:
-        req = np.flatnonzero(answered)
-        lat = t0[req + 1] - run.t1[lo:hi][req]
-        lat = np.where(lat > 0.0, lat, 0.0)
-        rid = sid[req + 1]
+    got = blk.reply_latencies()
+    if got is not None:
+        replies, lat = got
+        rid = sid[replies]
         for i in np.unique(rid).tolist():
             servos[i].latencies.extend(lat[rid == i].tolist())
     # Memory images: the last write of each shape to each servo wins, applied in row order.
@@ -323,7 +331,6 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
     for i, items in stores.items():
         r = max(it[0] for it in items)
         servos[i].last_t = None if t0 is None else float(t0[r])
-    blk = Block(run, lo, hi, tracker._index, answered, models, tracker.default, vid_models)
     tracker._index += n
     # The latest answered request, unless a request came after it (a later reply would be EXTRA to it).
     req_rows = np.flatnonzero(is_short | is_long)

@@ -22,6 +22,20 @@ EXTRA = "extra"              # a second reply to one request (two servos share a
 DEFAULT_REPLY_TIMEOUT = 0.050
 
 
+def reply_latency(request: AnyEvent, reply: AnyEvent) -> float | None:
+    """Seconds from the end of ``request`` to the start of ``reply`` (None without times).
+
+    Never below zero: a reply cannot start before its request ended. Stamps that say otherwise (a
+    logger's arrival times read as first-byte times, a wrong baud) are F006's to report. Blocks
+    (rs30x_sniff.blocks) compute the same on arrays: ``Block.reply_latencies``.
+    """
+    t0, t1 = reply[2], request[3]
+    if t0 is None or t1 is None:
+        return None
+    latency = t0 - t1
+    return latency if latency > 0.0 else 0.0
+
+
 class Record:
     """An event as the rest of the program sees it: decoded fields, its pair, its servo's model."""
 
@@ -440,11 +454,8 @@ class BusTracker:
             rec.status = UNSOLICITED
             req = None
         rec.request = req
-        if req is not None and ev.t_start is not None and req.event.t_end is not None:
-            # Never below zero: a reply cannot start before its request ended. Stamps that say otherwise
-            # (a logger's arrival times read as first-byte times, a wrong baud) are F006's to report.
-            latency = ev.t_start - req.event.t_end
-            rec.latency = latency if latency > 0.0 else 0.0
+        if req is not None:
+            rec.latency = reply_latency(req.event, ev)
         if type(ev) is ReturnPacket:
             if ev.checksum_ok:
                 st = self.servo(ev.id)

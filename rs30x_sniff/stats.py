@@ -330,11 +330,9 @@ class CaptureStats(Sink):
             flagged = np.flatnonzero(is_return & (flag != 0))
             if flagged.size:
                 self._flags(blk, flagged)
-            if t0 is not None:
-                replies = np.flatnonzero(blk.answered) + 1
-                if replies.size:
-                    lat = t0[replies] - blk.t1[replies - 1]
-                    self._latencies(np.where(lat > 0.0, lat, 0.0))
+            got = blk.reply_latencies()
+            if got is not None and got[0].size:
+                self._latencies(got[1])
 
     def _new_servos(self, blk: Block, named: np.ndarray, longs: list) -> None:
         """Create the ServoStats of the IDs the Block names first, in the order add() would."""

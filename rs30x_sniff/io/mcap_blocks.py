@@ -6,12 +6,11 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from ..block_json import block_json_rows
+from ..block_json import block_json_rows, json_template
 from ..frame_runs import LONG
 from ..memmap import Layout, _value_text
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
-_MARK = "\x00{}\x00"
 _TX_SLOTS = ("request_offset", "t_request", "request_raw", "reply_offset", "t_reply", "reply_raw", "latency_s")
 _TX_TEMPLATES: dict[tuple, tuple[str | None, tuple[str, ...], Any]] = {}  # key -> (format or None, slots, model)
 _NAMED: dict[int, tuple[Layout, tuple]] = {}
@@ -46,16 +45,8 @@ def _tx_template(blk: Any, k: int, key: tuple) -> tuple[str | None, tuple[str, .
     rec = blk.record(k)
     tpl = (None, (), rec.model)
     if rec.expects is not None:
-        obj = transaction_json(rec)
-        for name in _TX_SLOTS:
-            if obj.get(name) is not None:
-                obj[name] = _MARK.format(name)
-        text = _encode(obj).replace("%", "%%")
-        found = sorted((text.find(_encode(_MARK.format(n))), n) for n in _TX_SLOTS if obj.get(n) is not None)
-        for _, name in found:
-            put = '"%s"' if name.endswith("_raw") else "%s"
-            text = text.replace(_encode(_MARK.format(name)), put, 1)
-        tpl = (text, tuple(n for _, n in found), rec.model)
+        text, slots = json_template(transaction_json(rec), _TX_SLOTS, _encode, strings=("request_raw", "reply_raw"))
+        tpl = (text, slots, rec.model)
     if len(_TX_TEMPLATES) >= _MAX:
         _TX_TEMPLATES.clear()
     _TX_TEMPLATES[key] = tpl

@@ -367,15 +367,12 @@ def _values_quiet(lint, blk, codes, targets, pos_sets, goal_time_sets, timed) ->
             if (known & (dist * plan.model.top_speed_s_per_60deg > 6 * gt)).any():
                 return False
     if timed and "B006" in codes:
-        req = np.flatnonzero(blk.answered)
-        if req.size:
-            t0, t1 = blk.t0, blk.t1
-            lat = t0[req + 1] - t1[req]
-            lat = np.where(lat > 0.0, lat, 0.0)
-            rd = _shadow_column(lint, "return_delay")[blk.cols["id"][req]]
-            expected = np.array([100e-6 + 50e-6 * (0 if r == _NONE else r) for r in range(0, 256)] + [100e-6])
-            exp = expected[np.where(rd == _NONE, 256, rd)]
-            if (np.abs(lat - exp) > lint.config.latency_margin).any():
+        replies, lat = blk.reply_latencies()
+        if replies.size:
+            # The requests' servos' return delay (0 while unknown), as return_latency reads it.
+            rd = _shadow_column(lint, "return_delay")[blk.cols["id"][replies - 1]]
+            expected = 100e-6 + 50e-6 * np.where(rd == _NONE, 0, rd)
+            if (np.abs(lat - expected) > lint.config.latency_margin).any():
                 return False
     return True
 
