@@ -41,6 +41,7 @@ one table is an error.
 from __future__ import annotations
 
 import codecs
+import contextlib
 import csv
 import io
 import itertools
@@ -335,13 +336,7 @@ def _logic2_rows(lines: Iterable[str], ctx: ReadContext) -> Iterator[Row]:
                     ctx.found["start_time"] = _wall_clock(ns, tz)
                 t = (ns - origin) / 1e9
             else:
-                t = _seconds(cell)
-                if origin is None:
-                    origin = min(t, 0.0)
-                    if origin < 0 and ctx.warn is not None:
-                        ctx.warn(f"{path}: the table starts {-t:.6f} s before the trigger: times moved so that "
-                                 "its first byte is at 0")
-                t -= origin
+                t, origin = _after_trigger(_seconds(cell), origin, ctx, "table")
             dur = _seconds(row[i_dur]) if i_dur is not None and row[i_dur] else None
             err = _error_of(row[i_err]) if i_err is not None and row[i_err] else None
             name = row[i_name] if i_name is not None else ""
@@ -397,13 +392,7 @@ def _logic1_rows(lines: Iterable[str], ctx: ReadContext, first_line: int = 2) ->
             fields = text.split(",")
             if len(fields) != 4:
                 raise _BadValue(f"expected 4 fields (Time [s],Value,Parity Error,Framing Error), got {len(fields)}")
-            t = _seconds(fields[0])
-            if origin is None:
-                origin = min(t, 0.0)
-                if origin < 0 and ctx.warn is not None:
-                    ctx.warn(f"{path}: the export starts {-t:.6f} s before the trigger: times moved so that its "
-                             "first byte is at 0")
-            t -= origin
+            t, origin = _after_trigger(_seconds(fields[0]), origin, ctx, "export")
             parity, framing = fields[2].strip(), fields[3].strip()
             for cell in (parity, framing):
                 if cell and cell.lower() != "error":
@@ -623,42 +612,57 @@ def _text(stream: BinaryIO) -> io.TextIOWrapper:
     return io.TextIOWrapper(stream, encoding="utf-8", errors="surrogateescape", newline="")
 
 
-def _header(text: io.TextIOWrapper) -> str:
-    first = text.readline()
-    return first[1:] if first.startswith("\ufeff") else first
-
-
-def read_logic2(stream: BinaryIO, ctx: ReadContext) -> Iterator[Any]:
-    """Chunks of a Logic 2 data table (or, given a Logic 1.x export, of that)."""
+@contextlib.contextmanager
+def _table(stream: BinaryIO) -> Iterator[tuple[io.TextIOWrapper, str, bool]]:
+    """The export as text, its header line (without a BOM) and whether that is Logic 1.x's; the
+    stream is handed back, not closed, at the end."""
     text = _text(stream)
     try:
-        first = _header(text)
-        if not first.strip():
-            return
-        if tuple(c.strip().lower() for c in first.rstrip("\r\n").split(",")) == _LOGIC1_COLUMNS:
-            rows = _logic1_rows(text, ctx)
-        else:
-            rows = _logic2_rows(itertools.chain((first,), text), ctx)
-        yield from _chunks(_drop_echoes(_Senders(ctx).run(rows), ctx), _baud(ctx))
+        first = text.readline()
+        first = first[1:] if first.startswith("\ufeff") else first
+        logic1 = tuple(c.strip().lower() for c in first.rstrip("\r\n").split(",")) == _LOGIC1_COLUMNS
+        yield text, first, logic1
     finally:
         text.detach()
 
 
-def read_logic1(stream: BinaryIO, ctx: ReadContext) -> Iterator[Any]:
-    """Chunks of a Logic 1.x Async Serial export."""
-    text = _text(stream)
-    try:
-        first = _header(text)
+def _rows(text: io.TextIOWrapper, first: str, logic1: bool, ctx: ReadContext) -> Iterator[tuple]:
+    """The rows of either kind of export, after its header line ``first``."""
+    if logic1:
+        return _logic1_rows(text, ctx)
+    return _logic2_rows(itertools.chain((first,), text), ctx)
+
+
+def _after_trigger(t: float, origin: float | None, ctx: ReadContext, what: str) -> tuple[float, float]:
+    """``t`` from the trigger moved so that a capture starting before it starts at 0, and the origin
+    (found at the first row, which is warned about when it moves the times)."""
+    if origin is None:
+        origin = min(t, 0.0)
+        if origin < 0 and ctx.warn is not None:
+            ctx.warn(f"{ctx.path}: the {what} starts {-t:.6f} s before the trigger: times moved so that its "
+                     "first byte is at 0")
+    return t - origin, origin
+
+
+def read_logic2(stream: BinaryIO, ctx: ReadContext) -> Iterator[Any]:
+    """Chunks of a Logic 2 data table (or, given a Logic 1.x export, of that)."""
+    with _table(stream) as (text, first, logic1):
         if not first.strip():
             return
-        if tuple(c.strip().lower() for c in first.rstrip("\r\n").split(",")) != _LOGIC1_COLUMNS:
+        yield from _chunks(_drop_echoes(_Senders(ctx).run(_rows(text, first, logic1, ctx)), ctx), _baud(ctx))
+
+
+def read_logic1(stream: BinaryIO, ctx: ReadContext) -> Iterator[Any]:
+    """Chunks of a Logic 1.x Async Serial export."""
+    with _table(stream) as (text, first, logic1):
+        if not first.strip():
+            return
+        if not logic1:
             hint = " (a Logic 2 table: --input-format saleae)" if _logic2_header(_columns(first)) else ""
             raise CaptureError(f"{ctx.path}:1: not a Saleae Logic 1.x export: the header is not "
                                f"'Time [s],Value,Parity Error,Framing Error'{hint}", line=1)
         rows = ((t, v, None, err, dur) for t, v, _, err, dur, _ in _logic1_rows(text, ctx))
         yield from _chunks(rows, _baud(ctx))
-    finally:
-        text.detach()
 
 
 # ---- the bit rate --------------------------------------------------------------------------------
@@ -667,15 +671,8 @@ def probe(path: str, options: dict[str, Any]) -> dict[str, Any]:
     if path == "-" or not os.path.isfile(path):
         return {}  # a pipe is read once, by the reader
     try:
-        with open(path, "rb") as f:
-            text = _text(f)
-            first = _header(text)
-            ctx = ReadContext(path)
-            if tuple(c.strip().lower() for c in first.rstrip("\r\n").split(",")) == _LOGIC1_COLUMNS:
-                rows = list(itertools.islice(_logic1_rows(text, ctx), PROBE_ROWS))
-            else:
-                rows = list(itertools.islice(_logic2_rows(itertools.chain((first,), text), ctx),
-                                             PROBE_ROWS))
+        with open(path, "rb") as f, _table(f) as (text, first, logic1):
+            rows = list(itertools.islice(_rows(text, first, logic1, ReadContext(path)), PROBE_ROWS))
     except (OSError, CaptureError, UnicodeError):
         return {}  # the reader says what is wrong, where
     durations = [r[4] for r in rows if r[4] is not None and r[4] > 0]
