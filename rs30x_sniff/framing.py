@@ -14,9 +14,7 @@ from .events import (
     Ack,
     AnyEvent,
     Garbage,
-    LongPacket,
     Nack,
-    ReturnPacket,
     ShortPacket,
     frame_event,
 )

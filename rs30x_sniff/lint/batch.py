@@ -110,7 +110,7 @@ def quiet_block(lint: Any, blk: Any) -> bool:
         idle = (t1 - t0) - (blk.run.ends[blk.lo:blk.hi] - starts) * bt
         if (idle > lint.config.inter_byte_gap * bt).any():
             return False
-    writes = _writes(lint, blk, is_short, is_long, is_return, address, length, dlen, vid_groups)
+    writes = _writes(lint, blk, is_short, is_return, address, dlen, vid_groups)
     if writes is None:
         return False
     targets, pos_sets, goal_time_sets, shadow_order = writes
@@ -217,7 +217,7 @@ def _by_model(blk: Any, rows: np.ndarray, sid: np.ndarray) -> list[tuple[Any, np
     return [(model, rows[np.isin(sid[rows], ids)]) for model, ids in by.values()]
 
 
-def _writes(lint, blk, is_short, is_long, is_return, address, length, dlen, vid_groups):
+def _writes(lint, blk, is_short, is_return, address, dlen, vid_groups):
     """The block's writes and position reports as columns: (targets, pos_sets, goal_time_sets, shadow
     creation order), or None when one of them needs the record path (a followed register other than
     position and goal time, or a target rule without a column form)."""
