@@ -53,12 +53,26 @@ def _column(block: bytes, off: int, stride: int, reg: Any) -> memoryview:
     return memoryview(buf).cast(code)
 
 
+class Frames(bytes):
+    """Several frames of a buffer's size in one bytes object, followed in the buffer by an empty
+    bytes for each frame after its first: the buffer still holds one item per row, so it is flushed
+    after the same rows (a Block's rows, rs30x_sniff.stats, are buffered so without a bytes object each)."""
+
+    __slots__ = ()
+
+    @classmethod
+    def rows(cls, block: bytes, size: int) -> list[bytes]:
+        """The buffer items of ``block``, whole frames of ``size`` bytes."""
+        n = len(block) // size
+        return [cls(block), *(b"",) * (n - 1)] if n else []
+
+
 def _joined(rows: list[bytes], size: int) -> tuple[bytes, int]:
     """The rows as one block of ``size``-byte rows (a frame of another size, which its framing
     allowed but its header does not describe, is left out: the strides would slip)."""
     block = b"".join(rows)
     if len(block) != size * len(rows):
-        block = b"".join(r for r in rows if len(r) == size)
+        block = b"".join(r for r in rows if len(r) == size or type(r) is Frames)
     return block, size
 
 

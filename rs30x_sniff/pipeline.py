@@ -27,7 +27,7 @@ class DecodeOptions:
 
 
 # A columnar Pipeline decodes a file's chunks this many bytes at a time.
-GROUP_BYTES = 1 << 16
+GROUP_BYTES = 1 << 18
 
 
 class Step(list):

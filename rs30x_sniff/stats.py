@@ -16,7 +16,7 @@ from .blocks import Block
 from .bus import Record
 from .events import Ack, Garbage, LongPacket, ReturnPacket, ShortPacket
 from .frame_runs import LONG, RETURN, SHORT
-from .health import (_FLUSH_ROWS, WRITTEN, HealthRecorder, _joined, _where, servo_health, timer,
+from .health import (_FLUSH_ROWS, WRITTEN, Frames, HealthRecorder, _joined, _where, servo_health, timer,
                      what_happened)
 from .pipeline import Sink, Step
 from .wire import BITS_PER_BYTE, RETURN_FLAG_BITS, byte_time
@@ -393,10 +393,7 @@ class CaptureStats(Sink):
         heads = bounds[:-1]
         groups = sorted(zip(order[heads].tolist(), heads, bounds[1:], sk[heads].tolist()))  # by first row
         health = self.health
-        blob = run.blob
         grouped = rows[order] + blk.lo  # rows of the run, shape by shape
-        # Each row's frame, as the buffers keep them (those a flush takes are read in place instead).
-        raws = [blob[s:e] for s, e in zip(run.starts[grouped].tolist(), run.ends[grouped].tolist())]
         models = blk.models
         for _, g0, g1, key in groups:
             rest, third = divmod(key, 1 << 20)
@@ -409,7 +406,7 @@ class CaptureStats(Sink):
             while True:
                 room = _FLUSH_ROWS - len(b[1])
                 if g1 - i < room:  # the rest waits in the buffer, as raw frames
-                    b[1] += raws[i:g1]
+                    b[1] += _buffered(run, grouped[i:g1], _frame_size(key_t, present))
                     break
                 # These rows fill the buffer: the record path's flush, their bytes read in place.
                 self._flush(key_t, b, run, grouped[i:i + room], present)
@@ -632,6 +629,24 @@ def _long_vids(blk: Block, rows: np.ndarray) -> list[tuple[np.ndarray, np.ndarra
         nrec = -(-dl // ln)  # the last record of a ragged packet is cut short
         out.append((rws, a[(starts[rws] + 7)[:, None] + np.arange(nrec) * ln]))
     return out
+
+
+def _frame_size(key: tuple, present: bool | None) -> int:
+    """The frame size a health buffer's key describes: (servo, address, data length) of a short
+    packet or return, (address, length, records) of a long packet."""
+    return 8 + (key[1] * key[2] if present is None else key[2])
+
+
+def _buffered(run: Any, rows: np.ndarray, size: int) -> list[bytes]:
+    """Buffer items for ``rows`` of ``run``: the frames of ``size`` bytes as one Frames, and the
+    others (left out at the flush, counted until then) as their own bytes, one item a row."""
+    starts, ends = run.starts[rows], run.ends[rows]
+    fits = ends - starts == size
+    items = Frames.rows(run.bytes_array[starts[fits][:, None] + np.arange(size)].tobytes(), size)
+    if not fits.all():
+        blob = run.blob
+        items += [blob[s:e] for s, e in zip(starts[~fits].tolist(), ends[~fits].tolist())]
+    return items
 
 
 def _frames(raws: list[bytes], run: Any, rows: np.ndarray, size: int) -> np.ndarray:

@@ -108,6 +108,9 @@ class MonitorApp(App):
         self.done = False
         self.batches = 0
         self._filter_task: asyncio.Task | None = None
+        # The first bottom pane's class from the start: added at the first resize instead, it would
+        # restyle every widget once more before the first frame.
+        self.add_class(f"-bottom-{BOTTOM_PANES[0]}")
 
     def _models_text(self) -> str:
         opts = self.config.options

@@ -18,9 +18,10 @@ from .store import ServoRow, servo_snapshot
 
 POST_INTERVAL = 0.25    # seconds between batches: a few screen updates a second are plenty
 MAX_BATCH = 50_000      # records per batch, so one batch never stalls the screen for long
-# While a file loads, the screen is told less often: each redraw holds the GIL the decoding thread
-# needs, and a file is not live (the first batches still come at once, so the screen fills quickly).
-LOAD_INTERVAL = 1.0
+# While a file loads, the screen is told less often: a redraw of the whole screen costs the decoding
+# thread ~0.1 s of the GIL, and a file is not live (the first batch still comes at once, so the screen
+# fills at once; the header's tick shows the elapsed time meanwhile).
+LOAD_INTERVAL = 2.0
 
 
 @dataclass
@@ -250,7 +251,7 @@ class Feeder:
             pipeline.add(self._collect)
 
     def _step(self) -> None:
-        """After each step of a file (the decoder takes a file ~64 KiB at a time, so between chunks
+        """After each step of a file (the decoder takes a file ~256 KiB at a time, so between chunks
         there is nothing new to do): the screen's commands, the reader's warnings, a post when due.
         The source itself stops when told (Source.chunks)."""
         if self._commands_waiting:
@@ -259,9 +260,9 @@ class Feeder:
         if warnings:
             self._note = "; ".join(warnings)
             warnings.clear()
-        # The first batches come at once, so the screen fills quickly; then the screen is told less
-        # often: each redraw holds the GIL the decoding thread needs.
-        self._maybe_post(self.interval if self._posts < 2 else max(self.interval, LOAD_INTERVAL))
+        # The first batch comes as from a live source, so the screen fills at once; then the screen is
+        # told less often: each redraw holds the GIL the decoding thread needs.
+        self._maybe_post(self.interval if not self._posts else max(self.interval, LOAD_INTERVAL))
 
     def _maybe_post(self, interval: float) -> None:
         # Posted when the interval is up, or sooner when the screen would have many objects to take

@@ -174,6 +174,7 @@ class PlotPane(Vertical):
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
         self.window = Window()
+        self._shown: dict[str, tuple] = {}  # selector -> what its label shows
 
     def compose(self) -> ComposeResult:
         yield Label(Text("plot: no servo yet"), id="plot-title")
@@ -206,19 +207,27 @@ class PlotPane(Vertical):
             for n, sid in enumerate(ids):
                 title.append(f"{'' if n == 0 else ' '}{sid}", COLOURS[n % len(COLOURS)] + (" bold" if n == 0 else ""))
             title.append(" " + store.plot_register, "cyan")
-        self.query_one("#plot-title", Label).update(title)
+        self._label("#plot-title", title)
         line = self.query_one("#plot-line", Static)
         width, height = max(1, line.size.width or self.size.width - 2), max(1, line.size.height or 6)
         b = self.bounds(store)
         if b is None:
-            line.update(Text(""))
-            self.query_one("#plot-range", Label).update(Text("no samples", "grey70"))
+            line.update(Text(""), layout=False)  # its height is the pane's (1fr), whatever it holds
+            self._label("#plot-range", Text("no samples", "grey70"))
             return
         t0, t1 = self.window.bounds(*b)
         rows, vmin, vmax = render(list(store.plot_series.values()), width, height, t0, t1)
-        line.update(Text("\n").join(rows))
+        line.update(Text("\n").join(rows), layout=False)
         shown = "all" if self.window.span is None else f"{t1 - t0:.3g} s"
         rng = Text(f"{t0:.2f}-{t1:.2f} s ({shown})", "grey70")
         if vmin is not None:
             rng.append(f"  {vmin:g}..{vmax:g}", "grey70")
-        self.query_one("#plot-range", Label).update(rng)
+        self._label("#plot-range", rng)
+
+    def _label(self, selector: str, text: Text) -> None:
+        # A label's new text may wrap to another number of lines (a layout of the whole screen): only
+        # a changed one is updated.
+        key = (text.plain, str(text.style), tuple(text.spans))
+        if self._shown.get(selector) != key:
+            self._shown[selector] = key
+            self.query_one(selector, Label).update(text)

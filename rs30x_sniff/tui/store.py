@@ -174,6 +174,7 @@ def block_rows(blk: Block, a: int, b: int) -> list[Record]:
     return recs[a - a0:b - a0]
 
 
+_NOT_READ = object()  # a Block whose plot points Store.add has not read ahead
 _LUTS: dict[int, list] = {}  # id of a register -> [it, values, is a number, worked out], by raw bytes
 
 
@@ -239,7 +240,17 @@ def block_points(blk: Block, ids: Iterable[int], name: str, byte_seconds: float,
     out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     own = (kind != LONG) & (dlen > 0)
     long_rows = np.flatnonzero((kind == LONG) & (cols["length"][a:] > 0) & (dlen > 0))
-    long_reg = _register_of(blk.default, name)
+    long_reg = _register_of(blk.default, name) if long_rows.size else None
+    if long_reg is not None:
+        # Long packets whose records hold the register: most write other registers (goal positions
+        # while present_position is plotted), and then none is read.
+        ln = cols["length"][a:][long_rows].astype(np.int64)
+        reach = long_reg.address - address[long_rows]
+        covers = (reach >= 0) & (reach + long_reg.size <= ln - 1)
+        if not covers.all():
+            long_rows, ln = long_rows[covers], ln[covers]
+        if not long_rows.size:
+            long_reg = None
     for servo in ids:
         rows_parts, at_parts, regs = [], [], []
         rows = np.flatnonzero(own & (sid == servo))
@@ -250,8 +261,7 @@ def block_points(blk: Block, ids: Iterable[int], name: str, byte_seconds: float,
             rows_parts.append(rows[fits])
             at_parts.append(starts[rows[fits]] + 7 + start[fits])
             regs.append(reg)
-        if long_reg is not None and long_rows.size:
-            ln = cols["length"][a:][long_rows].astype(np.int64)
+        if long_reg is not None:
             dl = dlen[long_rows]
             nrec = -(-dl // ln)
             width = int(nrec.max())
@@ -394,12 +404,15 @@ class Store:
         run: list[Record] = []
         loads: list = []  # (t, bytes) tuples of Records, and (t0, sizes) arrays of Blocks, in order
         blocks = False
+        if type(records) is not list:
+            records = list(records)
+        points = self._newest_points(records) if self.plot_series else {}
         for x in records:
             if type(x) is Block:
                 if run:
                     self._add_records(run, loads)
                     run = []
-                self._add_block(x, loads)
+                self._add_block(x, loads, points.get(id(x), _NOT_READ))
                 blocks = True
             else:
                 run.append(x)
@@ -490,7 +503,28 @@ class Store:
         if timed:
             loads.append(timed)
 
-    def _add_block(self, blk: Block, loads: list) -> None:
+    def _newest_points(self, items: list) -> dict[int, Any]:
+        """The plot points of a batch's last Blocks, newest first, as far back as the plot keeps
+        (plot_points a servo): {id of a Block: its points, or None where none of them is kept}. A
+        long load has far more points than the plot holds; Blocks before the newest run of Records
+        are not looked at here (_add_block reads them)."""
+        want = {sid: self.plot_points for sid in self.plot_series}
+        byte_seconds = 10 / self.baud
+        out: dict[int, Any] = {}
+        for x in reversed(items):
+            if type(x) is not Block:
+                break
+            if not want:
+                out[id(x)] = None  # older than every point the plot keeps
+                continue
+            got = out[id(x)] = block_points(x, list(want), self.plot_register, byte_seconds)
+            for sid, (_, vs) in got.items():
+                want[sid] -= len(vs)
+                if want[sid] <= 0:
+                    del want[sid]
+        return out
+
+    def _add_block(self, blk: Block, loads: list, points: Any = _NOT_READ) -> None:
         """A Block into the history: a few array operations, whatever its length."""
         n = len(blk)
         if not n:
@@ -509,9 +543,10 @@ class Store:
             stats.last_t = float(t0[-1])
             run = blk.run
             loads.append((t0, run.ends[blk.lo:blk.hi] - run.starts[blk.lo:blk.hi]))
-        if self.plot_series:
-            byte_seconds = 10 / self.baud
-            for sid, (ts, vs) in block_points(blk, list(self.plot_series), self.plot_register, byte_seconds).items():
+        if self.plot_series and points is not None:
+            if points is _NOT_READ:
+                points = block_points(blk, list(self.plot_series), self.plot_register, 10 / self.baud)
+            for sid, (ts, vs) in points.items():
                 pts = self.plot_series[sid]
                 pts[0].extend(ts[-self.plot_points:].tolist())
                 pts[1].extend(vs[-self.plot_points:].tolist())

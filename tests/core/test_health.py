@@ -192,3 +192,16 @@ def test_wall_clock_for_epoch_times_and_line_time_without_timestamps():
     lim = untimed.as_dict()["health"]["3"]["flags"]["temperature_limit"]
     assert lim["first_t"] == pytest.approx(len(req) * 10 / 115200, abs=1e-6) and lim["first_wall"] is None
     assert untimed.as_dict()["bus_load_peak"] is None
+
+
+def test_frames_in_one_bytes_object_count_and_join_as_a_row_each():
+    # The columnar path buffers a Block's frames as one bytes object: the buffer must still hold an
+    # item a row (so it is flushed after the same rows) and join to the same frames, in order.
+    size = 10
+    a, b, c, d = (bytes([k]) * size for k in range(1, 5))
+    items = health_module.Frames.rows(b + c, size)
+    assert len(items) == 2 and health_module.Frames.rows(b"", size) == []
+    rows = [a, *items, d]
+    assert health_module._joined(rows, size) == (a + b + c + d, size)
+    odd = b"\x09" * (size + 1)  # a frame of another size is left out; the others keep their order
+    assert health_module._joined([a, odd, *items, d], size) == (a + b + c + d, size)

@@ -9,12 +9,12 @@ import pytest
 
 from rs30x_sniff.blocks import Block
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, Sink, drive
+from rs30x_sniff.pipeline import DecodeOptions, Decoder, Sink, Step, drive
 from rs30x_sniff.sim import scenarios
 from rs30x_sniff.stats import CaptureStats
 from rs30x_sniff.tui.feed import split_block
 from rs30x_sniff.tui.filter import parse_filter
-from rs30x_sniff.tui.store import PLOT_REGISTERS, Store
+from rs30x_sniff.tui.store import PLOT_POINTS, PLOT_REGISTERS, Store
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from bench.traffic import hexapod_frames  # noqa: E402
@@ -96,17 +96,23 @@ FILTERS = ("id:3", "id:0", "kind:return", "kind:read", "kind:long", "latency>0.1
            "present_position>0", "goal_position<0", "sev>=warning", "-id:1-6", "t>1", "READ")
 
 
-def stores(name: str, history: int = 1_000_000, plot: int | None = None, split: bool = False):
-    """Two Stores fed the same capture: the record path's Records and the columnar path's steps."""
+def stores(name: str, history: int = 1_000_000, plot: int | None = None, split: bool = False,
+           plot_points: int = PLOT_POINTS, plot_all: bool = False, together: bool = False):
+    """Two Stores fed the same capture: the record path's Records and the columnar path's steps
+    (``together``: every step in one batch, as a post gathers them while a file loads)."""
     chunks = capture(name)
     out = []
     for columnar in (False, True):
         steps, dec = decoded(chunks, columnar)
+        if together:
+            whole = Step(x for step in steps for x in step)
+            whole.findings = [f for step in steps for f in step.findings]
+            steps = [whole]
         stats = CaptureStats(115200)
-        store = Store(history)
+        store = Store(history, plot_points=plot_points)
         if plot is not None:
-            store.servos = {plot: None}
-            store.set_plot(plot)
+            store.servos = {i: None for i in range(1, 19)} if plot_all else {plot: None}
+            store.set_plot(plot, all_servos=plot_all)
         for step in steps:
             stats.batch(step)
             items = list(step)
@@ -202,6 +208,17 @@ def test_plot_series_of_blocks(name):
                 store.set_plot(servo, register, all_servos=register == "goal_position")
             assert {k: (list(t), list(v)) for k, (t, v) in a.plot_series.items()} == \
                 {k: (list(t), list(v)) for k, (t, v) in b.plot_series.items()}, register
+
+
+@pytest.mark.parametrize("together", [False, True])
+@pytest.mark.parametrize("name", ["bench", "hexapod", "overheat"])
+def test_plot_series_grown_past_what_it_keeps(name, together):
+    # A batch with more points than the plot keeps reads only its newest Blocks: the same series.
+    for points in (1, 7, 300):
+        a, b = stores(name, plot=3, plot_points=points, plot_all=True, together=together)
+        assert {k: (list(t), list(v)) for k, (t, v) in a.plot_series.items()} == \
+            {k: (list(t), list(v)) for k, (t, v) in b.plot_series.items()}
+        assert 0 < len(b.plot) <= points and (points > 100 or len(b.plot) == points)
 
 
 def test_plot_points_are_bounded_in_blocks():
