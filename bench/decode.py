@@ -66,7 +66,7 @@ def full_decode(chunks: list[tuple[bytes, float]]) -> tuple[int, int]:
     return records, fields
 
 
-GROUP = 64  # chunks per Decoder.feed_many: 256 KiB of 4 KiB blocks, as Pipeline groups a file's chunks
+GROUP = 16  # chunks per Decoder.feed_many: 64 KiB of 4 KiB blocks, as Pipeline groups a file's chunks
 
 
 def _steps(dec: Decoder, chunks: list, group: int):

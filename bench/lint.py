@@ -45,7 +45,7 @@ def decode_lint(chunks, columnar: bool = False) -> tuple[int, int]:
 
 
 def _grouped(dec, chunks) -> int:
-    """As Pipeline feeds a file to a columnar decoder: about 256 KiB of chunks at a time."""
+    """As Pipeline feeds a file to a columnar decoder: about 64 KiB of chunks at a time."""
     n = size = 0
     group = []
     for chunk in chunks:

@@ -26,8 +26,8 @@ class DecodeOptions:
     registry: ModelRegistry | None = None
 
 
-# A columnar Pipeline decodes a file's chunks this many bytes at a time.
-GROUP_BYTES = 1 << 18
+# A columnar Pipeline decodes a file's chunks this many bytes at a time (unless told otherwise).
+GROUP_BYTES = 1 << 16
 
 
 class Step(list):
@@ -196,10 +196,11 @@ class Pipeline:
     Sinks may be added and removed between chunks (the monitor's ``r`` starts and stops an MCAP sink).
     """
 
-    def __init__(self, decoder: Decoder, sinks: Iterable[Sink] = ()) -> None:
+    def __init__(self, decoder: Decoder, sinks: Iterable[Sink] = (), group_bytes: int = GROUP_BYTES) -> None:
         self.decoder = decoder
         self.sinks: tuple[Sink, ...] = tuple(sinks)  # replaced, never changed in place: safe to edit mid-loop
         self.closed = False
+        self.group_bytes = group_bytes  # a columnar decoder's group of plain chunks
 
     def add(self, sink: Sink) -> None:
         self.sinks = (*self.sinks, sink)
@@ -290,11 +291,12 @@ class Pipeline:
 
 
     def _run_grouped(self, chunks: Iterable[tuple[bytes, float | None]]) -> None:
-        """The columnar decoder's loop: plain chunks in groups of about GROUP_BYTES (one kernel pass
+        """The columnar decoder's loop: plain chunks in groups of about ``group_bytes`` (one kernel pass
         and one Block per clean stretch), marked and empty ones alone, in order."""
         group: list[tuple[bytes, float | None]] = []
         size = 0
         feed_many = self.feed_many
+        group_bytes = self.group_bytes
         try:
             for chunk in chunks:
                 if type(chunk) is Marked or not chunk[0]:
@@ -309,7 +311,7 @@ class Pipeline:
                     continue
                 group.append(chunk)
                 size += len(chunk[0])
-                if size >= GROUP_BYTES:
+                if size >= group_bytes:
                     group, pending = [], group
                     size = 0
                     feed_many(pending)

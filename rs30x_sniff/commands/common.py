@@ -371,7 +371,7 @@ def is_live(chunks: object) -> bool:
 
 def is_whole_file(path: str, chunks: object) -> bool:
     """Whether an input is a regular file (stdin redirected from one counts), which the columnar path
-    decodes about 256 KiB at a time. A port, a pipe or a FIFO may be live (`socat ... | rs30x-sniff
+    decodes about 64 KiB at a time. A port, a pipe or a FIFO may be live (`socat ... | rs30x-sniff
     decode -`): it is decoded record by record, each line out as soon as its bytes are in."""
     if is_live(chunks):
         return False

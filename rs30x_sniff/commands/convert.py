@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         when = found.get("start_time")
         if when is not None:
             start_time = when.timestamp()
-    # A file takes the columnar path (the same messages, in log-time order within each 256 KiB group).
+    # A file takes the columnar path (the same messages, in log-time order within each 64 KiB group).
     decoder = Decoder(settings.decode_options(), linter=linter, columnar=not is_live(src))
     source = "stdin" if args.input == "-" else args.input
     total = os.path.getsize(args.input) if os.path.isfile(args.input) and (

@@ -11,7 +11,7 @@ from typing import Any, Callable, Iterator
 from ..blocks import MIN_BLOCK, Block
 from ..bus import Record
 from ..io.captures import CaptureError
-from ..pipeline import DecodeOptions, Decoder, Pipeline, Sink, Step
+from ..pipeline import GROUP_BYTES, DecodeOptions, Decoder, Pipeline, Sink, Step
 from ..stats import CaptureStats
 from .sources import Source
 from .store import ServoRow, servo_snapshot
@@ -22,6 +22,9 @@ MAX_BATCH = 50_000      # records per batch, so one batch never stalls the scree
 # thread ~0.1 s of the GIL, and a file is not live (the first batch still comes at once, so the screen
 # fills at once; the header's tick shows the elapsed time meanwhile).
 LOAD_INTERVAL = 2.0
+# A file is decoded in groups this large (pipeline.GROUP_BYTES is a command's): the statistics, the
+# store and the plot work once per Block, and longer Blocks are fewer. The store keeps every row anyway.
+LOAD_GROUP_BYTES = 1 << 18
 
 
 @dataclass
@@ -186,7 +189,7 @@ class Feeder:
         self.decoder = Decoder(options, linter=linter, columnar=self.loading)
         self._collect = _Collect(CaptureStats(options.baud), lambda: self.decoder.bytes_in,
                                  self._step if self.loading else None)
-        self.pipeline = Pipeline(self.decoder, [self._collect])
+        self.pipeline = Pipeline(self.decoder, [self._collect], LOAD_GROUP_BYTES if self.loading else GROUP_BYTES)
         self.interval = interval
         self.max_batch = max_batch
         self.clock = clock

@@ -200,3 +200,33 @@ def test_a_failing_source_loses_nothing_already_read():
         Pipeline(Decoder(None, Linter(), columnar=True), [found]).run(source())
     whole, _ = record_path(chunks, lint=True)
     assert found.records == len(whole) > 50
+
+
+@pytest.mark.parametrize("group_bytes", [1, 100, 1 << 16])
+def test_a_pipeline_decodes_a_file_in_groups_of_its_size(group_bytes):
+    from rs30x_sniff.pipeline import Pipeline, Sink
+
+    chunks = traffic(7, 300, timed=True, gaps=False, faults=False)
+    sizes = []
+
+    class Keep(Sink):
+        takes_blocks = True
+
+        def __init__(self):
+            self.steps = []
+
+        def batch(self, step):
+            self.steps.append(step)
+
+    class Counting(Pipeline):
+        def feed_many(self, group):
+            sizes.append([len(d) for d, _ in group])
+            return super().feed_many(group)
+
+    keep = Keep()
+    Counting(Decoder(DecodeOptions(), columnar=True), [keep], group_bytes=group_bytes).run(chunks)
+    assert sum(map(sum, sizes)) == sum(len(d) for d, _ in chunks)
+    # Each group but the last closes with the chunk that brings it to the size.
+    assert all(sum(g[:-1]) < group_bytes <= sum(g) for g in sizes[:-1]) and sum(sizes[-1][:-1]) < group_bytes
+    assert [record_key(r) for s in keep.steps for r in s.expanded()] == \
+        [record_key(r) for r in record_path(chunks)[0]]
