@@ -10,7 +10,7 @@ import pytest
 from rs30x_sniff.io.captures import CaptureError, read_capture, write_capture
 from rs30x_sniff.pipeline import DecodeOptions
 from rs30x_sniff.tui.feed import Feeder, default_linter
-from rs30x_sniff.tui.sources import FileSource, ReplaySource, SimulatorSource, paced
+from rs30x_sniff.tui.sources import ChunkSource, FileSource, ReplaySource, SimulatorSource, paced
 from rs30x_sniff.wire import encode_short
 
 from .helpers import GatedSource, MANUAL
@@ -39,17 +39,7 @@ def test_a_file_arrives_whole_with_findings_and_servo_rows():
 
 def test_batches_are_cut_by_size():
     chunks = [(encode_short(1, 0, 30, b"\x00\x00"), i * 0.001) for i in range(100)]
-
-    class Chunks:
-        name, kind, time_base = "test", "file", "capture"
-
-        def chunks(self, stop):
-            yield from chunks
-
-        def close(self):
-            pass
-
-    _, batches = run_feeder(Chunks(), max_batch=30, interval=1e9)
+    _, batches = run_feeder(ChunkSource("test", chunks), max_batch=30, interval=1e9)
     assert [len(b.records) for b in batches] == [30, 30, 30, 10]
     assert [b.done for b in batches] == [False, False, False, True]
 

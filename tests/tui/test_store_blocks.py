@@ -345,20 +345,12 @@ def read_capture_of(path):
 
 def test_a_live_source_stays_record_by_record():
     from rs30x_sniff.tui.feed import Feeder
+    from rs30x_sniff.tui.sources import ChunkSource
 
-    frames = hexapod_frames(2000)
-
-    class Port:
-        name, kind, time_base = "port", "port", "monotonic"
-
-        def chunks(self, stop):
-            yield from frames
-
-        def close(self):
-            pass
-
+    port = ChunkSource("port", hexapod_frames(2000))
+    port.kind = "port"  # chunks as a serial port hands them out
     batches = []
-    Feeder(Port(), DecodeOptions(), batches.append).run()
+    Feeder(port, DecodeOptions(), batches.append).run()
     items = [x for b in batches for x in b.records]
     assert len(items) == 2000 and not any(type(x) is Block for x in items)
 
