@@ -211,6 +211,7 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> None:
     answered_return = np.zeros(n, dtype=bool)
     answered_return[1:] = ok_pair[:-1]
     fast = np.where(wants, ok_pair, np.where(is_return, answered_return, ~slow))
+    brk = np.flatnonzero(~fast)  # rows the tracker takes: each clean stretch ends at the next one
     pos = 0
     feed = tracker._feed
     while pos < n:
@@ -218,8 +219,8 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> None:
             feed(run.event(pos), out)
             pos += 1
             continue
-        stop = np.flatnonzero(~fast[pos:])
-        hi = n if not stop.size else pos + int(stop[0])
+        j = int(np.searchsorted(brk, pos))
+        hi = n if j == len(brk) else int(brk[j])
         if hi - pos < MIN_BLOCK:
             # Too short to repay a block's fixed cost: record by record.
             for ev in run.events(pos, hi):
