@@ -302,9 +302,10 @@ class CaptureReader:
 
     ``locate(offset)`` maps a stream byte offset (the position of a byte in the concatenated chunks,
     as events report it) to ``(line, column)`` in a hex or timestamped-hex file, both 1-based, the
-    column being that of the byte's first hex digit; None for binary and MCAP captures, and for
-    offsets not read yet. The reader keeps a few integers per line with data (and a column per byte
-    only for lines whose bytes are not evenly spaced), not the text.
+    column being that of the byte's first hex digit; None for binary and MCAP captures, for a reader
+    opened with the option ``"locate": False`` (it keeps no index), and for offsets not read yet.
+    The reader keeps a few integers per line with data (and a column per byte only for lines whose
+    bytes are not evenly spaced), not the text.
     ``warnings`` lists the :class:`CaptureWarning` objects of the problems worked around so far.
     """
 
@@ -341,8 +342,9 @@ class CaptureReader:
                 self._gen = _closing(other.read(opened.stream, self.context), opened.stream)
             else:
                 # 16 bytes a line, for findings' FILE:LINE:COL: a reader nobody will ask (options
-                # "locate": False, as convert's) keeps none, and a long capture's memory stays flat.
-                self._lines = _LineIndex() if self.context.options.get("locate", True) else _NoIndex()
+                # "locate": False, as convert's) keeps none (locate() is None), and a long capture's
+                # memory stays flat.
+                self._lines = _LineIndex() if self.context.options.get("locate", True) else None
                 self._gen = _read_text(opened.stream, path, fmt == TIMESTAMPED, self._lines)
         return self._gen
 
@@ -399,33 +401,6 @@ class _LineIndex:
         return w >> 32, col
 
 
-class _Forget(list):
-    """A list that keeps nothing."""
-
-    def append(self, _: object) -> None:
-        pass
-
-
-class _ForgetMap(dict):
-    """A dict that keeps nothing."""
-
-    def __setitem__(self, key: object, value: object) -> None:
-        pass
-
-
-class _NoIndex(_LineIndex):
-    """A line index that records nothing (``locate`` is always None)."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.starts = _Forget()  # type: ignore[assignment]
-        self.where = _Forget()   # type: ignore[assignment]
-        self.uneven = _ForgetMap()
-
-    def locate(self, offset: int) -> tuple[int, int] | None:
-        return None
-
-
 def open_capture(path: str) -> BinaryIO:
     """Open a capture for binary reading; failure is a one-line CaptureError naming the file."""
     try:
@@ -460,10 +435,13 @@ def _read_binary(f: BinaryIO) -> Iterator[Chunk]:
         f.close()
 
 
-def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex) -> Iterator[Chunk]:
+def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | None) -> Iterator[Chunk]:
+    """The chunks of a hex or timestamped-hex capture; each line with data is indexed in ``index``
+    for locate(), unless it is None. An error names the line whether or not there is an index."""
     pending = bytearray()  # untimed hex lines are merged into larger chunks
     readline = f.readline
-    starts, where = index.starts.append, index.where.append
+    if index is not None:
+        starts, where, uneven = index.starts.append, index.where.append, index.uneven
     offset = 0
     lineno = 0
     try:
@@ -505,22 +483,23 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex) -> 
             n = len(data)
             if not n:
                 continue
-            # Index the line for locate(): its bytes are evenly spaced unless the text says otherwise.
-            stripped = body.lstrip()
-            first = base + len(body) - len(stripped) + 1
-            width = len(stripped.rstrip())
-            if width == 3 * n - 1 and stripped[2:width:3] == b" " * (n - 1):
-                step = 3
-            elif width == 2 * n:
-                step = 2
-            else:
-                step = 0
-                index.uneven[len(index.starts)] = array(
-                    "q", (base + m.start() + 1 for m in _HEX_PAIR.finditer(body)))
-            starts(offset)
-            where(lineno << 32 | first << 2 | step)
+            if index is not None:
+                # Index the line for locate(): its bytes are evenly spaced unless the text says otherwise.
+                stripped = body.lstrip()
+                first = base + len(body) - len(stripped) + 1
+                width = len(stripped.rstrip())
+                if width == 3 * n - 1 and stripped[2:width:3] == b" " * (n - 1):
+                    step = 3
+                elif width == 2 * n:
+                    step = 2
+                else:
+                    step = 0
+                    uneven[len(index.starts)] = array(
+                        "q", (base + m.start() + 1 for m in _HEX_PAIR.finditer(body)))
+                starts(offset)
+                where(lineno << 32 | first << 2 | step)
+                index.end = offset + n
             offset += n
-            index.end = offset
             if timestamped:
                 yield data, t
             else:
