@@ -339,14 +339,16 @@ def check_positive(option: str, value: float | None) -> None:
 
 # ---- inputs ----------------------------------------------------------------------------------------
 def open_input(path: str, fmt: str | None, settings: Settings, *, duration: float | None = None,
-               locate: bool = True) -> Iterator[Chunk]:
+               locate: bool = False) -> Iterator[Chunk]:
     """Chunks from a capture file (or '-' for stdin), or live from a serial port, as ``settings`` say.
 
     A port (a character device such as /dev/ttyUSB0, or a pyserial URL such as socket://host:port)
     is read passively at the settings' baud until Ctrl-C, SIGTERM, SIGHUP or ``duration`` seconds;
     the returned source then has ``live = True`` and, after iteration, ``lost`` tells whether the
     port failed. A timestamped capture's times are read by the settings' time reference. ``locate``
-    False: nobody will ask where in a text capture a byte was (no line index is kept).
+    True: the source's ``locate(offset)`` says where in a text capture a byte was (a line index is
+    kept, 16 bytes a line); the commands that report findings by line and column ask for it. An
+    error in a text capture names its line either way.
     """
     if fmt is None and is_port_path(path):
         from ..io.serial_tap import LiveSource

@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     start_time = parse_start_time(args.start_time)
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)
-    src = open_input(args.input, args.input_format, settings, locate=False)  # diagnostics carry offsets
+    src = open_input(args.input, args.input_format, settings)  # no line index: diagnostics carry offsets
     first, chunks = peek(src)
     if first is None:
         raise CliError(f"{args.input}: no data (the capture is empty): nothing to convert")

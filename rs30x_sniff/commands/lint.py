@@ -57,7 +57,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     result = FileResult(path, rules=[r.code for r in linter.rules])
     source = None
     try:
-        source = open_input(path, fmt, settings, duration=duration)
+        source = open_input(path, fmt, settings, duration=duration, locate=True)  # findings by line
         # A file takes the columnar path (same findings, a fraction of the time); a port, record by record.
         dec = drive(source, Decoder(opts, linter, columnar=not is_live(source)), *sinks,
                     *live_sinks(settings, source, path))

@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     opts = settings.decode_options()
     # Only the findings table needs the rules run; the others read the records alone.
     linter = make_linter(args, settings) if args.of == "findings" else None
-    chunks = open_input(args.input, args.input_format, settings)
+    chunks = open_input(args.input, args.input_format, settings, locate=args.of == "findings")
     decoder = Decoder(opts, linter, columnar=not is_live(chunks))  # a file: the columnar path, the same rows
     kw: dict = {"baud": settings.baud}
     if args.of == "states":
