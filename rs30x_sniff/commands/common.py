@@ -378,8 +378,7 @@ def is_whole_file(path: str, chunks: object) -> bool:
     if is_live(chunks):
         return False
     try:
-        fd = sys.stdin.fileno() if path == "-" else None
-        mode = os.fstat(fd).st_mode if fd is not None else os.stat(path).st_mode
+        mode = os.stat(sys.stdin.fileno() if path == "-" else path).st_mode  # os.stat takes a descriptor too
     except (OSError, ValueError, AttributeError):
         return False
     return stat.S_ISREG(mode)
