@@ -6,6 +6,7 @@ import base64
 import heapq
 import json
 import struct
+from operator import itemgetter
 from typing import IO, Any, Iterable
 
 import foxglove
@@ -44,8 +45,7 @@ RAW_SPLIT = 4096  # largest /rs30x/raw message for a capture without timestamps
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 
 
-def _log_time(msg: tuple) -> int:
-    return msg[0]
+_log_time = itemgetter(0)  # a held message's (log_time, channel, data)
 
 
 def _ns(t: float) -> int:
@@ -80,15 +80,15 @@ class JsonChannels:
         self._state_channels: dict[int, Any] = {}
         # A columnar group's raw messages (chunk_group), held until its step's messages are made, then
         # written with them in log-time order; None: every message is written as it is made.
-        self._raw_held: list[tuple[int, int, Any, bytes]] | None = None
-        self._made: list[tuple[int, int, Any, bytes]] | None = None
+        self._raw_held: list[tuple[int, Any, bytes]] | None = None
+        self._made: list[tuple[int, Any, bytes]] | None = None
 
     def _emit(self, cid: Any, log_time: int, data: bytes) -> None:
         made = self._made
         if made is None:
             self._write(cid, log_time, data)
         else:
-            made.append((log_time, len(made), cid, data))
+            made.append((log_time, cid, data))
 
     def _channel(self, topic: str, schema_name: str) -> Any:
         """The handle ``_write`` takes for ``topic`` (registered on first use)."""
@@ -224,26 +224,22 @@ class JsonChannels:
     def batch(self, step: Any) -> None:
         held = self._raw_held
         if held is None and not step.blocks:
-            self._batch(step)
-            return
-        self._raw_held = None
-        made = self._made = []
-        try:
             self._records(step)
-        finally:
-            self._made = None
-            # Interleaved by log time, each side kept in its own order (the raw bytes in stream order
-            # even where a capture's clock went back); raw first where times tie, as the record path
-            # writes a chunk before its records.
-            write = self._write
-            for lt, _, cid, data in heapq.merge(held or (), made, key=_log_time):
-                write(cid, lt, data)
+        else:
+            self._raw_held = None
+            made = self._made = []
+            try:
+                self._records(step)
+            finally:
+                self._made = None
+                # Interleaved by log time, each side kept in its own order (the raw bytes in stream order
+                # even where a capture's clock went back); raw first where times tie, as the record path
+                # writes a chunk before its records. heapq.merge is stable: within one input the order
+                # is kept, and on a tie the earlier input (the raw bytes) comes first.
+                write = self._write
+                for lt, cid, data in heapq.merge(held or (), made, key=_log_time):
+                    write(cid, lt, data)
         if step.findings:  # after the step's records, in the order found, as the record path writes them
-            self.findings(step.findings)
-
-    def _batch(self, step: Any) -> None:
-        self._records(step)
-        if step.findings:
             self.findings(step.findings)
 
     def _records(self, step: Any) -> None:
@@ -257,7 +253,7 @@ class JsonChannels:
     def flush_held(self) -> None:
         """Write raw messages still held (a group that decoded to nothing yet)."""
         held, self._raw_held = self._raw_held, None
-        for lt, _, cid, data in held or ():
+        for lt, cid, data in held or ():
             self._write(cid, lt, data)
 
     def idle(self) -> None:
@@ -406,7 +402,7 @@ class McapSink(JsonChannels):
 
     def batch(self, step: Any) -> None:
         super().batch(step)
-        self.stats.batch(step if getattr(self.stats, "takes_blocks", False) else step.expanded())
+        self.stats.batch(step)  # a CaptureStats: it takes Blocks as they are (takes_blocks)
 
     def close(self) -> None:
         self.flush_held()
