@@ -210,7 +210,7 @@ class Layout:
     With ``records`` > 0 it is a long packet's data: that many repeats of VID + ``length`` bytes.
     """
 
-    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_json", "_named")
+    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_json", "_named", "_columns")
 
     def __init__(self, model: Model, address: int, length: int, records: int = 0) -> None:
         parts = []
@@ -241,6 +241,7 @@ class Layout:
                 k += 1
         self._json: tuple[tuple[str, ...], ...] | None = None  # fields_json's templates (spaced, compact)
         self._named: tuple[tuple[int, str], ...] | None = None  # named_values' (part, name) pairs
+        self._columns: Any = None  # value_columns' plan (made on first use there)
         unpack = self.unpack_raw = struct.Struct("<" + "".join(codes)).unpack
         if all(e == f"r[{i}]" for i, e in enumerate(exprs)):
             self.values = unpack

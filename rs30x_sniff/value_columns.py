@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -35,14 +34,6 @@ class _Plan(NamedTuple):
     n_values: int
 
 
-# Layout has __slots__ without __weakref__, so it is neither weakref-able nor open to new attributes:
-# plans are kept here by id, next to the layout itself, which keeps the id from being reused. The
-# layouts of Model.layout live as long as their model anyway; the bound keeps layouts made by hand
-# (and their plans) from piling up: the oldest plan goes first, and is made again if asked for.
-_PLANS: OrderedDict[int, tuple[Layout, _Plan]] = OrderedDict()
-_MAX_PLANS = 4096
-# Conversions by (id of the register, signed); the register is kept so its id stays unique.
-_CONVERSIONS: dict[tuple[int, bool], tuple[Register, tuple]] = {}
 # LUTs by (id of the enum/table dict, is enum, size, signed); the dict is kept so its id stays unique.
 _LUTS: dict[tuple[int, bool, int, bool], tuple[dict, np.ndarray]] = {}
 _RAW = ("raw", None, 0)  # (kind, arg, add) of a part whose value is its raw integer
@@ -73,10 +64,6 @@ def _conversion(reg: Register, signed: bool) -> tuple:
     """(kind, arg, add) of a whole, named register: a mirror of ``memmap._conversion``, the same
     operation on the same operand types, so float64 results are bit-identical to Python's (int / int
     and int * float round once, as numpy's true_divide and multiply of float64 do)."""
-    key = (id(reg), signed)
-    hit = _CONVERSIONS.get(key)
-    if hit is not None and hit[0] is reg:
-        return hit[1]
     if reg.enum is not None:
         conv = ("lut", _lut(reg.enum, True, reg.size, signed), 0)
     elif reg.table is not None:
@@ -89,14 +76,14 @@ def _conversion(reg: Register, signed: bool) -> tuple:
             conv = ("div", round(1 / scale), off)
         else:
             conv = ("mul", scale, off)
-    _CONVERSIONS[key] = (reg, conv)
     return conv
 
 
 def _plan(layout: Layout) -> _Plan:
-    hit = _PLANS.get(id(layout))
-    if hit is not None and hit[0] is layout:
-        return hit[1]
+    """The layout's plan, made once and kept on the layout (Layout._columns)."""
+    plan = layout._columns
+    if plan is not None:
+        return plan
     records = layout.records
     stride = layout.size + (1 if records else 0)
     raw_specs: list[tuple] = []    # (size, signed, kind, arg, add) of each group
@@ -156,9 +143,7 @@ def _plan(layout: Layout) -> _Plan:
     else:
         plan = _Plan(stride * max(records, 1), raw_groups, n_raw,
                      _groups(value_specs, value_offsets, value_positions), n_values)
-    if len(_PLANS) >= _MAX_PLANS:
-        _PLANS.popitem(last=False)  # O(1), where deleting a plain dict's first key rescans its holes
-    _PLANS[id(layout)] = (layout, plan)
+    layout._columns = plan
     return plan
 
 

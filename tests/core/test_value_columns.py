@@ -139,15 +139,13 @@ def test_wrong_matrices_are_refused():
 
 
 def test_the_plan_is_made_once_per_layout():
-    from rs30x_sniff import value_columns as vc
-
     lay = default_registry().default.long_layout(30, 5, 18)
     m = _matrix(_width(lay), 4)
     value_columns(lay, m)
-    plan = vc._PLANS[id(lay)]
-    assert plan[0] is lay
+    plan = lay._columns
+    assert plan is not None
     value_columns(lay, m)
-    assert vc._PLANS[id(lay)] is plan
+    assert lay._columns is plan
 
 
 def _layouts():
