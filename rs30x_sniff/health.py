@@ -7,6 +7,8 @@ from collections import Counter
 from datetime import datetime, timezone
 from typing import Any, Iterable
 
+import numpy as np
+
 from .wire import RETURN_FLAG_BITS
 
 # Registers whose range a servo's returns show, and the ones the host's writes set (table 4.6).
@@ -14,9 +16,9 @@ PRESENT = ("present_position", "present_speed", "present_current", "present_temp
 WRITTEN = ("goal_position",)
 FLAG_NAMES = tuple(RETURN_FLAG_BITS.values())
 
-# Raw packets are kept per payload shape and reduced this many at a time: each register's column is
-# cut out of the joined bytes by strided slicing and read by a C-level min/max, so a return costs
-# the stats sink a list append instead of Python arithmetic per value.
+# Raw packets are kept per payload shape and reduced this many at a time: the frames become the rows
+# of a byte matrix and each register's column is read by numpy's min/max, so a return costs the stats
+# sink a list append instead of Python arithmetic per value.
 _FLUSH_ROWS = 4096
 _TYPECODES = {(1, False): "B", (1, True): "b", (2, False): "H", (2, True): "h"}
 _LITTLE = sys.byteorder == "little"
@@ -74,6 +76,36 @@ def _joined(rows: list[bytes], size: int) -> tuple[bytes, int]:
     if len(block) != size * len(rows):
         block = b"".join(r for r in rows if len(r) == size or type(r) is Frames)
     return block, size
+
+
+def _frames(raws: list[bytes], run: Any, rows: np.ndarray | None, size: int) -> np.ndarray:
+    """Frames of ``size`` bytes as rows of a matrix: the buffered ones, then ``rows`` of FrameRun ``run``
+    (if any; a frame of another size is left out, as _joined leaves it)."""
+    mat = None
+    if run is not None:
+        starts = run.starts[rows]
+        starts = starts[run.ends[rows] - starts == size]
+        mat = run.bytes_array[starts[:, None] + np.arange(size)]
+    if raws:
+        block, _ = _joined(raws, size)
+        held = np.frombuffer(block, dtype=np.uint8).reshape(-1, size)
+        mat = held if mat is None else np.concatenate((held, mat))
+    return mat if mat is not None else np.zeros((0, size), dtype=np.uint8)
+
+
+def _register_column(mat: np.ndarray, at: int, reg: Any) -> np.ndarray:
+    """A 1- or 2-byte register's raw values at byte ``at`` of every row (_column's values)."""
+    if reg.size == 1:
+        col = mat[:, at]
+        return col.view(np.int8) if reg.signed else col
+    col = mat[:, at].astype(np.uint16) | mat[:, at + 1].astype(np.uint16) << 8
+    return col.view(np.int16) if reg.signed else col
+
+
+def _take(h: Any, reg: Any, col: np.ndarray) -> None:
+    """ServoHealth.take, the column's range taken by numpy."""
+    if len(col):
+        h.take_range(reg.name, int(col.min()), int(col.max()), len(col))
 
 
 class ServoHealth:
@@ -202,6 +234,7 @@ class HealthRecorder:
 
     # ---- reducing ----------------------------------------------------------------------------
     def flush(self) -> None:
+        """Reduce every buffer (before the figures are read: the monitor asks every second)."""
         for key, b in self._ret.items():
             if b[1]:
                 self._flush_short(key, b, True)
@@ -221,37 +254,44 @@ class HealthRecorder:
             h.model = model
         return h, _where(model, PRESENT if present else WRITTEN, address, n)
 
-    def _flush_short(self, key: tuple, b: list, present: bool) -> None:
+    def _flush_short(self, key: tuple, b: list, present: bool, run: Any = None,
+                     rows: np.ndarray | None = None) -> None:
         """Returns (``present``) or short writes of one servo, address and length: raw frames whose
-        data starts at byte 7 (header, ID, flags, address, length, count)."""
-        rows, b[1] = b[1], []
+        data starts at byte 7 (header, ID, flags, address, length, count); the buffered ones, then
+        ``rows`` of FrameRun ``run`` (if any), read in place."""
+        raws, b[1] = b[1], []
         h, where = self.short_target(key, b[0], present)
         if not where:
             return
-        block, stride = _joined(rows, 8 + key[2])
-        for reg, off in where:
-            h.take(reg, _column(block, 7 + off, stride, reg))
+        mat = _frames(raws, run, rows, 8 + key[2])
+        if len(mat):
+            for reg, off in where:
+                _take(h, reg, _register_column(mat, 7 + off, reg))
 
-    def _flush_long(self, key: tuple, b: list) -> None:
-        """Long packets of one shape: each of ``count`` records is a VID and ``length - 1`` bytes."""
-        rows, b[1] = b[1], []
+    def _flush_long(self, key: tuple, b: list, run: Any = None, rows: np.ndarray | None = None) -> None:
+        """Long packets of one shape: each of ``count`` records is a VID and ``length - 1`` bytes (the
+        buffered frames, then ``rows`` of ``run``, as _flush_short)."""
+        raws, b[1] = b[1], []
         model = b[0]
         address, length, count = key
         where = _where(model, WRITTEN, address, length - 1)
         if not where or length < 2:
             return
-        block, stride = _joined(rows, 8 + length * count)
+        mat = _frames(raws, run, rows, 8 + length * count)
+        if not len(mat):
+            return
         for j in range(count):
             base = 7 + j * length
-            vids = block[base::stride]
-            lo, hi = min(vids), max(vids)
+            vids = mat[:, base]
+            one = vids.min() == vids.max()
             for reg, off in where:
-                col = _column(block, base + 1 + off, stride, reg)
-                if lo == hi:  # the usual: record j is the same servo in every packet
-                    self._written_to(lo, model).take(reg, col)
-                else:
-                    for vid, v in zip(vids, col):
-                        self._written_to(vid, model).take(reg, (v,))
+                col = _register_column(mat, base + 1 + off, reg)
+                if one:  # the usual: record j is the same servo in every packet
+                    _take(self._written_to(int(vids[0]), model), reg, col)
+                    continue
+                ids, first = np.unique(vids, return_index=True)
+                for vid in ids[np.argsort(first)].tolist():  # servos made in the order they came
+                    _take(self._written_to(vid, model), reg, col[vids == vid])
 
     def _written_to(self, sid: int, model: Any) -> ServoHealth:
         h = self.servo(sid)

@@ -16,10 +16,9 @@ from .blocks import Block
 from .bus import Record
 from .events import Ack, Garbage, LongPacket, ReturnPacket, ShortPacket
 from .frame_runs import LONG, RETURN, SHORT
-from .health import (_FLUSH_ROWS, WRITTEN, Frames, HealthRecorder, _joined, _where, servo_health, timer,
-                     what_happened)
+from .health import _FLUSH_ROWS, Frames, HealthRecorder, servo_health, timer, what_happened
 from .pipeline import Sink, Step
-from .wire import BITS_PER_BYTE, RETURN_FLAG_BITS, byte_time
+from .wire import BITS_PER_BYTE, BROADCAST_ID, RETURN_FLAG_BITS, byte_time
 
 # Latencies are counted in 1 us bins: exact enough for percentiles of a bus whose return delay
 # steps by 50 us (table 4.6 No. 7), with memory bounded by the spread, not by the capture length.
@@ -189,7 +188,7 @@ class CaptureStats(Sink):
                 op = _OPS[key] = (ev.op, ev.read_range is not None)
             self.by_op[op[0]] += 1
             sid = ev[4]
-            if sid != 0xFF:
+            if sid != BROADCAST_ID:
                 st = self.servos.get(sid) or self.servo(sid)
                 st.requests += 1
                 if st.requests == 1:  # the model it is decoded as, even if it never answers
@@ -258,7 +257,7 @@ class CaptureStats(Sink):
                 self.last_t = last
             self._load_rows(t0, ends - starts)
         is_short = kind == SHORT
-        to_servo = is_short & (sid != 0xFF)
+        to_servo = is_short & (sid != BROADCAST_ID)
         is_return = kind == RETURN
         # Long packets by shape: (rows, VID of each of their records).
         long_rows = np.flatnonzero(kind == LONG) if counts[LONG] else None
@@ -409,62 +408,20 @@ class CaptureStats(Sink):
                     b[1] += _buffered(run, grouped[i:g1], _frame_size(key_t, present))
                     break
                 # These rows fill the buffer: the record path's flush, their bytes read in place.
-                self._flush(key_t, b, run, grouped[i:i + room], present)
+                if present is None:
+                    health._flush_long(key_t, b, run, grouped[i:i + room])
+                else:
+                    health._flush_short(key_t, b, present, run, grouped[i:i + room])
                 i += room
                 if i == g1:
                     break
-
-    def _flush_health(self) -> None:
-        """HealthRecorder.flush, each buffer taken with numpy (the monitor asks for the figures every
-        second, and the buffers hold most of what came since)."""
-        health = self.health
-        for bufs, present in ((health._ret, True), (health._wr, False), (health._long, None)):
-            for key, b in bufs.items():
-                if b[1]:
-                    self._flush(key, b, None, None, present)
-
-    def _flush(self, key: tuple, b: list, run: Any, rows: np.ndarray | None, present: bool | None) -> None:
-        """HealthRecorder._flush_short (``present`` True or False) / _flush_long (None) of buffer ``b``
-        with ``rows`` of ``run`` appended, the registers' ranges taken with numpy: the same ranges,
-        counts and models."""
-        raws, b[1] = b[1], []
-        model = b[0]
-        health = self.health
-        if present is None:
-            address, length, count = key
-            where = _where(model, WRITTEN, address, length - 1)
-            if not where or length < 2:
-                return
-            mat = _frames(raws, run, rows, 8 + length * count)
-            if not len(mat):
-                return
-            for j in range(count):
-                base = 7 + j * length
-                vids = mat[:, base]
-                one = vids.min() == vids.max()
-                for reg, off in where:
-                    col = _register_column(mat, base + 1 + off, reg)
-                    if one:  # the usual: record j is the same servo in every packet
-                        _take(health._written_to(int(vids[0]), model), reg, col)
-                        continue
-                    ids, first = np.unique(vids, return_index=True)
-                    for vid in ids[np.argsort(first)].tolist():
-                        _take(health._written_to(vid, model), reg, col[vids == vid])
-            return
-        h, where = health.short_target(key, model, present)
-        if not where:
-            return
-        mat = _frames(raws, run, rows, 8 + key[2])
-        if len(mat):
-            for reg, off in where:
-                _take(h, reg, _register_column(mat, 7 + off, reg))
 
     def _flags(self, blk: Block, rows: np.ndarray) -> None:
         """Status flags of a Block's returns (rows), counted per servo and flag with the first seen."""
         cols = blk.cols
         flags, ids = cols["flag"][rows], cols["id"][rows]
         t0 = blk.t0
-        offsets = blk.run.base + blk.run.starts[blk.lo:blk.hi][rows]
+        offsets = blk.offsets[rows]
         health = self.health
         for i in np.unique(ids).tolist():
             mine = ids == i
@@ -592,7 +549,7 @@ class CaptureStats(Sink):
 
     def health_dict(self) -> dict[str, Any]:
         """Per-servo health, the busiest second and the "what happened" lines (keys of :meth:`as_dict`)."""
-        self._flush_health()
+        self.health.flush()
         when = timer(self.first_t, self.timed, byte_time(self.baud))
         hs = self.health.servos
         # The servos of the traffic table, and any whose registers were seen; not IDs only a finding
@@ -647,36 +604,6 @@ def _buffered(run: Any, rows: np.ndarray, size: int) -> list[bytes]:
         blob = run.blob
         items += [blob[s:e] for s, e in zip(starts[~fits].tolist(), ends[~fits].tolist())]
     return items
-
-
-def _frames(raws: list[bytes], run: Any, rows: np.ndarray, size: int) -> np.ndarray:
-    """Frames of ``size`` bytes as rows of a matrix: the buffered ones, then ``rows`` of ``run`` (if
-    any; a frame of another size is left out, as health._joined leaves it)."""
-    mat = None
-    if run is not None:
-        starts = run.starts[rows]
-        starts = starts[run.ends[rows] - starts == size]
-        mat = run.bytes_array[starts[:, None] + np.arange(size)]
-    if raws:
-        block, _ = _joined(raws, size)
-        held = np.frombuffer(block, dtype=np.uint8).reshape(-1, size)
-        mat = held if mat is None else np.concatenate((held, mat))
-    return mat if mat is not None else np.zeros((0, size), dtype=np.uint8)
-
-
-def _register_column(mat: np.ndarray, at: int, reg: Any) -> np.ndarray:
-    """A 1- or 2-byte register's raw values at byte ``at`` of every row (health._column's values)."""
-    if reg.size == 1:
-        col = mat[:, at]
-        return col.view(np.int8) if reg.signed else col
-    col = mat[:, at].astype(np.uint16) | mat[:, at + 1].astype(np.uint16) << 8
-    return col.view(np.int16) if reg.signed else col
-
-
-def _take(h: Any, reg: Any, col: np.ndarray) -> None:
-    """ServoHealth.take, the column's range taken by numpy."""
-    if len(col):
-        h.take_range(reg.name, int(col.min()), int(col.max()), len(col))
 
 
 def _row_record(blk: Block, k: int) -> Record:
