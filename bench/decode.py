@@ -4,13 +4,14 @@ Run: python bench/decode.py [--frames N]
 Target (issues 2, 12): the full decode reaches at least 0.5 of the bare loop's frames/s. Two paths:
 the record path (a Record per frame, as a live port is decoded) and the columnar path files take
 (Blocks, values decoded as numpy columns: rs30x_sniff.blocks), each fed as 4 KiB blocks without
-timestamps and as one timestamped chunk per frame.
+timestamps and as one timestamped chunk per frame. The columnar path runs as the commands run it:
+drive() (rs30x_sniff.pipeline.Pipeline) groups the chunks, about 64 KiB at a time (GROUP_BYTES), and
+hands each step to a sink that counts.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import gc
 import sys
 import time
@@ -23,7 +24,38 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from traffic import bench_inputs  # noqa: E402
 
 from rs30x_sniff.blocks import Block  # noqa: E402
-from rs30x_sniff.pipeline import Decoder  # noqa: E402
+from rs30x_sniff.pipeline import Decoder, Sink, drive  # noqa: E402
+
+
+class Count(Sink):
+    """Counts the records of every step handed out (a Block's rows, without making Records of them)."""
+
+    takes_blocks = True
+
+    def __init__(self) -> None:
+        self.n = 0
+
+    def batch(self, step) -> None:
+        self.n += step.count
+
+
+class _Fields(Sink):
+    """Counts the records and the decoded field values of every step (a Block's on its columns)."""
+
+    takes_blocks = True
+
+    def __init__(self) -> None:
+        self.records = 0
+        self.fields = 0
+
+    def batch(self, step) -> None:
+        for item in step:
+            if type(item) is Block:
+                self.records += len(item)
+                self.fields += sum(len(rows) * len(cols) for rows, _, cols in item.value_columns())
+            else:
+                self.records += 1
+                self.fields += len(item.values)
 
 
 def bare_loop(data: bytes) -> int:
@@ -66,29 +98,12 @@ def full_decode(chunks: list[tuple[bytes, float]]) -> tuple[int, int]:
     return records, fields
 
 
-GROUP = 16  # chunks per Decoder.feed_many: 64 KiB of 4 KiB blocks, as Pipeline groups a file's chunks
-
-
-def _steps(dec: Decoder, chunks: list, group: int):
-    for k in range(0, len(chunks), group):
-        yield dec.feed_many(chunks[k:k + group])
-    yield dec.close()
-
-
-def columnar_decode(chunks: list[tuple[bytes, float]], group: int) -> tuple[int, int]:
-    """The columnar path: frame, pair and decode every field's value (as numpy columns for Blocks)."""
-    dec = Decoder(columnar=True)
-    records = 0
-    fields = 0
-    for step in _steps(dec, chunks, group):
-        for item in step:
-            if type(item) is Block:
-                records += len(item)
-                fields += sum(len(rows) * len(cols) for rows, _, cols in item.value_columns())
-            else:
-                records += 1
-                fields += len(item.values)
-    return records, fields
+def columnar_decode(chunks: list[tuple[bytes, float]]) -> tuple[int, int]:
+    """The columnar path, driven as a command drives a file: frame, pair and decode every field's value
+    (as numpy columns for Blocks)."""
+    count = _Fields()
+    drive(chunks, Decoder(columnar=True), count)
+    return count.records, count.fields
 
 
 def best_of(fn, arg, repeat: int) -> tuple[float, object]:
@@ -111,9 +126,8 @@ def main() -> None:
     t_bare, n_bare = best_of(bare_loop, data, args.repeat)
     t_full, (n_full, n_fields) = best_of(full_decode, blocks, args.repeat)
     t_timed, (n_timed, _) = best_of(full_decode, chunks, args.repeat)
-    t_col, (n_col, n_col_fields) = best_of(functools.partial(columnar_decode, group=GROUP), blocks, args.repeat)
-    t_col_timed, (n_col_timed, _) = best_of(functools.partial(columnar_decode, group=GROUP * 120), chunks,
-                                            args.repeat)
+    t_col, (n_col, n_col_fields) = best_of(columnar_decode, blocks, args.repeat)
+    t_col_timed, (n_col_timed, _) = best_of(columnar_decode, chunks, args.repeat)
     assert n_bare == args.frames, (n_bare, args.frames)
     assert n_full == n_timed == n_col == n_col_timed == args.frames, (n_full, n_timed, n_col, n_col_timed)
     assert n_col_fields == n_fields, (n_col_fields, n_fields)

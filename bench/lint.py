@@ -3,7 +3,9 @@
 Run: python bench/lint.py [--frames N] [--repeat R]
 Target (issues 3, 12): linting reaches at least 0.5 of the bare loop's frames/s. Both paths are
 measured: the record path (a live port) and the columnar path (a file: `rs30x-sniff lint`), where a
-Block no rule speaks about is linted on its columns (rs30x_sniff.lint.batch).
+Block no rule speaks about is linted on its columns (rs30x_sniff.lint.batch). The columnar path runs
+as the command runs it: drive() groups the chunks (about 64 KiB at a time) and hands each step to a
+sink that counts its records.
 """
 
 from __future__ import annotations
@@ -15,17 +17,17 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from decode import bare_loop, best_of  # noqa: E402
+from decode import Count, bare_loop, best_of  # noqa: E402
 from traffic import bench_inputs  # noqa: E402
 
 from rs30x_sniff.lint import LintConfig, Linter  # noqa: E402
-from rs30x_sniff.pipeline import GROUP_BYTES, Decoder  # noqa: E402
+from rs30x_sniff.pipeline import Decoder, drive  # noqa: E402
 
 
 def decode_only(chunks, columnar: bool = False) -> int:
     dec = Decoder(columnar=columnar)
     if columnar:
-        return _grouped(dec, chunks)
+        return _driven(dec, chunks)
     n = 0
     for data, t in chunks:
         n += len(dec.feed(data, t))
@@ -36,7 +38,7 @@ def decode_lint(chunks, columnar: bool = False) -> tuple[int, int]:
     linter = Linter(LintConfig())  # every rule
     dec = Decoder(None, linter, columnar=columnar)
     if columnar:
-        return _grouped(dec, chunks), len(linter.findings)
+        return _driven(dec, chunks), len(linter.findings)
     n = 0
     for data, t in chunks:
         n += len(dec.feed(data, t))
@@ -44,19 +46,11 @@ def decode_lint(chunks, columnar: bool = False) -> tuple[int, int]:
     return n, len(linter.findings)
 
 
-def _grouped(dec, chunks) -> int:
-    """As Pipeline feeds a file to a columnar decoder: about 64 KiB of chunks at a time."""
-    n = size = 0
-    group = []
-    for chunk in chunks:
-        group.append(chunk)
-        size += len(chunk[0])
-        if size >= GROUP_BYTES:
-            n += dec.feed_many(group).count
-            group, size = [], 0
-    if group:
-        n += dec.feed_many(group).count
-    return n + dec.close().count
+def _driven(dec, chunks) -> int:
+    """The records of ``chunks`` through a columnar decoder, driven as `rs30x-sniff lint` drives a file."""
+    count = Count()
+    drive(chunks, dec, count)
+    return count.n
 
 
 def main() -> None:

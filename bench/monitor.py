@@ -21,28 +21,19 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from decode import Count  # noqa: E402
 from traffic import hexapod_frames  # noqa: E402
 
 from rs30x_sniff.io.captures import read_capture, write_capture  # noqa: E402
 from rs30x_sniff.lint import Linter  # noqa: E402
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, Sink, drive  # noqa: E402
+from rs30x_sniff.pipeline import DecodeOptions, Decoder, drive  # noqa: E402
 from rs30x_sniff.tui.app import make_app  # noqa: E402
 from rs30x_sniff.tui.sources import FileSource  # noqa: E402
 
 
-class _Count(Sink):
-    takes_blocks = True
-
-    def __init__(self) -> None:
-        self.n = 0
-
-    def batch(self, step) -> None:
-        self.n += step.count
-
-
 def decode_and_lint(path: str) -> int:
     """What `rs30x-sniff lint` does with a file: its chunks through a columnar decoder and the linter."""
-    count = _Count()
+    count = Count()
     drive(read_capture(path), Decoder(None, Linter(), columnar=True), count)
     return count.n
 
@@ -74,9 +65,10 @@ def rss_mb() -> float:
 
 
 def open_alone(path: str, limit: float, pilot_polls: bool) -> dict:
-    """The monitor in a process of its own, so its peak RSS is its own (not the capture's making)."""
+    """The monitor in a process of its own, so its peak RSS is its own (not the capture's making); its
+    stderr goes through, so a failure shows the child's traceback."""
     out = subprocess.run([sys.executable, __file__, "--open", path, "--limit", str(limit)]
-                         + (["--pilot-polls"] if pilot_polls else []), capture_output=True, text=True, check=True)
+                         + (["--pilot-polls"] if pilot_polls else []), stdout=subprocess.PIPE, text=True, check=True)
     return json.loads(out.stdout.splitlines()[-1])
 
 
