@@ -62,6 +62,15 @@ class Register:
             return self.name
         return f"reserved_{self.address}" if self.reserved else f"addr_{self.address}"
 
+    @property
+    def divisor(self) -> int | None:
+        """``round(1 / scale)`` when the scale is an exact decimal step (0.1, 0.01): values are then
+        ``raw / divisor`` (900 / 10, not 900 * 0.1); None for any other scale, 1 included."""
+        scale = self.scale
+        if scale < 1 and abs(1 / scale - round(1 / scale)) < 1e-9:
+            return round(1 / scale)
+        return None
+
     def raw_int(self, raw: bytes) -> int:
         return int.from_bytes(raw, "little", signed=self.signed and len(raw) == self.size)
 
@@ -74,8 +83,8 @@ class Register:
         scale = self.scale
         if scale == 1:
             value = raw_value
-        elif scale < 1 and abs(1 / scale - round(1 / scale)) < 1e-9:
-            value = raw_value / round(1 / scale)  # exact decimal: 900 / 10, not 900 * 0.1
+        elif (divisor := self.divisor) is not None:
+            value = raw_value / divisor
         else:
             value = raw_value * scale
         return value + self.offset if self.offset else value
@@ -443,8 +452,8 @@ def _conversion(reg: Register, partial: str | None, ref: str, env: dict, j: int)
     scale, offset = reg.scale, reg.offset
     if scale == 1:
         expr = ref
-    elif scale < 1 and abs(1 / scale - round(1 / scale)) < 1e-9:
-        expr = f"{ref} / {round(1 / scale)}"
+    elif (divisor := reg.divisor) is not None:
+        expr = f"{ref} / {divisor}"
     else:
         expr = f"{ref} * {scale!r}"
     return f"({offset!r} + {expr})" if offset else expr

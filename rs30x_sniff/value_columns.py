@@ -65,18 +65,16 @@ def _conversion(reg: Register, signed: bool) -> tuple:
     operation on the same operand types, so float64 results are bit-identical to Python's (int / int
     and int * float round once, as numpy's true_divide and multiply of float64 do)."""
     if reg.enum is not None:
-        conv = ("lut", _lut(reg.enum, True, reg.size, signed), 0)
-    elif reg.table is not None:
-        conv = ("lut", _lut(reg.table, False, reg.size, signed), 0)
-    else:
-        scale, off = reg.scale, reg.offset
-        if scale == 1:
-            conv = ("add", None, off) if off else _RAW
-        elif scale < 1 and abs(1 / scale - round(1 / scale)) < 1e-9:
-            conv = ("div", round(1 / scale), off)
-        else:
-            conv = ("mul", scale, off)
-    return conv
+        return ("lut", _lut(reg.enum, True, reg.size, signed), 0)
+    if reg.table is not None:
+        return ("lut", _lut(reg.table, False, reg.size, signed), 0)
+    scale, off = reg.scale, reg.offset
+    if scale == 1:
+        return ("add", None, off) if off else _RAW
+    divisor = reg.divisor
+    if divisor is not None:
+        return ("div", divisor, off)
+    return ("mul", scale, off)
 
 
 def _plan(layout: Layout) -> _Plan:
