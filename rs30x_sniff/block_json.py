@@ -8,14 +8,11 @@ with a ``%s`` where those go, and every row fills its template.
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 from .frame_runs import LONG
-from .render import _NO_FIELDS, record_json, record_json_text
+from .render import _COMPACT, _NO_FIELDS, _SPACED, record_json, record_json_text
 
-_SPACED = json.JSONEncoder(check_circular=False).encode
-_COMPACT = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 # What varies between rows of one shape (besides the fields).
 _SLOTS = ("offset", "t", "t_end", "raw", "reply_to", "reply", "latency_s")
 _TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any, Any]] = {}  # key -> (format, slots, layout, model)
@@ -89,8 +86,9 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
                     vals.append("")
                 else:
                     data = raw[7:-1]
-                    vals.append(layout.fields_json(data, layout.values(data), 0 if kind == LONG else raw[2],
-                                                   only, compact))
+                    # fields_json reads the values only to pick fields by ID (``only``)
+                    vals.append(layout.fields_json(data, () if only is None else layout.values(data),
+                                                   0 if kind == LONG else raw[2], only, compact))
         out.append(fmt % tuple(vals) + end)
     return out
 
@@ -120,14 +118,8 @@ def _template(blk: Any, k: int, key: tuple, only: set[int] | None, compact: bool
     empty = _NO_FIELDS[compact]
     text, slots = json_template(record_json(rec, only, fields=False), _SLOTS, _COMPACT if compact else _SPACED,
                                 strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
-    layout = None
-    ev = rec.event
-    if ev.kind == "long":
-        if ev.length and ev.records:
-            layout = rec.model.long_layout(ev.address, ev.length, ev.count)
-    elif ev[9]:
-        layout = rec.model.layout(ev.address, len(ev[9]))
-    tpl = (text, slots, layout, rec.model)
+    # The Block's servos share a model here (block_json_rows), so this is one Layout (or None).
+    tpl = (text, slots, rec._layout()[0], rec.model)
     if len(_TEMPLATES) >= _MAX_TEMPLATES:
         _TEMPLATES.clear()
     _TEMPLATES[key] = tpl
