@@ -8,7 +8,7 @@ from typing import Any, Callable, Iterable
 from .blocks import Block, _pair
 from .bus import Record
 from .frame_runs import RETURN
-from .memmap import Field, Register, _conversion
+from .memmap import Field, Register, _ByRaw, _converter
 from .render import _shown, bad_sum, direction, field_text, kind_word, text_line, verbose_lines
 from .wire import COMMAND_ADDRESS
 
@@ -35,39 +35,33 @@ class _Shape:
 _SHAPES: OrderedDict[tuple, _Shape] = OrderedDict()
 
 
-class _Texts(dict):
+def _field_text(reg: Register, partial: str | None, sep: str) -> Callable[[int], str]:
     """raw value -> the text a field of this value adds to a line (``sep`` + ``label=value``, or "" when
-    render._shown hides it), made on first use by render's own field_text from a Field of that value.
+    render._shown hides it), by render's own field_text from a Field of that value.
 
-    The value is what Layout.values computes (the same generated expression, memmap._conversion), and
+    The value is what Layout.values computes (the same generated expression, memmap._converter), and
     format_value reads nothing of a Field but its register, partial, raw value and value: so the text
     is the one the record path writes."""
+    convert = _converter(reg, partial)
+    address = reg.address if not partial else reg.address + (partial == "high")
 
-    __slots__ = ("reg", "partial", "sep", "convert", "address")
+    def text(x: int) -> str:
+        f = Field(None, address, reg, b"", x, convert(x), partial)
+        return sep + field_text(f) if _shown(f) else ""
 
-    def __init__(self, reg: Register, partial: str | None, sep: str) -> None:
-        super().__init__()
-        self.reg, self.partial, self.sep = reg, partial, sep
-        env: dict[str, Any] = {}
-        self.convert = eval(f"lambda x: {_conversion(reg, partial, 'x', env, 0)}", env)  # noqa: S307 - from the validated map
-        self.address = reg.address if not partial else reg.address + (partial == "high")
-
-    def __missing__(self, x: int) -> str:
-        f = Field(None, self.address, self.reg, b"", x, self.convert(x), self.partial)
-        text = self.sep + field_text(f) if _shown(f) else ""
-        if len(self) < MAX_TEXTS:  # noise in a 2-byte field could fill 65536 of them: keep the first ones
-            self[x] = text
-        return text
+    return text
 
 
-_TEXTS: OrderedDict[tuple, _Texts] = OrderedDict()
+_TEXTS: OrderedDict[tuple, _ByRaw] = OrderedDict()
 
 
-def _texts(reg: Register, partial: str | None, sep: str) -> _Texts:
+def _texts(reg: Register, partial: str | None, sep: str) -> _ByRaw:
+    """A field's texts by raw value (_field_text), made on first use; noise in a 2-byte field could
+    fill 65536 of them: the first MAX_TEXTS are kept."""
     key = (id(reg), partial, sep)
     memo = _TEXTS.get(key)
-    if memo is None or memo.reg is not reg:  # an id reused by a new register: make it again
-        memo = _TEXTS[key] = _Texts(reg, partial, sep)
+    if memo is None or memo.register is not reg:  # an id reused by a new register: make it again
+        memo = _TEXTS[key] = _ByRaw(_field_text(reg, partial, sep), reg, MAX_TEXTS)
         if len(_TEXTS) > MAX_SHAPES:
             _TEXTS.popitem(last=False)
     return memo
@@ -186,7 +180,7 @@ def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: froz
     raw, fn = _compile(sample, only, timed)
     if fn is not None:
         # The template against the record path on its first row: what depends on the data comes from
-        # render's own functions (_Texts), the rest is checked here once; a mismatch (a case this
+        # render's own functions (_field_text), the rest is checked here once; a mismatch (a case this
         # module does not know) sends the shape's rows through Records instead.
         ev = sample.event
         data = ev[1][7:-1]

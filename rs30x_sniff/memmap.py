@@ -365,33 +365,44 @@ class Layout:
         return sep.join(out)
 
 
-class _TextByRaw(dict):
-    """A part's JSON value text by raw value, made on first sight (a register has at most 65,536)."""
+class _ByRaw(dict):
+    """Something made from a part's raw value by ``make`` on first sight and kept (the first ``limit``
+    of them, when given: a 2-byte register has 65,536 raw values). ``register`` is kept alive: the
+    caches of these go by its id."""
 
-    __slots__ = ("make", "register")
+    __slots__ = ("make", "register", "limit")
 
-    def __init__(self, make: Any, register: Register) -> None:
+    def __init__(self, make: Any, register: Register, limit: int | None = None) -> None:
         super().__init__()
         self.make = make
-        self.register = register  # kept alive: the cache below is keyed by its id
+        self.register = register
+        self.limit = limit
 
-    def __missing__(self, raw: int) -> str:
-        text = self[raw] = self.make(raw)
-        return text
+    def __missing__(self, raw: int) -> Any:
+        made = self.make(raw)
+        if self.limit is None or len(self) < self.limit:
+            self[raw] = made
+        return made
 
 
-_VALUE_TEXT: dict[tuple[int, str | None], _TextByRaw] = {}
+def _converter(reg: Register, partial: str | None, wrap: str = "{}", env: dict | None = None) -> Any:
+    """``lambda x:`` the part's engineering value of raw value ``x`` (_conversion, the expression
+    Layout.values computes), put in ``wrap`` at ``{}``; ``env``: names ``wrap`` uses."""
+    env = {} if env is None else env
+    return eval(f"lambda x: {wrap.format(_conversion(reg, partial, 'x', env, 0))}", env)  # noqa: S307 - from the validated map
 
 
-def _value_text(reg: Register, partial: str | None) -> _TextByRaw:
+_VALUE_TEXT: dict[tuple[int, str | None], _ByRaw] = {}
+
+
+def _value_text(reg: Register, partial: str | None) -> _ByRaw:
     """The JSON text of a part's engineering value, by raw value: the register's conversion
     (_conversion) and then the JSON of its kind (_JSON_OF), as fields_json wrote them per value."""
     key = (id(reg), partial)
     table = _VALUE_TEXT.get(key)
     if table is None or table.register is not reg:
-        env: dict[str, Any] = {"J": _json_scalar}
-        text = _JSON_OF[_value_kind(reg, partial)].format(_conversion(reg, partial, "x", env, 0))
-        table = _VALUE_TEXT[key] = _TextByRaw(eval(f"lambda x: {text}", env), reg)  # noqa: S307 - as above
+        table = _VALUE_TEXT[key] = _ByRaw(
+            _converter(reg, partial, _JSON_OF[_value_kind(reg, partial)], {"J": _json_scalar}), reg)
     return table
 
 
