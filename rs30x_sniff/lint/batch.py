@@ -79,7 +79,8 @@ def quiet_block(lint: Any, blk: Any) -> bool:
         return False  # a model number to judge
     if "F009" in codes:
         tally = lint.state_of("F009")
-        if (tally.senders is False and decide_senders(tally, lint) is not None) or tally.senders is not None:
+        senders = decide_senders(tally, lint) if tally.senders is False else tally.senders
+        if senders is not None:
             return False  # the capture says who sent what: each packet is checked against it
     prev = lint.prev
     if prev is not None and prev.event.kind == "garbage" and prev.event[4] == "truncated" \
@@ -136,7 +137,7 @@ def quiet_block(lint: Any, blk: Any) -> bool:
 
 def _headers_quiet(lint: Any, blk: Any, run: list, vid_groups: list) -> bool:
     """Every HEADER rule silent on every distinct header of the block (each checked once, remembered)."""
-    memo = lint.__dict__.setdefault("_header_memo", {})
+    memo = lint._header_memo
     c = blk.cols
     kind = c["kind"]
     # The header packed in one int64 (kind 2 bits, five header bytes, data length 14 bits).
@@ -300,20 +301,26 @@ def _last_per_servo(sets) -> dict[int, int]:
     return dict(zip(ids[last].tolist(), vals[last].tolist()))
 
 
-def _before(sets, lint, attr: str, order: np.ndarray, ids: np.ndarray) -> np.ndarray:
-    """For each (order, servo): the shadow's ``attr`` just before that point (_NONE while unknown)."""
+def _before(sets, lint, attr: str):
+    """A function of (order, servo ids): for each, the shadow's ``attr`` just before that point (_NONE
+    while unknown). The sets are sorted once, for every lookup."""
     s_order, s_ids, s_vals = _concat(sets)
-    out = _shadow_column(lint, attr)[ids]
+    column = _shadow_column(lint, attr)
     if not len(s_order):
-        return out
+        return lambda order, ids: column[ids]
     key = s_ids << 32 | s_order
     k = np.argsort(key)
     key, s_vals = key[k], s_vals[k]
-    at = np.searchsorted(key, ids << 32 | order, side="left") - 1
-    ok = at >= 0
-    ok[ok] = (key[at[ok]] >> 32) == ids[ok]
-    out[ok] = s_vals[at[ok]]
-    return out
+
+    def before(order: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        out = column[ids]
+        at = np.searchsorted(key, ids << 32 | order, side="left") - 1
+        ok = at >= 0
+        ok[ok] = (key[at[ok]] >> 32) == ids[ok]
+        out[ok] = s_vals[at[ok]]
+        return out
+
+    return before
 
 
 def _shadow_column(lint, attr: str) -> np.ndarray:
@@ -333,6 +340,7 @@ def _values_quiet(lint, blk, codes, targets, pos_sets, goal_time_sets, timed) ->
     said = lint.state_of("Q004") if "Q004" in codes else None
     if "Q006" in codes:
         cw, ccw, rev = _shadow_column(lint, "cw"), _shadow_column(lint, "ccw"), _shadow_column(lint, "reverse")
+    pos_before = goal_time_before = None  # made on first use (_before)
     for plan, rows, subs, ids, at in targets:
         if "M003" in codes:
             for j, _, lo, hi in plan.ranged:
@@ -354,13 +362,17 @@ def _values_quiet(lint, blk, codes, targets, pos_sets, goal_time_sets, timed) ->
             if (over | under).any():
                 return False
         if "Q007" in codes:
-            order = rows.astype(np.int64) * 512 + subs * 0  # checked before the row's writes apply
-            pos = _before(pos_sets, lint, "pos", order, ids)
+            order = rows.astype(np.int64) * 512  # checked before the row's writes apply (its sub-order 0)
+            if pos_before is None:
+                pos_before = _before(pos_sets, lint, "pos")
+            pos = pos_before(order, ids)
             j = plan.index.get("goal_time")
             if j is not None:
                 gt = _parts(a, at, plan, j)
             else:
-                gt = _before(goal_time_sets, lint, "goal_time", order, ids)
+                if goal_time_before is None:
+                    goal_time_before = _before(goal_time_sets, lint, "goal_time")
+                gt = goal_time_before(order, ids)
                 gt = np.where(gt == _NONE, 0, gt)
             known = (pos != _NONE) & (gt != 0)
             dist = np.abs(goal - pos)

@@ -43,6 +43,7 @@ class Linter:
         self._states = {r.code: r.state() for r in self.rules if r.state is not None}
         self._counting = True
         self._vid_sets: set[bytes] = set()
+        self._header_memo: dict[tuple, bool] = {}  # batch: header rules' verdict per distinct header
 
     # ---- setup -------------------------------------------------------------------------------
     def _setup(self, timed: bool) -> None:
