@@ -250,7 +250,7 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
     mention_sub = [np.zeros(len(rows_sr), dtype=np.int64)]
     vid_groups = []  # (rows, VID matrix, record length) per (length, count) of long packets
     if long_rows.size:
-        keys = length[long_rows].astype(np.int64) * 256 + count[long_rows]
+        keys = length[long_rows] * 256 + count[long_rows]
         for key in np.unique(keys).tolist():
             rows = long_rows[keys == key]
             ln, cnt = key // 256, key % 256
@@ -262,16 +262,10 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
     m_rows = np.concatenate(mention_rows)
     m_ids = np.concatenate(mention_ids)
     m_sub = np.concatenate(mention_sub)
-    ids = np.unique(m_ids).tolist()
-    new = [i for i in ids if i not in servos]
-    if new:
-        first = {}
-        order = np.lexsort((m_sub, m_rows))
-        for i in m_ids[order].tolist():
-            if i not in first and i not in servos:
-                first[i] = None
-        for i in first:
-            tracker.servo(i)
+    if any(i not in servos for i in np.unique(m_ids).tolist()):
+        for i in m_ids[np.lexsort((m_sub, m_rows))].tolist():
+            if i not in servos:
+                tracker.servo(i)  # adds it to servos: created once, at its first mention
     # Models: a short packet's record has its servo's model, a return's the model of its ServoState
     # (the same, as no model is learned here); a long packet's, the default.
     models = {i: servos[i].model if i in servos else tracker.model_of(i) for i in set(sid[is_short | is_return].tolist())}
@@ -297,7 +291,7 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
     stores: dict[int, list[tuple[int, int, int, int]]] = {}  # servo -> (row, byte index in blob, address, n)
     store_rows = np.flatnonzero((is_short & (dlen > 0)) | is_return)
     if store_rows.size:
-        keys = address[store_rows].astype(np.int64) * 4096 + dlen[store_rows]
+        keys = address[store_rows] * 4096 + dlen[store_rows]
         for key in np.unique(keys).tolist():
             rows = store_rows[keys == key]
             last = np.full(256, -1, dtype=np.int64)
@@ -328,10 +322,9 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
             image[ad:ad + nb] = blob[at:at + nb]
             known |= ((1 << nb) - 1) << ad
         st.known = known
-    # last_t: the time of each servo's last store (a return stores even with no data; so does any write).
-    for i, items in stores.items():
-        r = max(it[0] for it in items)
-        servos[i].last_t = None if t0 is None else float(t0[r])
+        # last_t: the time of its last store, the last row of the sorted items (a return stores even
+        # with no data; so does any write).
+        st.last_t = None if t0 is None else float(t0[items[-1][0]])
     tracker._index += n
     # The latest answered request, unless a request came after it (a later reply would be EXTRA to it).
     req_rows = np.flatnonzero(is_short | is_long)
