@@ -134,16 +134,20 @@ class Decoder:
                 track(ev, out)
         return out
 
+    def _lint(self, out: Step) -> None:
+        """Every item of ``out`` to the linter, in order: a Record by feed, a Block by feed_block."""
+        linter = self.linter
+        lint = linter.feed
+        for rec in out:
+            if type(rec) is Block:
+                linter.feed_block(rec)
+            else:
+                lint(rec)
+
     def _decided(self, events: list) -> Step:
         out = self._track(events, Step())
-        linter = self.linter
-        if linter is not None and out:
-            lint = linter.feed
-            for rec in out:
-                if type(rec) is Block:
-                    linter.feed_block(rec)
-                else:
-                    lint(rec)
+        if self.linter is not None and out:
+            self._lint(out)
             out.findings = self._new_findings()
         return out
 
@@ -152,11 +156,7 @@ class Decoder:
         out = self._track(self.frames.close(), Step())
         out += self.bus.close()
         if self.linter is not None:
-            for rec in out:
-                if type(rec) is Block:
-                    self.linter.feed_block(rec)
-                else:
-                    self.linter.feed(rec)
+            self._lint(out)
             self.linter.time_faults = self.frames.time_faults  # the capture's clock, for F005/F006
             out.late = self.late_findings = self.linter.close()
             out.findings = self._new_findings()
