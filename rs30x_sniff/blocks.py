@@ -174,9 +174,9 @@ def _pair(req: Record, rep: Record) -> None:
     rep.latency = reply_latency(req.event, rep.event)
 
 
-def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> None:
+def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     """Append what ``run`` gives to ``out``: Blocks for its clean stretches, Records (through the
-    tracker, one by one) for the rest, in wire order."""
+    tracker, one by one) for the rest, in wire order. True when some Block was appended."""
     h = run.header()
     n = len(run)
     kind, sid, flag, dlen = h["kind"], h["id"], h["flag"], h["data_len"]
@@ -212,6 +212,7 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> None:
     answered_return[1:] = ok_pair[:-1]
     fast = np.where(wants, ok_pair, np.where(is_return, answered_return, ~slow))
     brk = np.flatnonzero(~fast)  # rows the tracker takes: each clean stretch ends at the next one
+    blocks = False
     pos = 0
     feed = tracker._feed
     while pos < n:
@@ -227,7 +228,9 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> None:
                 feed(ev, out)
         else:
             out.append(_block(tracker, run, pos, hi, ok_pair[pos:hi]))
+            blocks = True
         pos = hi
+    return blocks
 
 
 def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.ndarray) -> Block:

@@ -128,8 +128,7 @@ class Decoder:
         track = bus._feed
         for ev in events:
             if type(ev) is FrameRun:
-                feed_run(bus, ev, out)
-                out.blocks = True
+                out.blocks |= feed_run(bus, ev, out)  # True only when it made a Block
             else:
                 track(ev, out)
         return out
