@@ -64,7 +64,6 @@ class _Collect(Sink):
         self.records: list[Record | Block] = []
         self.findings: list = []
         self.count = 0  # rows collected (a Block counts its rows)
-        self.steps = 0  # steps taken so far
         self.bytes_in = bytes_in
         self.on_step = on_step
         self.set_stats(stats)
@@ -77,7 +76,6 @@ class _Collect(Sink):
     def batch(self, step: Step) -> None:
         self.records += step
         self.count += step.count
-        self.steps += 1
         if step.findings:
             self.findings += step.findings
         self.stats.batch(step)
@@ -88,11 +86,11 @@ class _Collect(Sink):
         self.stats.bytes_in = self.bytes_in() - self._base
         self.stats.close()
 
-    def take(self, limit: int | None = None) -> tuple[list[Record | Block], list, int]:
-        """(items, findings, rows) collected so far, or only the first ``limit`` rows of them (a Block
+    def take(self, limit: int | None = None) -> tuple[list[Record | Block], list]:
+        """(items, findings) collected so far, or only the first ``limit`` rows of the items (a Block
         across that line is split; the rest stays, and so do the findings)."""
         if limit is None or self.count <= limit:
-            out = self.records, self.findings, self.count
+            out = self.records, self.findings
             self.records, self.findings, self.count = [], [], 0
             return out
         items, rows = [], 0
@@ -114,7 +112,7 @@ class _Collect(Sink):
             i += 1
         del rest[:i]
         self.count -= rows
-        return items, [], rows
+        return items, []
 
 
 def split_block(blk: Block, k: int) -> tuple[list, Block | list]:
@@ -232,14 +230,11 @@ class Feeder:
     def _chunks(self) -> Iterator[tuple[bytes, float | None]]:
         """A live source's chunks, with the screen's commands applied and batches posted between them."""
         self._last_post = self.clock()
-        warnings = getattr(self.source, "warnings", None)
         for chunk in self.source.chunks(self.stop_event):
             if self._commands_waiting:
                 self._apply_commands()
             yield chunk
-            if warnings:
-                self._note = "; ".join(warnings)  # shown on the screen, not printed behind it
-                warnings.clear()
+            self._take_warnings()
             self._maybe_post(self.interval)
             if self.stop_event.is_set():
                 return
@@ -259,13 +254,18 @@ class Feeder:
         The source itself stops when told (Source.chunks)."""
         if self._commands_waiting:
             self._apply_commands()
+        self._take_warnings()
+        # The first batch comes as from a live source, so the screen fills at once; then the screen is
+        # told less often: each redraw holds the GIL the decoding thread needs.
+        self._maybe_post(self.interval if not self._posts else max(self.interval, LOAD_INTERVAL))
+
+    def _take_warnings(self) -> None:
+        """What the reader worked around so far (its ``warnings``), as the note for the screen: shown
+        there, not printed behind it; each once."""
         warnings = getattr(self.source, "warnings", None)
         if warnings:
             self._note = "; ".join(warnings)
             warnings.clear()
-        # The first batch comes as from a live source, so the screen fills at once; then the screen is
-        # told less often: each redraw holds the GIL the decoding thread needs.
-        self._maybe_post(self.interval if not self._posts else max(self.interval, LOAD_INTERVAL))
 
     def _maybe_post(self, interval: float) -> None:
         # Posted when the interval is up, or sooner when the screen would have many objects to take
@@ -296,10 +296,7 @@ class Feeder:
                 self.source.close()
             except Exception as e:  # noqa: BLE001 - closing must not cost the last batch
                 error = error or f"closing the source: {type(e).__name__}: {e}"
-        warnings = getattr(self.source, "warnings", None)
-        if warnings:
-            self._note = "; ".join(warnings)
-            warnings.clear()
+        self._take_warnings()
         self._apply_commands()
         self._close_sink()
         self.finished = True
@@ -312,7 +309,7 @@ class Feeder:
         collect = self._collect
         while True:
             more = collect.count > self.max_batch
-            records, findings, _ = collect.take(self.max_batch if more else None)
+            records, findings = collect.take(self.max_batch if more else None)
             self._post_one(records, findings, done and not more, None if more else error, more)
             if not more:
                 return
