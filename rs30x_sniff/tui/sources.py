@@ -80,9 +80,6 @@ class FileSource:
         self._it = read_input(path, fmt, baud=baud, time_ref=time_ref, warn=self.warnings.append, options=options)
         self._first = next(self._it, None)  # reads the head now, so a bad file fails before the screen starts
 
-    def _all(self) -> Iterator[Chunk]:
-        return _rest(self)
-
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
         # Per chunk on files of millions of lines: the reader's own iterator, and ``stop`` looked at
         # every few dozen chunks (microseconds apart as a file is read).
