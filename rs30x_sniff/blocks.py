@@ -124,17 +124,33 @@ class Block:
     def records(self) -> list[Record]:
         """The rows as the Records the tracker would have made (built once, then kept)."""
         recs = self._records
-        if isinstance(recs, list):
-            return recs
-        events = self.run.events(self.lo, self.hi)
-        kinds = self.cols["kind"].tolist()
-        made = recs or {}
-        recs = [made.get(k) or self._record(ev, kind, k) for k, (ev, kind) in enumerate(zip(events, kinds))]
-        for k in np.flatnonzero(self.answered).tolist():
-            if k not in made:
-                _pair(recs[k], recs[k + 1])
-        self._records = recs
+        if not isinstance(recs, list):
+            recs = self._records = self.rows(0, len(self))
         return recs
+
+    def rows(self, a: int, b: int) -> list[Record]:
+        """Rows ``a``..``b`` as Records, paired as the tracker pairs them, built for the moment: the
+        Block does not keep them (:meth:`record` and :meth:`records` do). The Records it already keeps
+        are used as they are (a finding may be on one), so a row is never two different objects at once."""
+        made = self._records
+        if isinstance(made, list):
+            return made[a:b]
+        answered = self.answered
+        a0 = a - 1 if a > 0 and answered[a - 1] else a        # a reply is made with its request
+        b0 = b + 1 if b < len(self) and answered[b - 1] else b  # and a request with its reply
+        events = self.run.events(self.lo + a0, self.lo + b0)
+        kinds = self.cols["kind"][a0:b0].tolist()
+        make = self._record
+        if made:
+            get = made.get
+            recs = [get(k) or make(ev, kind, k) for k, ev, kind in zip(range(a0, b0), events, kinds)]
+        else:
+            recs = [make(ev, kind, k) for k, ev, kind in zip(range(a0, b0), events, kinds)]
+        n = len(recs)
+        for k in np.flatnonzero(answered[a0:b0]).tolist():
+            if k + 1 < n and not (made and (a0 + k) in made):  # kept ones are paired already
+                _pair(recs[k], recs[k + 1])
+        return recs[a - a0:b - a0]
 
     def record(self, k: int) -> Record:
         """Row ``k`` alone as its Record (with its reply, if it is an answered request); kept, so

@@ -11,7 +11,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from ..blocks import Block, _pair
+from ..blocks import Block
 from ..bus import BusTracker, Record
 from ..events import LongPacket, ReturnPacket, ShortPacket
 from ..frame_runs import LONG, RETURN, SHORT, FrameRun
@@ -147,31 +147,6 @@ def built_nbytes(blk: Block) -> int:
         return 0
     recs = made if isinstance(made, list) else made.values()
     return sum(record_size(r) for r in recs) + sys.getsizeof(made)
-
-
-def block_rows(blk: Block, a: int, b: int) -> list[Record]:
-    """Rows ``a``..``b`` of a Block as Records, paired as the tracker pairs them, built for the moment:
-    the Block does not keep them (:meth:`Block.record` does). The Records it already keeps are used
-    as they are (a finding may be on one), so a row is never two different objects at once."""
-    made = blk._records
-    if isinstance(made, list):
-        return made[a:b]
-    answered = blk.answered
-    a0 = a - 1 if a > 0 and answered[a - 1] else a        # a reply is made with its request
-    b0 = b + 1 if b < len(blk) and answered[b - 1] else b  # and a request with its reply
-    events = blk.run.events(blk.lo + a0, blk.lo + b0)
-    kinds = blk.cols["kind"][a0:b0].tolist()
-    make = blk._record
-    if made:
-        get = made.get
-        recs = [get(k) or make(ev, kind, k) for k, ev, kind in zip(range(a0, b0), events, kinds)]
-    else:
-        recs = [make(ev, kind, k) for k, ev, kind in zip(range(a0, b0), events, kinds)]
-    n = len(recs)
-    for k in np.flatnonzero(answered[a0:b0]).tolist():
-        if k + 1 < n and not (made and (a0 + k) in made):  # kept ones are paired already
-            _pair(recs[k], recs[k + 1])
-    return recs[a - a0:b - a0]
 
 
 _NOT_READ = object()  # a Block whose plot points Store.add has not read ahead
@@ -389,12 +364,9 @@ class Store:
     def get(self, seq: int) -> Record | None:
         if not self.first_seq <= seq < self.end_seq:
             return None
-        starts = self._starts
-        j = len(starts) - 1
-        if seq < starts[j]:
-            j = bisect_right(starts, seq) - 1
+        j = self._segment(seq)
         seg = self._segs[j]
-        k = seq - starts[j]
+        k = seq - self._starts[j]
         return seg[k] if type(seg) is list else seg.record(k)
 
     def add(self, records: Iterable[Record | Block], findings: Iterable = (), servos: dict[int, ServoRow] | None = None,
@@ -553,7 +525,7 @@ class Store:
         if self.filter is not None and self._scan_seq is None:
             matches = self.filter.matches
             view = self.view
-            for k, rec in enumerate(block_rows(blk, 0, n)):
+            for k, rec in enumerate(blk.rows(0, n)):
                 if matches(rec):
                     view.append(seq + k)
         self._segs.append(blk)
@@ -619,7 +591,7 @@ class Store:
         while j < len(segs) and starts[j] < stop:
             seg, s0 = segs[j], starts[j]
             a, b = max(start, s0) - s0, min(stop, s0 + len(seg)) - s0
-            yield s0 + a, seg[a:b] if type(seg) is list else block_rows(seg, a, b)
+            yield s0 + a, seg[a:b] if type(seg) is list else seg.rows(a, b)
             j += 1
 
     # ---- figures for the header --------------------------------------------------------------------

@@ -316,7 +316,6 @@ def test_the_feeder_loads_a_file_as_blocks(tmp_path):
     from rs30x_sniff.io.captures import write_capture
     from rs30x_sniff.tui.feed import Feeder, default_linter
     from rs30x_sniff.tui.sources import FileSource
-    from rs30x_sniff.tui.store import block_rows
 
     frames = hexapod_frames(20_000)
     path = tmp_path / "t.thex"
@@ -327,7 +326,7 @@ def test_the_feeder_loads_a_file_as_blocks(tmp_path):
     assert all(sum(len(x) if type(x) is Block else 1 for x in b.records) <= 3000 + 1 for b in batches)
     items = [x for b in batches for x in b.records]
     assert sum(len(x) for x in items if type(x) is Block) > 15_000
-    rows = [r for x in items for r in (block_rows(x, 0, len(x)) if type(x) is Block else [x])]
+    rows = [r for x in items for r in (x.rows(0, len(x)) if type(x) is Block else [x])]
     steps, _ = decoded(list(read_capture_of(path)), False)
     recs = [r for s in steps for r in s]
     assert [record_key(r) for r in rows] == [record_key(r) for r in recs]
