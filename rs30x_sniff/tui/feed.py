@@ -103,9 +103,7 @@ class _Collect(Sink):
                 head, tail = split_block(x, limit - rows)
                 items += head
                 rows += sum(len(h) if type(h) is Block else 1 for h in head)
-                rest[i] = tail  # what is left of the Block (a Block, or a list of Records)
-                if type(tail) is list:
-                    rest[i:i + 1] = tail
+                rest[i:i + 1] = tail  # what is left of the Block (a Block, or its rows as Records)
                 break
             items.append(x)
             rows += n
@@ -115,18 +113,19 @@ class _Collect(Sink):
         return items, []
 
 
-def split_block(blk: Block, k: int) -> tuple[list, Block | list]:
+def split_block(blk: Block, k: int) -> tuple[list, list]:
     """A Block cut before row ``k`` (moved past a reply so a pair stays together): (the head, the
-    tail), each a Block, or its rows as Records when shorter than blocks.MIN_BLOCK. Records the Block
-    already built are kept by both parts, so each row stays one object."""
+    tail), each a list of one Block, or of its rows as Records when shorter than blocks.MIN_BLOCK (the
+    tail is empty when the cut falls at the end). Records the Block already built are kept by both
+    parts, so each row stays one object."""
     k = max(1, min(k, len(blk) - 1))
     if blk.answered[k - 1]:
         k += 1  # a reply goes with its request
     if k >= len(blk):
         return [blk], []
     parts = [_sub_block(blk, 0, k), _sub_block(blk, k, len(blk))]
-    out = [[p] if len(p) >= MIN_BLOCK else p.records() for p in parts]
-    return out[0], out[1][0] if len(out[1]) == 1 and type(out[1][0]) is Block else out[1]
+    head, tail = [[p] if len(p) >= MIN_BLOCK else p.records() for p in parts]
+    return head, tail
 
 
 def _sub_block(blk: Block, a: int, b: int) -> Block:

@@ -125,7 +125,7 @@ def stores(name: str, history: int = 1_000_000, plot: int | None = None, split: 
 
 def _halves(blk):
     head, tail = split_block(blk, len(blk) // 2)
-    return head + (tail if type(tail) is list else [tail])
+    return head + tail
 
 
 def record_key(r):
