@@ -69,6 +69,27 @@ def test_a_slow_consumer_loses_nothing():
     assert src.reason == "stopped"
 
 
+def test_a_busy_port_is_handed_out_in_batches_each_chunk_with_its_own_stamp():
+    p = Pty()
+    src = LiveSource(p.path, 115200, announce=False, gather=0.3).start()
+    try:
+        os.write(p.master, b"\x07")
+        assert [c for c, _ in src.poll(2.0)] == [b"\x07"]
+        handed_out = time.monotonic()
+        os.write(p.master, b"\x08")
+        time.sleep(0.1)
+        os.write(p.master, b"\x07\x07")
+        batch = src.poll(2.0)
+        # The second poll waited out the gather time, so both writes came out in one batch...
+        assert time.monotonic() - handed_out >= 0.3
+        assert b"".join(c for c, _ in batch) == b"\x08\x07\x07" and len(batch) == 2
+        # ...stamped as they arrived, 0.1 s apart, not when they were handed out.
+        assert 0.08 < batch[1][1] - batch[0][1] < 0.25
+    finally:
+        src.close()
+        p.close()
+
+
 def test_duration_ends_the_capture():
     p = Pty()
     try:
