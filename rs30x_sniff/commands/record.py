@@ -113,9 +113,10 @@ class _Status(Sink):
 
     def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         self.bytes += len(data)
-        if t is not None:
-            self.load.add(t, len(data))
-        self.idle()
+        if self.live is not None:  # the load is shown on the status line only
+            if t is not None:
+                self.load.add(t, len(data))
+            self.idle()
 
     def batch(self, step: Step) -> None:
         self.packets += len(step)
