@@ -1,4 +1,5 @@
-"""decode's text lines of a Block's rows, written from per-shape templates without a Record or Field per row."""
+"""decode's text lines from per-shape templates: a Block's rows without a Record or Field per row, and a
+single Record's line without its Field objects."""
 
 from __future__ import annotations
 
@@ -7,12 +8,13 @@ from typing import Any, Callable, Iterable
 
 from .blocks import Block, _pair
 from .bus import Record
+from .events import LongPacket, ReturnPacket, ShortPacket
 from .frame_runs import RETURN
 from .memmap import Field, Register, _ByRaw, _converter
 from .render import _shown, bad_sum, direction, field_text, kind_word, text_line, verbose_lines
 from .wire import COMMAND_ADDRESS
 
-__all__ = ["block_text"]
+__all__ = ["block_text", "record_line"]
 
 # Compiled shapes and field texts are kept across Blocks (a capture has a handful of shapes); the bound
 # keeps a stream of odd headers from piling them up: the oldest goes first, and is made again if met.
@@ -109,7 +111,7 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
         if made:
             rec = made.get(k)
             if rec is not None:
-                append(text_line(rec, only) + "\n")
+                append(record_line(rec, only))
                 continue
         s = starts[k]
         e = ends[k]
@@ -133,6 +135,58 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
     return "".join(out)
 
 
+_RECORD_SHAPES: OrderedDict[tuple, _Shape] = OrderedDict()
+
+
+def record_line(rec: Record, only: set[int] | None = None) -> str:
+    """``text_line(rec, only)`` and a newline, from its shape's template where it has one: the record
+    path's lines (a live port, a pipe) without building the record's Field objects.
+
+    A shape here is a Block's (header bytes, size, model) and what a Block's rows share but single
+    records do not: the pairing (status, request, latency) and whether the record has times. A
+    record with findings, a bad Sum, no header (ACK, NACK, garbage) or servos of mixed models is
+    written by text_line itself."""
+    ev = rec.event
+    t = type(ev)
+    if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket) or not ev.checksum_ok:
+        return text_line(rec, only) + "\n"
+    lay, data = rec._layout()
+    if type(lay) is list:
+        return text_line(rec, only) + "\n"
+    raw = ev[1]
+    request = rec.request
+    latency = rec.latency
+    key = (raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"", id(rec.model), id(lay),
+           ev.t_start is not None, rec.status, request is not None, latency is not None,
+           None if only is None else frozenset(only))
+    shape = _RECORD_SHAPES.get(key)
+    if shape is None or shape.models[0] is not rec.model or shape.models[1] is not lay:
+        shape = _record_shape(rec, key, only, lay)
+    fn = shape.fn
+    if fn is None:
+        return text_line(rec, only) + "\n"
+    unpack = shape.raw
+    return fn(ev.t_start, ev.offset, unpack(data) if unpack is not None else None, latency,
+              request.offset if request is not None else None)
+
+
+def _record_shape(rec: Record, key: tuple, only: set[int] | None, lay: Any) -> _Shape:
+    """A single record's compiled shape, checked once against text_line as a Block's are."""
+    raw, fn = _compile(rec, only, rec.event.t_start is not None)
+    if fn is not None:
+        ev = rec.event
+        request = rec.request
+        got = fn(ev.t_start, ev.offset, raw(ev[1][7:-1]) if raw is not None else None, rec.latency,
+                 request.offset if request is not None else None)
+        if got != text_line(rec, only) + "\n":
+            fn = None
+    # The model and layout are kept so an id reused by new ones is not taken for them.
+    shape = _RECORD_SHAPES[key] = _Shape((rec.model, lay), raw, fn)
+    if len(_RECORD_SHAPES) > MAX_SHAPES:
+        _RECORD_SHAPES.popitem(last=False)
+    return shape
+
+
 def _records_text(blk: Block, only: set[int] | None, verbose: bool, rows: Iterable[int] | None) -> str:
     """TextSink.line of each record (its sink is not imported here: sinks may come to use this module)."""
     recs = blk.records()
@@ -140,7 +194,7 @@ def _records_text(blk: Block, only: set[int] | None, verbose: bool, rows: Iterab
         recs = [recs[k] for k in rows]
     if verbose:
         return "".join(text_line(r, only) + "\n" + "\n".join(verbose_lines(r)) + "\n" for r in recs)
-    return "".join([text_line(r, only) + "\n" for r in recs])
+    return "".join([record_line(r, only) for r in recs])
 
 
 # ---- compiling a shape --------------------------------------------------------------------------

@@ -6,7 +6,7 @@ import json
 from typing import IO, Any, Callable
 
 from .block_json import block_json_lines
-from .block_text import block_text
+from .block_text import block_text, record_line
 from .blocks import Block
 from .bus import Record
 from .frame_runs import LONG
@@ -99,7 +99,7 @@ class TextSink(_LineSink):
     def line(self, rec: Record) -> str:
         if self.verbose:
             return text_line(rec, self.ids) + "\n" + "\n".join(verbose_lines(rec)) + "\n"
-        return text_line(rec, self.ids) + "\n"
+        return record_line(rec, self.ids)
 
     def block_lines(self, blk: Block, rows: list[int] | None) -> str:
         return block_text(blk, self.ids, self.verbose, rows)
