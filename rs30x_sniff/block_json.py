@@ -1,15 +1,18 @@
-"""A Block's rows as JSON lines (decode --format jsonl, MCAP packet bodies) from per-shape templates.
+"""JSON lines (decode --format jsonl, MCAP packet bodies) from per-shape templates: a Block's rows, and
+single Records.
 
 Byte-identical to ``render.record_json_text`` of each row's Record, without building the Records: rows
 of one shape (header bytes, data length, model, long packet's VIDs) differ only in their offsets,
 times, raw bytes, pairing and field values, so each shape's line is made once from a sample record,
-with a ``%s`` where those go, and every row fills its template.
+with a ``%s`` where those go, and every row fills its template. A single Record's shape also says
+which of those are there at all (its pairing, its times), which in a Block's rows is always the same.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+from .events import LongPacket, ReturnPacket, ShortPacket
 from .frame_runs import LONG
 from .render import _COMPACT, _NO_FIELDS, _SPACED, record_json, record_json_text
 
@@ -32,7 +35,7 @@ def block_json_rows(blk: Any, only: set[int] | None = None, compact: bool = Fals
         # Rows checked one by one (they may carry findings), or servos of mixed models: the records.
         recs = blk.records()
         chosen = recs if rows is None else [recs[k] for k in rows]
-        return [record_json_text(r, only, compact) + end for r in chosen]
+        return [record_json_line(r, only, compact) + end for r in chosen]
     return _lines(blk, only, compact, rows, end)
 
 
@@ -125,3 +128,57 @@ def _template(blk: Any, k: int, key: tuple, only: set[int] | None, compact: bool
     _TEMPLATES[key] = tpl
     return tpl
 
+
+
+_RECORD_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any, Any]] = {}  # key -> (format, slots, model, layout)
+
+
+def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = False) -> str:
+    """``record_json_text(rec, only, compact)``, from its shape's template where it has one: the record
+    path's JSON (a live port's MCAP packets, jsonl from a pipe) without a dict per record.
+
+    A record with findings (its diagnostics), no header (ACK, NACK, garbage), servos of mixed models,
+    or times that are not plain floats (whose text ``repr`` might not give as JSON does) is written by
+    record_json_text itself."""
+    ev = rec.event
+    t = type(ev)
+    if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket):
+        return record_json_text(rec, only, compact)
+    lay, data = rec._layout()
+    t0, t1, latency = ev[2], ev[3], rec.latency
+    if (type(lay) is list or (t0 is not None and type(t0) is not float) or (t1 is not None and type(t1) is not float)
+            or (latency is not None and type(latency) is not float)):
+        return record_json_text(rec, only, compact)
+    raw = ev[1]
+    request, reply = rec.request, rec.reply
+    key = (raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"", ev.checksum_ok,
+           id(rec.model), id(lay), t0 is None, t1 is None, latency is None, request is None, reply is None,
+           rec.status, compact, None if only is None else frozenset(only))
+    tpl = _RECORD_TEMPLATES.get(key)
+    if tpl is None or tpl[2] is not rec.model or tpl[3] is not lay:  # (an id reused by a new model or layout)
+        empty = _NO_FIELDS[compact]
+        text, slots = json_template(record_json(rec, only, fields=False), _SLOTS, _COMPACT if compact else _SPACED,
+                                    strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
+        tpl = (text, slots, rec.model, lay)
+        if len(_RECORD_TEMPLATES) >= _MAX_TEMPLATES:
+            _RECORD_TEMPLATES.clear()
+        _RECORD_TEMPLATES[key] = tpl
+    vals = []
+    for name in tpl[1]:
+        if name == "offset":
+            vals.append(str(ev[0]))
+        elif name == "t":
+            vals.append(repr(t0))
+        elif name == "t_end":
+            vals.append(repr(t1))
+        elif name == "raw":
+            vals.append(raw.hex())
+        elif name == "reply_to":
+            vals.append(str(request.offset))
+        elif name == "reply":
+            vals.append(str(reply.offset))
+        elif name == "latency_s":
+            vals.append(repr(latency))
+        else:  # fields
+            vals.append(rec.fields_json(only, compact))
+    return tpl[0] % tuple(vals)

@@ -5,14 +5,14 @@ from __future__ import annotations
 import json
 from typing import IO, Any, Callable
 
-from .block_json import block_json_lines
+from .block_json import block_json_lines, record_json_line
 from .block_text import block_text, record_line
 from .blocks import Block
 from .bus import Record
 from .frame_runs import LONG
 from .filters import Filter
 from .pipeline import Sink, Step
-from .render import record_json_text, text_line, verbose_lines
+from .render import text_line, verbose_lines
 
 
 def block_rows_involving(blk: Block, ids: set[int]) -> list[int]:
@@ -113,7 +113,7 @@ class JsonlSink(_LineSink):
     """``decode --format jsonl``: one JSON object per event, end-of-input findings as diagnostics."""
 
     def line(self, rec: Record) -> str:
-        return record_json_text(rec, self.ids) + "\n"
+        return record_json_line(rec, self.ids) + "\n"
 
     def block_lines(self, blk: Block, rows: list[int] | None) -> str:
         return block_json_lines(blk, self.ids, rows=rows)

@@ -14,7 +14,7 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from .. import __version__
 from ..events import Garbage, ShortPacket
-from ..render import record_json_text
+from ..block_json import record_json_line
 from ..schemas import schema_bytes
 from .captures import MCAP_MAGIC as _MAGIC
 from ..blocks import Block
@@ -138,7 +138,7 @@ class JsonChannels:
         every = self._every_message
         cid = self._channel(PACKETS_TOPIC, "rs30x.Packet")
         if every or self._live(cid):
-            self._emit(cid, log_time, record_json_text(rec, compact=True).encode())
+            self._emit(cid, log_time, record_json_line(rec, compact=True).encode())
         if type(ev) is Garbage:
             return
         changed = self._servos.changes(rec)

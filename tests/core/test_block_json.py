@@ -1,4 +1,5 @@
-"""A Block's JSON lines from templates (rs30x_sniff.block_json) are byte for byte its records' JSON."""
+"""JSON from templates (rs30x_sniff.block_json), a Block's lines and a single Record's, is byte for byte the
+records' own JSON (render.record_json_text)."""
 
 import sys
 from pathlib import Path
@@ -8,13 +9,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rs30x_sniff import block_json, blocks
-from rs30x_sniff.block_json import block_json_lines
+from rs30x_sniff.block_json import block_json_lines, record_json_line
 from rs30x_sniff.blocks import Block
 from rs30x_sniff.lint import Linter
 from rs30x_sniff.pipeline import Decoder
 from rs30x_sniff.render import record_json_text
 from rs30x_sniff.sim import scenarios
+from tests.core.test_block_text import odd_traffic
 from tests.core.test_columnar import traffic
+from tests.core.test_properties import frames
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 from traffic import hexapod_frames  # noqa: E402
@@ -81,3 +84,63 @@ def test_a_write_and_a_return_with_the_same_header_bytes():
             t += len(frame) * bt + 0.0001
     assert check_blocks(chunks, lint=True) > 0
     assert check_blocks([(d, None) for d, _ in chunks], lint=False) > 0
+
+
+# ---- record_json_line: the record path's JSON ----------------------------------------------------
+def check_records(chunks, lint: bool = False, options=None) -> int:
+    """Decode record by record (a live port's path); every record's record_json_line held to
+    record_json_text for each ``only``, spaced and compact, twice (the second from the cached
+    template). Returns how many records were written from a template without a dict (as seen by
+    their fields: the template path builds no Field objects)."""
+    dec = Decoder(options, Linter() if lint else None)
+    templated = 0
+    for step in [dec.feed(d, t) for d, t in chunks] + [dec.close()]:
+        for rec in step:
+            built = rec._fields is not None
+            for only in ONLY:
+                for compact in (False, True):
+                    want = record_json_text(rec, only, compact)
+                    assert record_json_line(rec, only, compact) == want, (only, compact, rec.event)
+                    assert record_json_line(rec, only, compact) == want
+            templated += not built and rec._fields is None and not rec.findings
+    return templated
+
+
+@pytest.mark.parametrize("lint", [True, False])
+def test_record_json_of_hexapod(lint):
+    chunks = hexapod_frames(2000)
+    assert check_records(chunks, lint) > 0.9 * len(chunks)
+    assert check_records([(d, None) for d, _ in chunks], lint) > 0.9 * len(chunks)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 10**6), n=st.integers(1, 200), timed=st.booleans(), gaps=st.booleans(),
+       faults=st.booleans(), rare=st.sampled_from([0.3, 0.05]), lint=st.booleans(), mixed=st.booleans())
+def test_record_json_of_random_traffic(monkeypatch, seed, n, timed, gaps, faults, rare, lint, mixed):
+    # Missing, unsolicited and extra replies, bad Sums, garbage, findings, servos of two models.
+    from rs30x_sniff.pipeline import DecodeOptions
+
+    monkeypatch.setattr(block_json, "_MAX_TEMPLATES", 8)  # the template cache fills and clears too
+    check_records(traffic(seed, n, timed=timed, gaps=gaps, faults=faults, rare=rare), lint,
+                  DecodeOptions(models={2: "RS304MD"}) if mixed else None)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(frames, max_size=60), st.booleans())
+def test_record_json_of_arbitrary_frames(pieces, lint):
+    check_records([(p, None) for p in pieces], lint)
+
+
+def test_record_json_of_odd_shapes():
+    import random
+
+    assert check_records(odd_traffic(random.Random(5), 600)) > 0
+
+
+def test_record_json_of_times_that_are_not_plain_floats():
+    """A source may stamp numpy floats, whose repr is not their JSON: those lines come from the dict."""
+    import numpy as np
+
+    chunks = [(d, np.float64(t)) for d, t in hexapod_frames(200)]
+    check_records(chunks)
