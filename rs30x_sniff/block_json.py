@@ -130,36 +130,35 @@ def _template(blk: Any, k: int, key: tuple, only: set[int] | None, compact: bool
 
 
 
-_RECORD_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any, Any]] = {}  # key -> (format, slots, model, layout)
+_RECORD_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any]] = {}  # key -> (format, slots, model)
 
 
 def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = False) -> str:
     """``record_json_text(rec, only, compact)``, from its shape's template where it has one: the record
     path's JSON (a live port's MCAP packets, jsonl from a pipe) without a dict per record.
 
-    A record with findings (its diagnostics), no header (ACK, NACK, garbage), servos of mixed models,
-    or times that are not plain floats (whose text ``repr`` might not give as JSON does) is written by
-    record_json_text itself."""
+    A record with findings (its diagnostics), no header (ACK, NACK, garbage) or times that are not
+    plain floats (whose text ``repr`` might not give as JSON does) is written by record_json_text
+    itself. The fields are filled in by Record.fields_json, so the template holds no layout."""
     ev = rec.event
     t = type(ev)
     if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket):
         return record_json_text(rec, only, compact)
-    lay, data = rec._layout()
     t0, t1, latency = ev[2], ev[3], rec.latency
-    if (type(lay) is list or (t0 is not None and type(t0) is not float) or (t1 is not None and type(t1) is not float)
+    if ((t0 is not None and type(t0) is not float) or (t1 is not None and type(t1) is not float)
             or (latency is not None and type(latency) is not float)):
         return record_json_text(rec, only, compact)
     raw = ev[1]
     request, reply = rec.request, rec.reply
     key = (raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"", ev.checksum_ok,
-           id(rec.model), id(lay), t0 is None, t1 is None, latency is None, request is None, reply is None,
+           id(rec.model), t0 is None, t1 is None, latency is None, request is None, reply is None,
            rec.status, compact, None if only is None else frozenset(only))
     tpl = _RECORD_TEMPLATES.get(key)
-    if tpl is None or tpl[2] is not rec.model or tpl[3] is not lay:  # (an id reused by a new model or layout)
+    if tpl is None or tpl[2] is not rec.model:  # (an id reused by a new model)
         empty = _NO_FIELDS[compact]
         text, slots = json_template(record_json(rec, only, fields=False), _SLOTS, _COMPACT if compact else _SPACED,
                                     strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
-        tpl = (text, slots, rec.model, lay)
+        tpl = (text, slots, rec.model)
         if len(_RECORD_TEMPLATES) >= _MAX_TEMPLATES:
             _RECORD_TEMPLATES.clear()
         _RECORD_TEMPLATES[key] = tpl

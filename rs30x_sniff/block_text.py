@@ -144,24 +144,23 @@ def record_line(rec: Record, only: set[int] | None = None) -> str:
 
     A shape here is a Block's (header bytes, size, model) and what a Block's rows share but single
     records do not: the pairing (status, request, latency) and whether the record has times. A
-    record with findings, a bad Sum, no header (ACK, NACK, garbage) or servos of mixed models is
-    written by text_line itself."""
+    record with findings, a bad Sum or no header (ACK, NACK, garbage) is written by text_line itself."""
     ev = rec.event
     t = type(ev)
     if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket) or not ev.checksum_ok:
         return text_line(rec, only) + "\n"
     lay, data = rec._layout()
-    if type(lay) is list:
-        return text_line(rec, only) + "\n"
+    # A long packet to servos of mixed models has a layout per servo: the shape is theirs together.
+    layouts = (lay,) if type(lay) is not list else tuple([sub for sub, _, _ in lay])
     raw = ev[1]
     request = rec.request
     latency = rec.latency
-    key = (raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"", id(rec.model), id(lay),
-           ev.t_start is not None, rec.status, request is not None, latency is not None,
+    key = (raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"", id(rec.model),
+           tuple(map(id, layouts)), ev.t_start is not None, rec.status, request is not None, latency is not None,
            None if only is None else frozenset(only))
     shape = _RECORD_SHAPES.get(key)
-    if shape is None or shape.models[0] is not rec.model or shape.models[1] is not lay:
-        shape = _record_shape(rec, key, only, lay)
+    if shape is None or not all(a is b for a, b in zip(shape.models, (rec.model, *layouts))):
+        shape = _record_shape(rec, key, only, layouts)
     fn = shape.fn
     if fn is None:
         return text_line(rec, only) + "\n"
@@ -170,7 +169,7 @@ def record_line(rec: Record, only: set[int] | None = None) -> str:
               request.offset if request is not None else None)
 
 
-def _record_shape(rec: Record, key: tuple, only: set[int] | None, lay: Any) -> _Shape:
+def _record_shape(rec: Record, key: tuple, only: set[int] | None, layouts: tuple) -> _Shape:
     """A single record's compiled shape, checked once against text_line as a Block's are."""
     raw, fn = _compile(rec, only, rec.event.t_start is not None)
     if fn is not None:
@@ -180,8 +179,8 @@ def _record_shape(rec: Record, key: tuple, only: set[int] | None, lay: Any) -> _
                  request.offset if request is not None else None)
         if got != text_line(rec, only) + "\n":
             fn = None
-    # The model and layout are kept so an id reused by new ones is not taken for them.
-    shape = _RECORD_SHAPES[key] = _Shape((rec.model, lay), raw, fn)
+    # The model and layouts are kept so an id reused by new ones is not taken for them.
+    shape = _RECORD_SHAPES[key] = _Shape((rec.model, *layouts), raw, fn)
     if len(_RECORD_SHAPES) > MAX_SHAPES:
         _RECORD_SHAPES.popitem(last=False)
     return shape
