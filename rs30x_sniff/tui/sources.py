@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import stat
 import threading
 import time
 from typing import Callable, Iterable, Iterator, Protocol
@@ -9,12 +11,16 @@ from typing import Callable, Iterable, Iterator, Protocol
 from ..chunks import remark
 from ..io.captures import CaptureError
 from ..io.inputs import read_input
+from ..io.read_ahead import ReadAhead
 from ..wire import DEFAULT_BAUD, byte_time
 
 Chunk = tuple[bytes, "float | None"]
 REPLAY_SLICE = 64        # bytes per step when replaying a capture that has no timestamps
 POLL_SECONDS = 0.1       # a live source yields at least this often, so commands and batches flow
 SIMULATE_SECONDS = 3600.0  # a simulated session runs for an hour of bus time unless the user quits
+# A capture file at least this large is read by a child process (io.read_ahead) while this one decodes:
+# below it, starting a Python process (~0.2 s) costs more than the reading it takes off this one.
+READ_AHEAD_BYTES = 8 << 20
 
 
 def _rest(src) -> Iterator[Chunk]:
@@ -62,10 +68,22 @@ def paced(chunks: Iterable[Chunk], stop: threading.Event, *, speed: float, byte_
             yield remark(chunk, piece, pt)
 
 
+def _big_file(path: str) -> bool:
+    """A regular file of at least READ_AHEAD_BYTES (not a pipe or stdin, which a child cannot read again)."""
+    if path == "-":
+        return False
+    try:
+        st = os.stat(path)
+    except OSError:
+        return False
+    return stat.S_ISREG(st.st_mode) and st.st_size >= READ_AHEAD_BYTES
+
+
 class FileSource:
     """A capture file read as fast as it decodes."""
 
     kind = "file"
+    reads_ahead = True  # a big file is read by a child process (a replay is paced: no need)
 
     def __init__(self, path: str, fmt: str | None = None, *, baud: int = DEFAULT_BAUD,
                  time_ref: str | None = None, options: dict | None = None) -> None:
@@ -77,8 +95,17 @@ class FileSource:
         # The one way a file is read (io.inputs): arrival-stamped logs are laid back to the first byte
         # here as in every other command, so the monitor's latencies are info's.
         # ``options`` go to another tool's reader (a logic capture's channel and rate).
-        self._it = read_input(path, fmt, baud=baud, time_ref=time_ref, warn=self.warnings.append, options=options)
+        ahead = self.reads_ahead and _big_file(path)
+        self._it = read_input(path, fmt, baud=baud, time_ref=time_ref,
+                              warn=None if ahead else self.warnings.append, options=options)
         self._first = next(self._it, None)  # reads the head now, so a bad file fails before the screen starts
+        if ahead:
+            # The child reads it all again (the same reader: the same chunks and warnings, given to the
+            # screen once); the head read here only checked that it can be read.
+            self.close()
+            self._first = None
+            self._it = ReadAhead(path, fmt, baud=baud, time_ref=time_ref, warn=self.warnings.append,
+                                  options=options)
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
         # Per chunk on files of millions of lines: the reader's own iterator, and ``stop`` looked at
@@ -104,6 +131,7 @@ class ReplaySource(FileSource):
     """A capture file played at its own pace (``speed`` times faster), as if it were live."""
 
     kind = "replay"
+    reads_ahead = False
 
     def __init__(self, path: str, fmt: str | None = None, *, speed: float = 1.0, baud: int = DEFAULT_BAUD,
                  time_ref: str | None = None, clock: Callable[[], float] = time.monotonic,

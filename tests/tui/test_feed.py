@@ -217,3 +217,60 @@ def test_a_damaged_mcap_says_so_on_the_screen_not_behind_it(tmp_path, capsys):
     assert batches[-1].done and sum(len(b.records) for b in batches) > 0
     assert notes and "cut.mcap" in notes[0]
     assert "warning" not in capsys.readouterr().err  # nothing printed behind the screen
+
+
+@pytest.fixture
+def read_ahead_all(monkeypatch):
+    """Every file through a child process (io.read_ahead), however small."""
+    from rs30x_sniff.tui import sources
+
+    monkeypatch.setattr(sources, "READ_AHEAD_BYTES", 0)
+
+
+def test_a_big_file_is_read_by_a_child_process_with_the_same_result(read_ahead_all, tmp_path):
+    from rs30x_sniff.io.read_ahead import ReadAhead
+
+    src = FileSource(MANUAL)
+    assert isinstance(src._it, ReadAhead) and not isinstance(ReplaySource(MANUAL)._it, ReadAhead)
+    assert list(src.chunks(threading.Event())) == list(read_capture(MANUAL))
+    assert src.time_base == "synthetic"
+    _, batches = run_feeder(FileSource(MANUAL), linter=default_linter())
+    findings = [f.code for b in batches for f in b.findings]
+    assert [r.offset for b in batches for r in b.records][:3] == [0, 10, 18] and {"B002", "M002", "Q002"} <= set(findings)
+
+
+def test_a_child_read_error_ends_the_capture_with_one_line(read_ahead_all, tmp_path):
+    p = tmp_path / "bad.thex"
+    p.write_text("0.0 FA AF 01\n0.1 FA ZZ\n")
+    src = FileSource(str(p))  # the head reads fine here
+    _, batches = run_feeder(src)
+    assert batches[-1].done and batches[-1].error == f"{p}:2: not a hex byte: 'ZZ'"
+    assert [r.kind for b in batches for r in b.records] == ["garbage"]
+    with pytest.raises(CaptureError, match="no such file"):
+        FileSource(str(tmp_path / "nope.hex"))
+
+
+def test_a_child_reads_a_damaged_mcap_and_the_note_comes_once(read_ahead_all, tmp_path, capsys):
+    from tests.io.conftest import frames, make_mcap
+
+    path = make_mcap(tmp_path / "cut.mcap", frames(200))
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) * 2 // 3])
+    _, batches = run_feeder(FileSource(str(path)))
+    notes = [b.note for b in batches if b.note]
+    assert len(notes) == 1 and "cut.mcap" in notes[0] and notes[0].count("cut.mcap") == 1
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_a_stopped_load_stops_the_child(read_ahead_all, tmp_path):
+    p = tmp_path / "big.thex"
+    write_capture(str(p), [(encode_short(1, 0, 30, b"\x00\x00"), i * 0.001) for i in range(100_000)], "timestamped")
+    src = FileSource(str(p))
+    stop = threading.Event()
+    got = 0
+    for _ in src.chunks(stop):
+        got += 1
+        if got == 1000:
+            stop.set()
+    src.close()
+    assert got < 100_000 and src._it._proc.returncode is not None
