@@ -224,7 +224,7 @@ class Pipeline:
             group = getattr(s, "chunk_group", None)
             if group is not None:
                 group(chunks)  # a sink that takes the group's chunks at once (McapSink orders its messages)
-            else:
+            elif type(s).chunk is not Sink.chunk:  # (most sinks read no chunk: a call per chunk for nothing)
                 for data, t in chunks:
                     s.chunk(data, t, None, None)
         step = self.decoder.feed_many(chunks)
@@ -296,11 +296,15 @@ class Pipeline:
         size = 0
         feed_many = self.feed_many
         group_bytes = self.group_bytes
+        append = group.append
+        marked = Marked
         try:
             for chunk in chunks:
-                if type(chunk) is Marked or not chunk[0]:
+                data = chunk[0]
+                if not data or type(chunk) is marked:
                     if group:
-                        group, pending = [], group
+                        group, pending = [], group  # taken before it is fed: never fed twice
+                        append = group.append
                         size = 0
                         feed_many(pending)
                     if type(chunk) is Marked:
@@ -308,10 +312,11 @@ class Pipeline:
                     else:
                         self.feed(*chunk)
                     continue
-                group.append(chunk)
-                size += len(chunk[0])
+                append(chunk)
+                size += len(data)
                 if size >= group_bytes:
                     group, pending = [], group
+                    append = group.append
                     size = 0
                     feed_many(pending)
         finally:
