@@ -1,5 +1,4 @@
-"""decode's text lines from per-shape templates: a Block's rows without a Record or Field per row, and a
-single Record's line without its Field objects."""
+"""decode's text lines from per-shape templates: a Block's rows without Records, a Record's without Fields."""
 
 from __future__ import annotations
 

@@ -1,17 +1,16 @@
-"""A capture file read in a child process (the same reader, io.inputs.read_input), so a second core parses
-the file while this one decodes it.
+"""A capture file read by a child process with the same reader (read_input), so a second core parses it."""
 
-Reading a text capture is Python work that holds the GIL (a timestamped-hex line is parsed in about
-2.5 us: half of what the monitor spends on a million frames). A thread cannot overlap it with the
-decoding; a process can. The child sends the chunks in batches through a pipe as one bytes object,
-their lengths and their times (marked chunks, untimed ones mixed with timed ones: as they are), with
-the reader's warnings and, at the end, its error, which is raised here as the same CaptureError.
-"""
+# Reading a text capture is Python work that holds the GIL (a timestamped-hex line takes about 2.5 us:
+# half of what the monitor spends on a million frames). A thread cannot overlap it with the decoding;
+# a process can. The child sends the chunks in batches through a pipe as one bytes object, their
+# lengths and their times (marked chunks, and untimed ones mixed with timed ones, as they are), with
+# the reader's warnings and, at the end, its error, raised here as the same CaptureError.
 
 from __future__ import annotations
 
 import functools
 import itertools
+import os
 import pickle
 import subprocess
 import sys
@@ -21,6 +20,7 @@ from typing import Any, BinaryIO, Callable, Iterator
 from ..chunks import Chunk
 from .captures import CaptureError
 
+_PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BATCH_BYTES = 1 << 18  # chunk bytes per message: a few thousand chunks, a few milliseconds of decoding
 
 # Messages, child -> parent (each one pickle):
@@ -40,8 +40,11 @@ class ReadAhead:
                  warn: Callable[[str], None] | None = None, options: dict | None = None) -> None:
         self.path = path
         self.warn = warn
+        # The child imports this very package, wherever it was imported from here.
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, (_PACKAGE_ROOT, env.get("PYTHONPATH"))))
         self._proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
-                                      stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+                                      stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
         try:
             pickle.dump({"path": path, "fmt": fmt, "baud": baud, "time_ref": time_ref, "options": options},
                         self._proc.stdin)
