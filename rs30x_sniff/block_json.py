@@ -115,12 +115,17 @@ def json_template(obj: dict[str, Any], slots: tuple[str, ...], encode: Any, stri
     return text, tuple(name for _, name, _, _ in found)
 
 
+def _line_template(rec: Any, only: set[int] | None, compact: bool) -> tuple[str, tuple[str, ...]]:
+    """record_json_text of ``rec`` as a ``%`` format: a %s for each of _SLOTS it has, and for the fields."""
+    empty = _NO_FIELDS[compact]
+    return json_template(record_json(rec, only, fields=False), _SLOTS, _COMPACT if compact else _SPACED,
+                         strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
+
+
 def _template(blk: Any, k: int, key: tuple, only: set[int] | None, compact: bool) -> tuple:
     """The line of row ``k``'s shape with a %s for each part that varies, and the layout of its fields."""
     rec = blk.record(k)
-    empty = _NO_FIELDS[compact]
-    text, slots = json_template(record_json(rec, only, fields=False), _SLOTS, _COMPACT if compact else _SPACED,
-                                strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
+    text, slots = _line_template(rec, only, compact)
     # The Block's servos share a model here (block_json_rows), so this is one Layout (or None).
     tpl = (text, slots, rec._layout()[0], rec.model)
     if len(_TEMPLATES) >= _MAX_TEMPLATES:
@@ -155,10 +160,7 @@ def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = Fal
            rec.status, compact, None if only is None else frozenset(only))
     tpl = _RECORD_TEMPLATES.get(key)
     if tpl is None or tpl[2] is not rec.model:  # (an id reused by a new model)
-        empty = _NO_FIELDS[compact]
-        text, slots = json_template(record_json(rec, only, fields=False), _SLOTS, _COMPACT if compact else _SPACED,
-                                    strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
-        tpl = (text, slots, rec.model)
+        tpl = (*_line_template(rec, only, compact), rec.model)
         if len(_RECORD_TEMPLATES) >= _MAX_TEMPLATES:
             _RECORD_TEMPLATES.clear()
         _RECORD_TEMPLATES[key] = tpl
