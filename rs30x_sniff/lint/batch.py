@@ -404,10 +404,12 @@ def _f007_times(times: Any, blk: Any, starts: np.ndarray) -> None:
     else:
         prev_len[0], prev_t[0] = p[0], p[1]
     keep &= t0 > prev_t
-    spacing = (t0 - prev_t) / prev_len
-    new = list(zip(spacing[keep].tolist(), prev_len[keep].tolist()))
-    if new:
-        times._samples.extend(new[-times._samples.maxlen:] if times._samples.maxlen else new)
+    rows = np.flatnonzero(keep)
+    if times._samples.maxlen:
+        rows = rows[-times._samples.maxlen:]  # the deque keeps the last ones only: make those alone
+    if len(rows):
+        lens_kept = prev_len[rows]
+        times._samples.extend(zip(((t0[rows] - prev_t[rows]) / lens_kept).tolist(), lens_kept.tolist()))
         times._cached = None
     times._prev = (int(lens[-1]), float(t0[-1]))
 

@@ -120,3 +120,11 @@ def test_untimed(anomaly):
 def test_anomalies_anywhere(monkeypatch, picks, groups, tiny, timed):
     monkeypatch.setattr(blocks_module, "MIN_BLOCK", 1 if tiny else 32)
     compare(capture("P001", -1, cycles=120, timed=timed, more=picks), groups)
+
+
+def test_blocks_longer_than_the_spacings_f007_keeps():
+    """F007 keeps the last 512 byte spacings: a Block of thousands of rows adds only its last ones."""
+    chunks = capture("P001", at=-1, cycles=600)
+    assert len(chunks) > 2 * 512
+    blocks, codes = compare(chunks, groups=(len(chunks),))
+    assert blocks and not codes
