@@ -115,6 +115,7 @@ def send_all(out: BinaryIO, args: dict[str, Any]) -> None:
 
     def dump(msg: tuple) -> None:
         pickle.dump(msg, out, protocol=pickle.HIGHEST_PROTOCOL)  # a fresh memo each: nothing kept
+
     warnings: list[str] = []
 
     def send(msg: tuple) -> None:

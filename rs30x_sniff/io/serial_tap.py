@@ -24,7 +24,7 @@ READ_TIMEOUT = 0.05  # how often the reader thread looks at its stop flag
 MAX_AHEAD = 0.05     # seconds a chunk may be placed after its arrival to keep bytes from overlapping
 # A busy bus hands the drive loop its chunks in batches at most this often, each chunk keeping its own
 # arrival stamp: a pass of the loop per batch instead of per chunk (a packet each on a pty) takes a
-# saturated 230400-baud bus from about 35 % of a core to about 22 % (bench/live.py), for lines printed
+# saturated 230400-baud bus from about 35 % of a core to about 25 % (bench/live.py), for lines printed
 # up to this much later.
 GATHER_SECONDS = 0.02
 

@@ -103,9 +103,14 @@ class FileSource:
             # The child reads it all again (the same reader: the same chunks and warnings, given to the
             # screen once); the head read here only checked that it can be read.
             self.close()
-            self._first = None
-            self._it = ReadAhead(path, fmt, baud=baud, time_ref=time_ref, warn=self.warnings.append,
-                                  options=options)
+            try:
+                self._it = ReadAhead(path, fmt, baud=baud, time_ref=time_ref, warn=self.warnings.append,
+                                     options=options)
+                self._first = None
+            except OSError:  # no process to be had (a limit reached): read it here, as a small file is
+                self._it = read_input(path, fmt, baud=baud, time_ref=time_ref, warn=self.warnings.append,
+                                      options=options)
+                self._first = next(self._it, None)
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
         # Per chunk on files of millions of lines: the reader's own iterator, and ``stop`` looked at

@@ -274,3 +274,14 @@ def test_a_stopped_load_stops_the_child(read_ahead_all, tmp_path):
             stop.set()
     src.close()
     assert got < 100_000 and src._it._proc.returncode is not None
+
+
+def test_no_process_to_be_had_reads_the_file_here(read_ahead_all, monkeypatch):
+    from rs30x_sniff.io import read_ahead
+
+    def no_process(*args, **kwargs):
+        raise OSError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(read_ahead.subprocess, "Popen", no_process)
+    src = FileSource(MANUAL)
+    assert list(src.chunks(threading.Event())) == list(read_capture(MANUAL))
