@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import json
+import re
 import xml.etree.ElementTree as ET
 from collections import Counter
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import IO, Iterable
+from urllib.parse import quote
 
 from .. import __version__
 from .registry import RULES, SEVERITY_RANK, Finding
@@ -29,6 +32,8 @@ class FileResult:
     # (line, column) of a finding's offset in a text capture, as its reader located it (none for
     # binary and MCAP captures, whose findings keep their byte offsets).
     locations: dict[int, tuple[int, int]] = field(default_factory=dict)
+    # The capture's format as it was read ("bin", "hex", "mcap", ...); None: told by the path's extension.
+    format: str | None = None
 
     def where(self, f: Finding) -> str:
         """``FILE:LINE:COL`` in a text capture, else ``FILE:OFFSET``."""
@@ -166,19 +171,19 @@ def sarif_log(results: list[FileResult]) -> dict:
     for res in results:
         for f in _sorted(res):
             props = {"t": f.t, "servoId": f.id, "severity": f.severity}
-            region = {"byteOffset": f.offset, "byteLength": max(len(f.raw), 1)}
-            loc = res.locations.get(f.offset)
-            if loc:
-                region.update(startLine=loc[0], startColumn=loc[1])
+            # A finding's offset is in the decoded byte stream (decode's @N), kept as a property: it is
+            # a position in the file only for a binary capture.
+            props["streamOffset"] = f.offset
+            physical: dict = {"artifactLocation": {"uri": sarif_uri(res.path)}}
+            region = _region(res, f)
+            if region:
+                physical["region"] = region
             out.append({
                 "ruleId": f.code,
                 "ruleIndex": index[f.code],
                 "level": _SARIF_LEVEL[f.severity],
                 "message": {"text": f.message},
-                "locations": [{"physicalLocation": {
-                    "artifactLocation": {"uri": res.path},
-                    "region": region,
-                }}],
+                "locations": [{"physicalLocation": physical}],
                 "properties": props,
             })
     invocation = {"executionSuccessful": not any(r.error for r in results)}
@@ -187,7 +192,36 @@ def sarif_log(results: list[FileResult]) -> dict:
         invocation["toolExecutionNotifications"] = notes
     return {"$schema": SARIF_SCHEMA, "version": "2.1.0",
             "runs": [{"tool": {"driver": driver}, "results": out, "invocations": [invocation],
-                      "artifacts": [{"location": {"uri": r.path}} for r in results]}]}
+                      "artifacts": [{"location": {"uri": sarif_uri(r.path)}} for r in results]}]}
+
+
+_URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")  # a pyserial URL (socket://host:port) is a URI already
+_BINARY_SUFFIXES = (".bin", ".raw")                 # read as raw bytes unless --input-format says otherwise
+
+
+def sarif_uri(path: str) -> str:
+    """``path`` as a SARIF artifact URI: an absolute path as a ``file://`` URI, a relative one as a
+    percent-encoded relative reference (a space, ``#`` or ``%`` in a name would otherwise end or
+    change the URI)."""
+    if _URL.match(path):
+        return path
+    p = Path(path)
+    if p.is_absolute():
+        return p.as_uri()
+    # A colon in the first segment would read as a URI scheme, so it is encoded too.
+    return quote(p.as_posix(), safe="/")
+
+
+def _region(res: FileResult, f: Finding) -> dict | None:
+    """Where in the file ``f`` is: the line and column of a text capture, the byte range of a binary
+    one, else nothing (an MCAP's or another tool's log's stream offsets are no place in the file)."""
+    loc = res.locations.get(f.offset)
+    if loc:
+        return {"startLine": loc[0], "startColumn": loc[1]}
+    binary = res.format == "bin" if res.format else Path(res.path).suffix.lower() in _BINARY_SUFFIXES
+    if binary:
+        return {"byteOffset": f.offset, "byteLength": max(len(f.raw), 1)}
+    return None
 
 
 def write_sarif(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:

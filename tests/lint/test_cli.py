@@ -159,8 +159,9 @@ def test_sarif_format(capsys):
     assert len(res) == 7
     p9 = next(r for r in res if r["ruleId"] == "P009")
     assert rules[p9["ruleIndex"]]["id"] == "P009" and p9["level"] == "error"
-    assert p9["locations"][0]["physicalLocation"]["region"] == {"byteOffset": 86, "byteLength": 9, "startLine": 15,
-                                                                  "startColumn": 1}
+    # A text capture's region is its line and column; the stream offset is no position in the file.
+    assert p9["locations"][0]["physicalLocation"]["region"] == {"startLine": 15, "startColumn": 1}
+    assert p9["properties"]["streamOffset"] == 86
     assert next(r for r in res if r["ruleId"] == "Q004")["level"] == "warning"
 
 
