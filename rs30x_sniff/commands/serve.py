@@ -6,6 +6,7 @@ import argparse
 import logging
 import sys
 import threading
+import time
 from typing import Any
 
 from ..pipeline import Decoder, Pipeline
@@ -51,9 +52,17 @@ def _route_sdk_log() -> None:
         logger.propagate = False  # not also Python's last-resort handler, unprefixed
 
 
+def live_start_time(source: Any) -> float | None:
+    """The wall-clock time (seconds since the epoch) to add to a live stream's times: now, for the
+    simulator, whose bus times count from 0 and would be shown in 1970; None for any other source (a
+    port's times are the wall clock already, and a replayed capture keeps the times it recorded)."""
+    return time.time() if getattr(source, "kind", None) == "simulator" else None
+
+
 def start_foxglove(address: tuple[str, int] | None, *, source: str, baud: int,
-                   models: dict[int, str] | None = None) -> Any:
-    """The Foxglove sink for ``address`` (None: no server), its URLs said on stderr."""
+                   models: dict[int, str] | None = None, start_time: float | None = None) -> Any:
+    """The Foxglove sink for ``address`` (None: no server), its URLs said on stderr; ``start_time``
+    anchors times that count from 0 to the wall clock (:func:`live_start_time`)."""
     if address is None:
         return None
     from ..io.foxglove_sink import FoxgloveError, FoxgloveSink
@@ -61,7 +70,7 @@ def start_foxglove(address: tuple[str, int] | None, *, source: str, baud: int,
     _route_sdk_log()
 
     try:
-        sink = FoxgloveSink(*address, source=source, baud=baud, models=models)
+        sink = FoxgloveSink(*address, source=source, baud=baud, models=models, start_time=start_time)
     except FoxgloveError as e:
         raise CliError(f"--foxglove: {e}") from None
     print(f"rs30x-sniff: Foxglove server on {sink.ws_url}; open {sink.app_url()}", file=sys.stderr, flush=True)
@@ -105,7 +114,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"{args.input}: {e.strerror or e}") from None
     stop = threading.Event()
     try:
-        sink = start_foxglove(args.foxglove, source=source.name, baud=opts.baud, models=opts.models)
+        sink = start_foxglove(args.foxglove, source=source.name, baud=opts.baud, models=opts.models,
+                              start_time=live_start_time(source))
         pipeline = Pipeline(Decoder(opts, linter), [sink, *live_sinks(settings, source, source.name)])
         try:
             # Ctrl-C (and SIGTERM, which the CLI turns into one) ends the stream; the pipeline
