@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
 from rs30x_sniff.autobaud import (
@@ -55,12 +53,11 @@ def test_sparse_or_missing_timestamps_say_nothing():
 @pytest.mark.parametrize("line", [9600, 57600, 115200, 230400])
 def test_scan_finds_the_rate_on_a_simulated_wire(line):
     wire = SimWire(run("hexapod", baud=line, duration=30.0), line, start=2.0)
-    t0 = time.monotonic()
     result = scan(wire.read_for)
-    wall = time.monotonic() - t0
     assert result.baud == line, result.describe()
-    assert result.seconds < 3.0 and wire.t - 2.0 < 3.0  # simulated time spent listening
-    assert wall < 3.0
+    # Simulated time spent listening (on a port, the wall time); the scan's own cost is measured
+    # by bench/autobaud.py, not asserted here, where a loaded machine made it fail.
+    assert result.seconds < 3.0 and wire.t - 2.0 < 3.0
     assert all(s.frames == 0 for s in result.table if s.baud != line)
     assert result.table[-1].baud == line
 
