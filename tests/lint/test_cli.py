@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import xml.etree.ElementTree as ET
 
 import jsonschema
@@ -274,6 +275,23 @@ def test_rules_command(capsys):
 def test_docs_rules_md_is_up_to_date():
     assert (ROOT / "docs" / "rules.md").read_text() == markdown(), \
         "regenerate: rs30x-sniff rules --format markdown -o docs/rules.md"
+
+
+_WORDS = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7, "eight": 8, "nine": 9}
+
+
+def test_docs_count_the_rules_and_families_of_the_registry():
+    # Every "N rules" in the README and docs, and the families named beside it, are the registry's.
+    docs = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    counts = [(d.name, int(n)) for d in docs for n in re.findall(r"\b(\d+) (?:lint )?rules\b", d.read_text())]
+    assert counts, "the README no longer says how many rules there are: drop this test or the figure"
+    assert all(n == len(RULES) for _, n in counts), (counts, len(RULES))
+    readme = (ROOT / "README.md").read_text()
+    m = re.search(r"(\w+) families \(([^)]*)\)", readme)
+    assert m, "the README's list of rule families moved"
+    letters = re.findall(r"`([A-Z])`", m.group(2))
+    assert sorted(letters) == sorted({r.code[0] for r in RULES})
+    assert _WORDS.get(m.group(1), m.group(1)) == len(letters)
 
 
 def test_decode_shows_findings(capsys):
