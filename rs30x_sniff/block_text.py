@@ -327,6 +327,8 @@ def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable 
             pieces.append(("lit", " " + rec.status.upper()))
     elif rec.status == "missing":
         pieces.append(("lit", " NO-REPLY"))
+    elif rec.status == "unknown":
+        pieces.append(("lit", " CAPTURE-ENDED"))
     pieces.append(("lit", "\n"))
     # Adjacent literals, plain and f-strings, are one string at compile time; the text goes in through
     # repr, so nothing in a label or unit can be read as code.

@@ -67,8 +67,7 @@ class Block:
         if got is None and self.run.t0 is not None:
             t0, t1 = self.t0, self.t1
             replies = np.flatnonzero(self.answered) + 1
-            lat = t0[replies] - t1[replies - 1]
-            got = self._latencies = (replies, np.where(lat > 0.0, lat, 0.0))
+            got = self._latencies = (replies, t0[replies] - t1[replies - 1])  # all above 0 (feed_run)
         return got
 
     def latencies(self) -> np.ndarray | None:
@@ -222,7 +221,10 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     ok_pair = wants & ~slow & nxt_return
     if run.t0 is not None and n > 1:
         in_time = np.zeros(n, dtype=bool)
-        in_time[:-1] = ~(run.t0[1:] - run.t1[:-1] > tracker.reply_timeout)
+        gap = run.t0[1:] - run.t1[:-1]
+        # Within the timeout, and after the request ended: a reply the clock puts no later than its
+        # request's end has no latency to give (bus.reply_latency); the tracker takes that pair.
+        in_time[:-1] = (gap > 0.0) & ~(gap > tracker.reply_timeout)
         ok_pair &= in_time
     answered_return = np.zeros(n, dtype=bool)
     answered_return[1:] = ok_pair[:-1]
@@ -345,6 +347,7 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
         # with no data; so does any write).
         st.last_t = None if t0 is None else float(t0[items[-1][0]])
     tracker._index += n
+    tracker.fresh = False  # the segment has had its first packet
     # The latest answered request, unless a request came after it (a later reply would be EXTRA to it).
     req_rows = np.flatnonzero(is_short | is_long)
     ans = np.flatnonzero(answered)

@@ -6,7 +6,7 @@ from collections import deque
 from typing import Any, Callable, Iterable
 from weakref import ref
 
-from .events import Ack, AnyEvent, LongPacket, Nack, ReturnPacket, ShortPacket
+from .events import CAPTURE_START, Ack, AnyEvent, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
 from .memmap import Field, Model, ModelRegistry, default_registry
 from .wire import BROADCAST_ID, FLAG_WANTS_REPLY
 
@@ -16,6 +16,10 @@ MISSING = "missing"          # a request whose reply never came
 PAIRED = "paired"            # a reply to the request before it
 UNSOLICITED = "unsolicited"  # a reply nobody asked for
 EXTRA = "extra"              # a second reply to one request (two servos share an ID)
+# The edges of a capture (or of a time segment), not faults: a request whose reply time had not run out
+# when the capture ended, and the first reply of a capture whose request came before the capture began.
+UNKNOWN = "unknown"
+UNSEEN = "request-unseen"
 
 # A return comes 100 us + 50 us x return_delay (at most 12.85 ms, table 4.6 No. 7) after the request;
 # allow for the reply's own transmission and USB jitter before calling it missing.
@@ -25,15 +29,16 @@ DEFAULT_REPLY_TIMEOUT = 0.050
 def reply_latency(request: AnyEvent, reply: AnyEvent) -> float | None:
     """Seconds from the end of ``request`` to the start of ``reply`` (None without times).
 
-    Never below zero: a reply cannot start before its request ended. Stamps that say otherwise (a
-    logger's arrival times read as first-byte times, a wrong baud) are F006's to report. Blocks
-    (rs30x_sniff.blocks) compute the same on arrays: ``Block.reply_latencies``.
+    None also where the clock cannot support one: a reply cannot start before (or as) its request
+    ended, so stamps that say otherwise (a logger's arrival times read as first-byte times, a wrong
+    baud, a held clock) give no latency rather than a false 0; F005/F006 report them. Blocks
+    (rs30x_sniff.blocks) hold only replies with a latency above zero: ``Block.reply_latencies``.
     """
     t0, t1 = reply[2], request[3]
     if t0 is None or t1 is None:
         return None
     latency = t0 - t1
-    return latency if latency > 0.0 else 0.0
+    return latency if latency > 0.0 else None
 
 
 class Record:
@@ -264,6 +269,10 @@ class BusTracker:
         self._pending: Record | None = None   # request whose reply is due
         self._last_request: Record | None = None  # latest request that got its reply (for EXTRA)
         self._held: list[Record] = []
+        # True from the start of input (or of a time segment) until its first packet: a reply then
+        # answers a request the capture did not see (UNSEEN), if it comes within the reply timeout.
+        self.fresh = True
+        self._segment_t: float | None = None  # the segment's first time, once an event has one
         self._model_cache: dict[int, Model] = {}
         self._uniform = self.uniform  # kept up to date by _learn, so a long packet costs no model lookups
         # Where servo_id lives and what it may hold (table 4.6 No. 4: address 4, 1-127, the same in every
@@ -317,6 +326,13 @@ class BusTracker:
         else:
             model = self.default
         rec = Record(ev, self._index, model)
+        if self.fresh:
+            if self._segment_t is None:
+                self._segment_t = ev[2]
+            if t is not Garbage or ev[4] != CAPTURE_START:  # bytes from before the capture keep it fresh
+                self.fresh = False
+                if t is ReturnPacket or t is Ack or t is Nack:
+                    self._first_reply(rec)
         if t is LongPacket and not self._uniform:
             # Settle each VID's model now: what is learned later does not rewrite this packet.
             model_of = self.model_of
@@ -346,11 +362,39 @@ class BusTracker:
             self._held = []
         out.append(rec)
 
-    def close(self) -> list[Record]:
+    def close(self, end_t: float | None = None) -> list[Record]:
+        """End of input (its last byte ended at ``end_t``, if timed): a request still waiting is UNKNOWN,
+        unless the capture ran on past its reply timeout (then MISSING)."""
         out: list[Record] = []
-        if self._pending is not None:
-            self._resolve_missing(out)
+        self._end_segment(out, end_t)
         return out
+
+    def seam(self, end_t: float | None = None) -> list[Record]:
+        """A seam in the capture's clock (rs30x_sniff.framing.Seam; the old segment ended at ``end_t``):
+        nothing is paired across it, as if one capture ended and another began."""
+        out: list[Record] = []
+        self._end_segment(out, end_t)
+        self._last_request = None
+        self.fresh = True
+        self._segment_t = None
+        return out
+
+    def _end_segment(self, out: list[Record], end_t: float | None) -> None:
+        p = self._pending
+        if p is None:
+            return
+        t1 = p.event[3]
+        if end_t is not None and t1 is not None and end_t - t1 > self.reply_timeout:
+            self._resolve_missing(out)
+        else:
+            self._resolve_missing(out)
+            p.status = UNKNOWN
+
+    def _first_reply(self, rec: Record) -> None:
+        """The segment's first packet is a reply: to a request before the capture, if it came in time."""
+        t0, s = rec.event[2], self._segment_t
+        if self._pending is None and (t0 is None or s is None or t0 - s <= self.reply_timeout):
+            rec.status = UNSEEN
 
     # ---- pairing -----------------------------------------------------------------------------
     def _resolve_missing(self, out: list[Record], by: Record | None = None) -> None:
@@ -451,7 +495,8 @@ class BusTracker:
             req = self._last_request
             rec.status = EXTRA
         else:
-            rec.status = UNSOLICITED
+            if rec.status != UNSEEN:
+                rec.status = UNSOLICITED
             req = None
         rec.request = req
         if req is not None:

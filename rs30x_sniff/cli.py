@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import importlib.util
+import math
 import os
 import signal
 import sys
 import threading
+from typing import Any
 
 from . import __version__
 from .commands.common import CliError
@@ -20,19 +23,71 @@ from .memmap import ModelError
 COMMANDS = ("decode", "lint", "rules", "info", "convert", "export", "table", "record", "simulate", "monitor", "serve")
 
 
+# The largest value of each command-only numeric option, checked for every command here and said in its
+# --help (the settings' options, --gap-bytes, --reply-timeout and --baud, are bounded in settings.KEYS,
+# from the command line and a config file alike). Each is far beyond any real use; a typo such as 1e308
+# gets one line, never an OverflowError deep in a command.
+OPTION_MAX: dict[str, float] = {
+    "--duration": 366 * 86400,  # seconds: a year of capture
+    "--split-size": 1_000_000,  # MB: a terabyte per file
+    "--speed": 1_000_000,       # replay speed: a day of capture in a tenth of a second
+    "--history": 100_000_000,   # records the monitor keeps
+    "--jobs": 1024,             # files linted at once
+    "--id": 65535,              # decode takes 1 to 127 and says so: this only keeps a huge number out
+    "--seed": 2**64 - 1,        # the simulator's random seed
+    "--baud": 1_000_000,        # simulate: bit/s (it takes the rates of table 4.7 only)
+}
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rs30x-sniff",
         description="Protocol analyzer and bus logger for the Futaba RS30x (RS303MR/RS304MD) servo bus.",
     )
     parser.add_argument("--version", action="version", version=f"rs30x-sniff {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=CommandParser)
     for name in COMMANDS:
         modname = f"{__package__}.commands.{name}"
         if importlib.util.find_spec(modname) is None:
             continue
         importlib.import_module(modname).add_parser(sub)
+    parser.commands = sub.choices  # name -> CommandParser
     return parser
+
+
+class CommandParser(argparse.ArgumentParser):
+    """A command's parser: it keeps each numeric option it is given (``numbers``: option, dest, type)
+    and says the option's bound in its help, so :func:`check_bounds` finds them without a list of its own."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.numbers: list[tuple[str, str, type]] = []
+        self.set_defaults(command_parser=self)  # for main, to check the numbers of the command given
+
+    def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
+        kind = kwargs.get("type")
+        if kind in (int, float) and args and str(args[0]).startswith("-"):
+            option = args[-1]
+            limit = OPTION_MAX.get(option)
+            if limit is not None and kwargs.get("help"):
+                kwargs["help"] += f" (at most {limit:g})"
+            action = super().add_argument(*args, **kwargs)
+            self.numbers.append((option, action.dest, kind))
+            return action
+        return super().add_argument(*args, **kwargs)
+
+
+def check_bounds(command: CommandParser, args: argparse.Namespace) -> None:
+    """Each command-only number within OPTION_MAX (the settings check their own keys)."""
+    for option, dest, _ in command.numbers:
+        limit = OPTION_MAX.get(option)
+        values = getattr(args, dest, None)
+        if limit is None or values is None:
+            continue
+        for v in values if isinstance(values, list) else (values,):
+            # NaN and infinity are left to the command's own check, which says what the number must be.
+            if math.isfinite(v) and v > limit:
+                raise CliError(f"{option} {v:g}: must be at most {limit:g}")
 
 
 def _stop(signum: int, frame: object) -> None:
@@ -53,29 +108,57 @@ def stop_on_hangup() -> dict:
     return saved
 
 
+def interrupt_by_default() -> dict:
+    """Ctrl-C (SIGINT) stops every command, whatever it inherited: a shell script starts a background
+    job with SIGINT ignored, and Python keeps an ignored signal ignored (then `kill -INT` would not stop
+    `serve`). The monitor and a live capture put their own handlers in while they run. Returns the
+    handler replaced, for :func:`main` to put back."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler)}
+
+
+def _reader_gone() -> int:
+    """The reader of our output went away (`| head`): not an error for a CLI. stdout is pointed at
+    /dev/null, so the output still buffered is not written again (and fails again) at exit."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "run", None):
         parser.print_help()
         return 2
-    saved = stop_on_hangup()
+    saved = {**interrupt_by_default(), **stop_on_hangup()}
     try:
-        return int(args.run(args) or 0)
+        check_bounds(args.command_parser, args)
+        code = int(args.run(args) or 0)
+        if sys.stdout is not None:
+            sys.stdout.flush()  # here, not at exit: a reader gone or a full disk is reported like the rest
+        return code
     except (CliError, CaptureError, ModelError) as e:
         print(f"rs30x-sniff: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:
-        # The reader of our output went away (e.g. `| head`): not an error for a CLI.
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        return 0
+        return _reader_gone()
+    except SystemExit as e:
+        # A library that meets the closed pipe first ends the program itself (rich's console exits 1).
+        if isinstance(e.__context__, BrokenPipeError):
+            return _reader_gone()
+        raise
     except OSError as e:
-        # A disk that fills up, a file that vanishes: one line, never a traceback. (Outputs are written
-        # beside their destination and renamed at the end, so nothing half-written is left.)
-        where = f"{e.filename}: " if e.filename else ""
+        # A file that vanishes, a disk that fills up under stdout: one line, never a traceback. (A
+        # command's output files report their own write errors, with what was saved.)
+        name = e.filename or ("stdout" if e.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG) else None)
+        where = f"{name}: " if name else ""
         print(f"rs30x-sniff: error: {where}{e.strerror or e}", file=sys.stderr)
         return 2
     finally:

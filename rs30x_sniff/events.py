@@ -24,7 +24,12 @@ from .wire import (
 # Why a run of bytes was skipped (Garbage.reason).
 NOISE = "noise"            # no frame header anywhere in the run
 BAD_HEADER = "bad-header"  # a header whose length cannot be a real frame
-TRUNCATED = "truncated"    # a frame cut short: by an idle gap, by a frame starting inside it, or by end of input
+TRUNCATED = "truncated"    # a frame cut short: by an idle gap, a frame starting inside it, or a flagged byte
+# The edges of the capture itself, not faults on the wire: the tail of a frame whose start came before
+# the capture (or a time segment) began, and a frame the capture's end (or a seam) cut off.
+CAPTURE_START = "capture-start"
+CAPTURE_END = "capture-end"
+CAPTURE_EDGES = (CAPTURE_START, CAPTURE_END)
 
 _COMMON = ("offset", "raw", "t_start", "t_end")
 

@@ -9,6 +9,8 @@ from operator import xor
 
 from .events import (
     BAD_HEADER,
+    CAPTURE_END,
+    CAPTURE_START,
     NOISE,
     TRUNCATED,
     Ack,
@@ -48,6 +50,32 @@ _RUNS_MAX, _RUNS_REST = 1 << 20, 256
 TIME_BACKWARDS = "backwards"
 TIME_TOO_CLOSE = "too-close"
 
+# Seams of a capture's clock, where a new time segment begins: times that jump back by more than
+# SEAM_BACK (two captures joined, a logger restarted: more than any jitter of a USB adapter's stamps),
+# or forward by more than SEAM_GAP of idle line (a capture resumed; a polling host is never that quiet).
+# Nothing is paired, timed or counted across a seam (Seam).
+SEAM_RESTART = "restart"
+SEAM_GAP = "gap"
+SEAM_BACK_S = 0.010
+SEAM_GAP_S = 10.0
+
+
+@dataclass(frozen=True)
+class Seam:
+    """Where a capture's clock restarts or resumes: a new time segment begins at stream ``offset``."""
+
+    offset: int                 # stream offset of the new segment's first byte
+    kind: str                   # SEAM_RESTART or SEAM_GAP
+    t_end: float | None         # end of the last byte before the seam (None: that segment had no time)
+    t_start: float              # the new segment's first time
+
+    def describe(self) -> str:
+        if self.kind == SEAM_RESTART:
+            back = "" if self.t_end is None else f", {self.t_end - self.t_start:.3f} s back"
+            return f"the capture's clock restarts here (stamped {self.t_start:.6f} s{back}): a new time segment begins"
+        idle = "" if self.t_end is None else f" after {self.t_start - self.t_end:.3f} s without bytes"
+        return f"the capture resumes here{idle}: a new time segment begins (nothing is timed across the gap)"
+
 
 @dataclass
 class TimeFault:
@@ -60,6 +88,11 @@ class TimeFault:
     placed: float        # the time it was given instead (no earlier than the previous chunk's)
     count: int = 1
 
+
+# Garbage reasons that, before a segment's first frame, mean the capture cut a frame (CAPTURE_START);
+# bytes the capturing UART flagged keep their own reason.
+_CUT_BY_START = (NOISE, TRUNCATED, BAD_HEADER)
+_HEADERS = (b"\xfa\xaf", b"\xfd\xdf")
 
 # Results of FrameDecoder._frame_end besides an end index.
 _WAIT = -1      # cannot decide yet: more bytes are needed
@@ -99,6 +132,14 @@ class FrameDecoder:
         # clock is held monotonic: a later chunk starts no earlier than the previous one ended, so no
         # latency is ever negative (the linter reports these as F005/F006).
         self.time_faults: dict[str, TimeFault] = {}
+        self.seams: list[Seam] = []  # every seam so far, in stream order
+        # Until the first frame of the input (or of a time segment), garbage is the tail of a frame
+        # whose start came before the capture did (CAPTURE_START), unless it runs on for longer than
+        # any frame: then it is what it looks like.
+        self._lead = True
+        self._seg_start = 0
+        self._lead_max = 8 + max_data
+        self._final = False
         self.closed = False
         # The numpy kernel (rs30x_sniff.framing_kernel) for long clean runs; kernel=False is the plain
         # state machine, which the differential tests compare it with.
@@ -114,6 +155,30 @@ class FrameDecoder:
         """Stream offset of the next byte to be fed."""
         return self._base + len(self._buf)
 
+    @property
+    def end_time(self) -> float | None:
+        """When the last byte fed so far ended (None without timestamps)."""
+        return None if self._last_t is None else self._last_t + self.byte_time
+
+    # ---- seams -------------------------------------------------------------------------------
+    def _seam_kind(self, t: float) -> str | None:
+        """The seam a chunk stamped ``t`` opens, if any (the previous chunk had a time)."""
+        if t < self._chunk_t - SEAM_BACK_S:
+            return SEAM_RESTART
+        if self._last_t is not None and t - self._last_t > SEAM_GAP_S:
+            return SEAM_GAP
+        return None
+
+    def _cut_segment(self, kind: str, t: float) -> list[AnyEvent]:
+        """End the current time segment before a chunk stamped ``t``: what is pending becomes events
+        (a frame the seam cuts is CAPTURE_END), and the clock starts afresh with the next chunk."""
+        out = self._parse(final=True, ended=True)
+        self.seams.append(Seam(self.offset, kind, self.end_time, t))
+        self._last_t = self._chunk_t = self._start_t = None
+        self._lead = True
+        self._seg_start = self.offset
+        return out
+
     # ---- input -------------------------------------------------------------------------------
     def feed(self, data: bytes, t: float | None = None) -> list[AnyEvent]:
         """Add bytes (their first byte seen at capture time ``t``); return the events now decided."""
@@ -121,6 +186,10 @@ class FrameDecoder:
             raise RuntimeError("feed() after close()")
         if not data:
             return []
+        if t is not None and self._chunk_t is not None and self._seam_kind(t) is not None:
+            out = self._cut_segment(self._seam_kind(t), t)
+            self._add(data, t)
+            return out + self._parse(final=False)
         self._add(data, t)
         return self._parse(final=False)
 
@@ -140,10 +209,15 @@ class FrameDecoder:
             lens = list(map(len, datas))
         if not chunks:
             return []
+        out: list = []
         if not (len(chunks) > 8 and self._add_many(chunks, datas, lens)):
             for data, t in chunks:
+                if t is not None and self._chunk_t is not None:
+                    kind = self._seam_kind(t)
+                    if kind is not None:
+                        out += self._cut_segment(kind, t)
                 self._add(data, t)
-        return self._parse(final=False)
+        return out + self._parse(final=False) if out else self._parse(final=False)
 
     def _add_many(self, chunks: list[tuple[bytes, float | None]], datas: list[bytes], sizes: list[int]) -> bool:
         """:meth:`_add` for a list of chunks at once, when all are timestamped and the clock keeps pace
@@ -159,7 +233,9 @@ class FrameDecoder:
         prev = np.empty_like(ts)
         prev[1:] = last[:-1]
         prev[0] = np.nan if self._last_t is None else self._last_t
-        if (ts < (prev + bt) - bt / 4).any():    # a clock fault somewhere: placed one by one
+        if (ts < (prev + bt) - bt / 4).any():    # a clock fault or a restart somewhere: placed one by one
+            return False
+        if (ts - prev > SEAM_GAP_S).any():       # a seam: the segment ends there
             return False
         offsets = self.offset + np.cumsum(lens) - lens
         if self.gap_bytes is not None:
@@ -184,6 +260,10 @@ class FrameDecoder:
         if not data:
             return []
         out = self._parse(final=True)  # leaves the buffer empty
+        if t is not None and self._chunk_t is not None:
+            kind = self._seam_kind(t)
+            if kind is not None:
+                out += self._cut_segment(kind, t)
         self._add(data, t)
         self._start = 0
         while self._start < len(data):
@@ -230,7 +310,7 @@ class FrameDecoder:
         """End of input: whatever is still pending becomes truncated frames or garbage."""
         if self.closed:
             return []
-        events = self._parse(final=True)
+        events = self._parse(final=True, ended=True)
         self.closed = True
         return events
 
@@ -334,15 +414,26 @@ class FrameDecoder:
                 return q
             j = q + 1
 
-    def _parse(self, final: bool) -> list[AnyEvent]:
+    def _leading(self, i: int) -> bool:
+        """Whether garbage up to buffer index ``i`` may still be the tail of a frame cut by the start."""
+        if self._base + i - self._seg_start < self._lead_max:
+            return True
+        self._lead = False  # longer than any frame: no tail of one
+        return False
+
+    def _parse(self, final: bool, ended: bool = False) -> list[AnyEvent]:
+        """Events from the buffer; ``final``: nothing more comes before them (the end of input or of a
+        time segment when ``ended``, else bytes the UART flagged), so partial frames are cut."""
         out: list[AnyEvent] = []
         buf = self._buf
         n = len(buf)
         self._start = 0   # buffer index of the first byte not yet in an event
+        self._final = final
         i = self._scan
         kernel = self.kernel
         while i < n:
-            while i - self._start >= GARBAGE_PIECE:  # [start, i) is garbage already
+            # [start, i) is garbage already: handed out in pieces (the leading tail of a frame whole).
+            while i - self._start >= GARBAGE_PIECE and not (self._lead and self._leading(i)):
                 self._emit_garbage(out, self._start + GARBAGE_PIECE)
             start = self._start
             base = self._base
@@ -398,7 +489,7 @@ class FrameDecoder:
                         # Cut short, or corrupt with an intact frame inside: the head is garbage.
                         if i > start:
                             self._emit_garbage(out, i)
-                        self._garbage_reason = TRUNCATED
+                        self._garbage_reason = CAPTURE_END if ended and q < 0 and stop == n else TRUNCATED
                         i = q if q >= 0 else stop
                         self._emit_garbage(out, i)
                         continue
@@ -418,7 +509,7 @@ class FrameDecoder:
                 if gap is not None:
                     nxt = gap - base
             i = nxt
-        while i - self._start >= GARBAGE_PIECE:
+        while i - self._start >= GARBAGE_PIECE and not (self._lead and self._leading(i)):
             self._emit_garbage(out, self._start + GARBAGE_PIECE)
         if final and n > self._start:
             self._emit_garbage(out, n)
@@ -454,16 +545,27 @@ class FrameDecoder:
                 del self._chunk_times[:k]
 
     def _emit_single(self, out: list[AnyEvent], cls: type) -> None:
+        self._lead = False
         off, raw, t0, t1 = self._take(self._start + 1)
         out.append(tuple.__new__(cls, (off, raw, t0, t1)))
 
     def _emit_garbage(self, out: list[AnyEvent], end: int) -> None:
+        reason = self._garbage_reason
+        if self._lead and reason in _CUT_BY_START:
+            if self._base + self._start == self._seg_start and self._buf[self._start:self._start + 2] in _HEADERS:
+                self._lead = False  # the segment starts with a header: no frame was cut by its start
+            elif not (self._final and end == len(self._buf)):
+                # Before the segment's first frame: the tail of a frame that began before the capture
+                # did (not when nothing but garbage reaches the end: a segment with no frame is what it
+                # looks like).
+                reason = CAPTURE_START
         off, raw, t0, t1 = self._take(end)
-        out.append(tuple.__new__(Garbage, (off, raw, t0, t1, self._garbage_reason)))
+        out.append(tuple.__new__(Garbage, (off, raw, t0, t1, reason)))
         self._garbage_reason = NOISE
         self._ack_pending = False
 
     def _emit_frame(self, out: list[AnyEvent], end: int, ok: bool) -> None:
+        self._lead = False
         off, raw, t0, t1 = self._take(end)
         ev = frame_event(off, raw, t0, t1, ok)
         out.append(ev)
@@ -498,6 +600,7 @@ class FrameDecoder:
             self._kernel_window = min(window * 2, _RUNS_MAX if self.runs else _KERNEL_MAX)
         if not len(ends):
             return i
+        self._lead = False
         blob = bytes(self._buf[i:i + covered])
         self._start = i + covered
         times = self._run_times(base, starts, ends) if self.runs else None

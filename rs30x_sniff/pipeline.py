@@ -39,13 +39,16 @@ class Step(list):
     many records as columns; :meth:`expanded` has them as Records.
     """
 
-    __slots__ = ("findings", "late", "blocks")
+    __slots__ = ("findings", "late", "blocks", "seams")
 
     def __init__(self, records: Iterable[Record] = (), findings: list | None = None, late: list | None = None) -> None:
         super().__init__(records)
         self.findings = findings if findings is not None else []
         self.late = late if late is not None else []
         self.blocks = False  # True when some items are Blocks
+        # Seams of the capture's clock (rs30x_sniff.framing.Seam) that fall among these records: each
+        # record at or past a seam's offset belongs to the new time segment.
+        self.seams: tuple = ()
 
     @property
     def count(self) -> int:
@@ -59,6 +62,7 @@ class Step(list):
         if not self.blocks:
             return self
         out = Step((), self.findings, self.late)
+        out.seams = self.seams
         for x in self:
             if type(x) is Block:
                 out += x.records()
@@ -90,6 +94,7 @@ class Decoder:
         self.bytes_in = 0
         self.late_findings: list = []  # after close(): findings only the end of input revealed
         self._seen = 0  # findings of linter.findings already handed out
+        self._seams = 0  # seams of frames.seams already handed out
 
     def _new_findings(self) -> list:
         found = self.linter.findings
@@ -144,22 +149,60 @@ class Decoder:
                 lint(rec)
 
     def _decided(self, events: list) -> Step:
+        if len(self.frames.seams) > self._seams:
+            return self._across_seams(events)
         out = self._track(events, Step())
         if self.linter is not None and out:
             self._lint(out)
             out.findings = self._new_findings()
         return out
 
-    def close(self) -> Step:
-        """End of input: the records still pending, and the findings only the end reveals (``late``)."""
-        out = self._track(self.frames.close(), Step())
-        out += self.bus.close()
+    def _across_seams(self, events: list) -> Step:
+        """:meth:`_decided` for events among which the clock has a seam: each time segment is paired
+        and linted on its own, as if one capture ended at the seam and another began."""
+        seams = self.frames.seams[self._seams:]
+        self._seams = len(self.frames.seams)
+        out = Step()
+        out.seams = tuple(seams)
+        k = 0
+        for seam in seams:
+            j = k
+            while j < len(events) and _offset_of(events[j]) < seam.offset:
+                j += 1
+            piece = self._track(events[k:j], Step())
+            piece += self.bus.seam(seam.t_end)
+            self._take_piece(out, piece)
+            if self.linter is not None:
+                self.linter.seam(seam)
+            k = j
+        self._take_piece(out, self._track(events[k:], Step()))
         if self.linter is not None:
-            self._lint(out)
-            self.linter.time_faults = self.frames.time_faults  # the capture's clock, for F005/F006
-            out.late = self.late_findings = self.linter.close()
             out.findings = self._new_findings()
         return out
+
+    def _take_piece(self, out: Step, piece: Step) -> None:
+        if self.linter is not None and piece:
+            self._lint(piece)
+        out += piece
+        out.blocks |= piece.blocks
+
+    def close(self) -> Step:
+        """End of input: the records still pending, and the findings only the end reveals (``late``)."""
+        out = self._decided(self.frames.close())  # linted, its findings taken
+        tail = Step(self.bus.close(self.frames.end_time))
+        if self.linter is not None:
+            self._lint(tail)
+        out += tail
+        if self.linter is not None:
+            self.linter.time_faults = self.frames.time_faults  # the capture's clock, for F005/F006
+            out.late = self.late_findings = self.linter.close()
+            out.findings = out.findings + self._new_findings()
+        return out
+
+
+def _offset_of(item: Any) -> int:
+    """Stream offset of an event's first byte, or a FrameRun's."""
+    return item.base if type(item) is FrameRun else item[0]
 
 
 class Sink:

@@ -123,6 +123,8 @@ def summary(rec: Record, *, bare: bool = False, keep: bool = True, only: set[int
             parts.append(rec.status.upper())
     elif rec.status == "missing":
         parts.append("NO-REPLY")
+    elif rec.status == "unknown":
+        parts.append("CAPTURE-ENDED")  # its reply was still due when the capture (or a time segment) ended
     return " ".join(parts)
 
 

@@ -16,6 +16,7 @@ from .lint.registry import SEVERITIES
 from .memmap import ModelError, ModelRegistry, default_registry
 from .pipeline import DecodeOptions
 from .timebase import TIME_REFS
+from .timeunit import UNITS as TIME_UNITS
 from .wire import BAUD_RATES, DEFAULT_BAUD
 
 CONFIG_NAME = "rs30x-sniff.toml"
@@ -51,13 +52,30 @@ def _count(v: Any) -> str | None:
     return None if v > 0 else "must be positive"
 
 
+def _at_most(limit: float, check: Callable[[Any], str | None]) -> Callable[[Any], str | None]:
+    """``check``, and no more than ``limit``: a typo such as 1e308 is a one-line error, never an
+    OverflowError deep in a command."""
+    def bounded(v: Any) -> str | None:
+        return check(v) or (None if v <= limit else f"must be at most {limit:g}")
+    return bounded
+
+
+# Upper bounds, each far beyond any real bus: the fastest USB-UARTs run at 12 Mbit/s; an hour is
+# longer than any reply, flash write or margin; a million byte times is seconds even at 9600 bit/s.
+MAX_BAUD = 12_000_000
+MAX_SECONDS = 3600.0
+MAX_BYTE_TIMES = 1_000_000
+MAX_CHANNEL = 1023
+
+
 AUTO = "auto"
 
 
 def _baud(v: Any) -> str | None:
     if v == AUTO:
         return None
-    return _count(v)  # the manual's rates are checked against baud-any once every layer is merged
+    # The manual's rates are checked against baud-any once every layer is merged.
+    return _at_most(MAX_BAUD, _count)(v)
 
 
 def _one_of(choices: tuple[str, ...]) -> Callable[[Any], str | None]:
@@ -90,7 +108,7 @@ def _models(v: Any) -> str | None:
 
 def _channel(v: Any) -> str | None:
     if isinstance(v, int) and not isinstance(v, bool):
-        return None if v >= 0 else "must be a channel name or an index from 0"
+        return None if 0 <= v <= MAX_CHANNEL else f"must be a channel name or an index from 0 to {MAX_CHANNEL}"
     return None if isinstance(v, str) and v.strip() else "expected a channel name or an index from 0"
 
 
@@ -104,23 +122,30 @@ class Key:
 
 
 KEYS: dict[str, Key] = {
-    "baud": Key(_baud, "--baud", "bus baud rate (table 4.7), or auto"),
+    "baud": Key(_baud, "--baud", f"bus baud rate (table 4.7; at most {MAX_BAUD} with baud-any), or auto"),
     "baud_any": Key(_flag, "--baud-any", "accept a baud rate outside table 4.7"),
     "model": Key(_model_name, "--model", "model of every servo"),
     "models": Key(_models, "--model ID=", "model per servo ID"),
-    "gap_bytes": Key(_not_negative, "--gap-bytes", "idle byte times that end a frame (0: off)"),
-    "reply_timeout": Key(_positive, "--reply-timeout", "seconds before a reply counts as missing"),
+    "gap_bytes": Key(_at_most(MAX_BYTE_TIMES, _not_negative), "--gap-bytes",
+                     f"idle byte times that end a frame (0: off; at most {MAX_BYTE_TIMES})"),
+    "reply_timeout": Key(_at_most(MAX_SECONDS, _positive), "--reply-timeout",
+                         f"seconds before a reply counts as missing (at most {MAX_SECONDS:g})"),
     "time_ref": Key(_one_of(TIME_REFS), "--time-ref", "what timestamped hex times mark: first byte or arrival"),
+    "time_unit": Key(_one_of(TIME_UNITS), "--time-unit", "the unit of timestamped hex times: s, ms, us or ns"),
     "channel": Key(_channel, "--channel", "the logic capture's channel to decode: a name or an index from 0"),
     "select": Key(_rules, "--select", "rules to run"),
     "ignore": Key(_rules, "--ignore", "rules to skip"),
     "severity": Key(_severity, "--severity", "severity per rule"),
     "fail_on": Key(_one_of(FAIL_ON), "--fail-on", "lowest severity that fails lint"),
     "format": Key(_one_of(FORMATS), "--format", "lint report format"),
-    "latency_margin": Key(_positive, "latency-margin", "seconds a reply may stray from its return delay (B006)"),
-    "inter_byte_gap": Key(_positive, "inter-byte-gap", "idle byte times allowed inside a frame (F004)"),
-    "flash_write_time": Key(_positive, "flash-write-time", "seconds a flash write takes (Q003)"),
-    "max_servos": Key(_count, "max-servos", "servos one bus may carry (Q008)"),
+    "latency_margin": Key(_at_most(MAX_SECONDS, _positive), "latency-margin",
+                          f"seconds a reply may stray from its return delay (B006; at most {MAX_SECONDS:g})"),
+    "inter_byte_gap": Key(_at_most(MAX_BYTE_TIMES, _positive), "inter-byte-gap",
+                          f"idle byte times allowed inside a frame (F004; at most {MAX_BYTE_TIMES})"),
+    "flash_write_time": Key(_at_most(MAX_SECONDS, _positive), "flash-write-time",
+                            f"seconds a flash write takes (Q003; at most {MAX_SECONDS:g})"),
+    "max_servos": Key(_at_most(MAX_SERVO_ID, _count), "max-servos",
+                      f"servos one bus may carry (Q008; at most {MAX_SERVO_ID}, one per ID)"),
 }
 LINT_THRESHOLDS = ("latency_margin", "inter_byte_gap", "flash_write_time", "max_servos")
 
@@ -228,6 +253,10 @@ class Settings:
     """Every option that changes how a capture is decoded and linted, merged from its layers.
 
     Build it with :func:`resolve`; ``origin`` says which layer each decode value came from.
+    ``timing_unsupported`` is not a layer's value: :func:`rs30x_sniff.commands.common.settings_for`
+    sets it to why the capture's timing figures (latencies, durations, rates, bus load) cannot be
+    stated, e.g. ``the timestamps contradict --baud 9600: they show 115200 bit/s``; None when nothing
+    is known against them. Commands leave those figures out, with this reason, rather than print them.
     """
 
     baud: int = DEFAULT_BAUD
@@ -236,12 +265,14 @@ class Settings:
     gap_bytes: float | None = DEFAULT_GAP_BYTES   # None: gap detection off
     reply_timeout: float = DEFAULT_REPLY_TIMEOUT
     time_ref: str | None = None                    # None: told by the content (rs30x_sniff.timebase)
+    time_unit: str | None = None                   # None: told by the content (rs30x_sniff.timeunit)
     channel: str | None = None                     # a logic capture's channel (name or index); None: its reader picks
     baud_auto: bool = False                        # --baud auto: a port is scanned, a capture's times tell
     lint: Mapping[str, Any] = field(default_factory=dict)  # select, ignore, severity, fail_on, thresholds
     report_format: str | None = None
     origin: Mapping[str, str] = field(default_factory=dict)
     config_path: str | None = None
+    timing_unsupported: str | None = None          # why timing figures are left out (see above)
 
     def decode_options(self, registry: ModelRegistry | None = None) -> DecodeOptions:
         return DecodeOptions(baud=self.baud, default_model=self.default_model, models=dict(self.models),
@@ -269,7 +300,8 @@ class Settings:
         return {"baud": self.baud, "default_model": self.default_model,
                 "models": {str(k): v for k, v in sorted(self.models.items())}, "gap_bytes": self.gap_bytes,
                 "reply_timeout": self.reply_timeout, "time_ref": self.time_ref, "origin": dict(self.origin),
-                "config": self.config_path, **({"channel": self.channel} if self.channel is not None else {})}
+                "config": self.config_path, **({"channel": self.channel} if self.channel is not None else {}),
+                **({"time_unit": self.time_unit} if self.time_unit is not None else {})}
 
 
 def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, Any] | None = None,
@@ -288,7 +320,7 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     cap_origin = cap.pop("origin", {})  # why the capture says what it says (its metadata, its timestamps)
     layers = [(CAPTURE, cap), (where_conf, conf), (COMMAND_LINE, cli)]
     values: dict[str, Any] = {"baud": DEFAULT_BAUD, "model": None, "gap_bytes": DEFAULT_GAP_BYTES,
-                              "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False, "time_ref": None,
+                              "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False, "time_ref": None, "time_unit": None,
                               "channel": None}
     origin = {k: DEFAULTS for k in ("baud", "model", "gap_bytes", "reply_timeout")}
     models: dict[int, str] = {}
@@ -296,7 +328,7 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     ignore: list[str] = []
     severity: dict[str, str] = {}
     for where, layer in layers:
-        for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any", "time_ref", "channel"):
+        for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any", "time_ref", "time_unit", "channel"):
             if key in layer:
                 values[key] = layer[key]
                 origin[key] = cap_origin.get(key, where) if layer is cap else where
@@ -329,7 +361,7 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     fmt = cli.get("format", conf.get("format"))
     return Settings(baud=baud, baud_auto=baud_auto, default_model=values["model"], models=models,
                     gap_bytes=values["gap_bytes"] or None, reply_timeout=values["reply_timeout"],
-                    time_ref=values["time_ref"], lint=lint,
+                    time_ref=values["time_ref"], time_unit=values["time_unit"], lint=lint,
                     channel=None if values["channel"] is None else str(values["channel"]).strip(),
                     report_format=fmt, origin=origin,
                     config_path=where_conf if config else None)

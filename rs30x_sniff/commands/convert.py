@@ -7,14 +7,14 @@ import itertools
 from datetime import datetime
 import os
 import sys
-from typing import Any, Iterator
+from typing import IO, Any, Iterator
 
 from ..io.captures import Chunk, detect_format
 from ..pipeline import Decoder, drive
 from ..settings import Settings
 from ..sinks import ProgressSink
 from .common import CliError, add_decode_options, add_lint_options, is_live, make_linter, open_input, settings_for
-from .outputs import check_output, output_path, report_end
+from .outputs import STDOUT, check_output, output_binary, report_end
 
 
 # A file is converted in chunks of up to 1 MiB (still cut at 1 s of log time): the summary lists every
@@ -27,7 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="Convert a capture (bin, hex, timestamped hex or MCAP) into an MCAP file: raw "
                                    "bytes, decoded packets, per-servo state, transactions and lint findings.")
     p.add_argument("input", metavar="INPUT", help="capture file, or - for raw bytes on stdin")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.mcap", help="MCAP file to write")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.mcap", help="MCAP file to write (- for stdout)")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     add_decode_options(p)
     add_lint_options(p)
@@ -69,9 +69,10 @@ def parse_start_time(text: str | None) -> float | None:
     return when.timestamp()
 
 
-def open_mcap_sink(path: str, source: str, settings: Settings, *, timed: bool, start_time: float | None = None,
-                   **extra: str) -> Any:
-    """The MCAP sink of a converted (or simulated) capture, with its settings in the metadata."""
+def open_mcap_sink(path: str | IO[bytes], source: str, settings: Settings, *, timed: bool,
+                   start_time: float | None = None, **extra: str) -> Any:
+    """The MCAP sink of a converted (or simulated) capture, with its settings in the metadata; ``path``
+    may be a file object (the writer only appends, so stdout will do)."""
     from ..io.mcap_sink import McapSink
 
     try:
@@ -80,7 +81,9 @@ def open_mcap_sink(path: str, source: str, settings: Settings, *, timed: bool, s
                         extra_metadata={"default_model": settings.default_model or "", **extra},
                         chunk_size=CHUNK_SIZE, start_time=start_time)
     except OSError as e:
-        raise CliError(f"{path}: cannot write: {e.strerror}") from None
+        if e.filename is None and isinstance(path, str):
+            e.filename = path
+        raise  # the output's error: :func:`output_path` says what became of the file
 
 
 # ---- the command ---------------------------------------------------------------------------------
@@ -110,8 +113,8 @@ def run(args: argparse.Namespace) -> int:
     # a stop (Ctrl-C, SIGTERM, SIGHUP) keeps the finalized log of what was converted so far.
     stopped = None
     try:
-        with output_path(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as tmp:
-            sink = open_mcap_sink(tmp, source, settings, timed=first[1] is not None, start_time=start_time)
+        with output_binary(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as out:
+            sink = open_mcap_sink(out, source, settings, timed=first[1] is not None, start_time=start_time)
             if bar is None:
                 drive(chunks, decoder, sink)
             else:
@@ -120,5 +123,6 @@ def run(args: argparse.Namespace) -> int:
                     drive(chunks, decoder, sink, ProgressSink(lambda n: bar.advance(task, n)))
     except KeyboardInterrupt as e:
         stopped = str(e) or "Ctrl-C"  # the log of what was read so far is finished and kept
-    summary = f"{args.output}: {decoder.bytes_in} bytes, {sink.messages} messages, {sink.bytes_written} bytes written"
+    name = "stdout" if args.output == STDOUT else args.output
+    summary = f"{name}: {decoder.bytes_in} bytes, {sink.messages} messages, {sink.bytes_written} bytes written"
     return report_end(summary, stopped)

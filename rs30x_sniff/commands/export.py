@@ -61,8 +61,5 @@ def run(args: argparse.Namespace) -> int:
         write_stream(sys.stdout.buffer, chunks(), fmt)
         return 0
     with output_path(args.output, force=args.force, inputs=(args.input,)) as tmp:
-        try:
-            write_capture(tmp, chunks(), fmt)
-        except OSError as e:
-            raise CliError(f"{args.output}: cannot write: {e.strerror}") from None
+        write_capture(tmp, chunks(), fmt)  # a write error: output_path names OUT and says what is left
     return 0

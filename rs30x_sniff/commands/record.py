@@ -6,6 +6,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import IO
 
 from ..io.mcap_sink import McapSink
 from ..io.serial_tap import LOST, STOPPED, LiveSource, SerialTap
@@ -14,7 +15,7 @@ from ..sinks import TextSink
 from ..stats import RecentLoad
 from .common import (CliError, add_decode_options, add_lint_selection, check_positive, live_sinks, make_linter,
                      no_data, settings_for)
-from .outputs import check_output
+from .outputs import STDOUT, check_output, write_error
 from .serve import add_foxglove_option, start_foxglove
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
@@ -28,7 +29,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "file, decoding and linting as it goes. Ctrl-C, SIGTERM, --duration and a lost "
                                    "port all leave a finalized file.")
     p.add_argument("port", metavar="PORT", help="serial device (/dev/ttyUSB0) or pyserial URL (socket://host:port)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.mcap", help="MCAP file to write")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.mcap",
+                   help="MCAP file to write (- streams it to stdout)")
     p.add_argument("--force", action="store_true", help="replace OUT (and its numbered parts) if they exist")
     add_decode_options(p)
     p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
@@ -57,19 +59,23 @@ class _Files(Sink):
         self.last_flush = time.monotonic()
 
     def _open(self) -> McapSink:
-        if self.split_bytes is None:
-            path = str(self.base)
+        if str(self.base) == STDOUT:
+            # Streamed as it is recorded: the MCAP writer only appends, so a pipe takes it as a file does.
+            name, path = "stdout", None
+        elif self.split_bytes is None:
+            name = path = str(self.base)
         else:
             self.index += 1
-            path = str(self.base.with_name(f"{self.base.stem}-{self.index:03d}{self.base.suffix or '.mcap'}"))
-        # Written in place, not renamed at the end: a recorder killed outright still leaves its log
-        # under the name asked for (readable up to its last chunk). So the check comes first.
-        check_output(path, self.force)
+            name = path = str(self.base.with_name(f"{self.base.stem}-{self.index:03d}{self.base.suffix or '.mcap'}"))
+        if path is not None:
+            # Written in place, not renamed at the end: a recorder killed outright still leaves its log
+            # under the name asked for (readable up to its last chunk). So the check comes first.
+            check_output(path, self.force)
         try:
-            sink = self.make(path, self.index)
+            sink = self.make(sys.stdout.buffer if path is None else path, self.index)
         except OSError as e:
-            raise CliError(f"{path}: cannot write: {e.strerror}") from None
-        self.paths.append(path)
+            raise write_error(name, e, "nothing recorded") from None
+        self.paths.append(name)
         return sink
 
     def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
@@ -146,12 +152,16 @@ def run(args: argparse.Namespace) -> int:
     check_positive("--duration", args.duration)
     check_positive("--split-size", args.split_size)
     split = None if args.split_size is None else max(1, int(args.split_size * 1e6))
+    if args.output == STDOUT and split is not None:
+        raise CliError("--split-size: numbered files need a file name, not - (stdout)")
+    if args.output == STDOUT and args.print_lines:
+        raise CliError("--print: stdout carries the MCAP stream (-o -); leave out one of them")
 
     src = LiveSource(args.port, opts.baud, duration=args.duration, announce=False,
                      tap=SerialTap(args.port, opts.baud))
     src.start()  # a port that cannot be opened fails here, before any file is created
 
-    def make_sink(path: str, part: int) -> McapSink:
+    def make_sink(path: str | IO[bytes], part: int) -> McapSink:
         extra = dict(src.metadata)
         if part:
             extra["part"] = str(part)
@@ -176,7 +186,12 @@ def run(args: argparse.Namespace) -> int:
     if args.print_lines:
         # After the status line starts: on a terminal it routes stdout above itself.
         sinks.append(TextSink(sys.stdout, flush=True))
-    dec = drive(src.chunks(IDLE_INTERVAL), Decoder(opts, linter), *sinks)
+    try:
+        dec = drive(src.chunks(IDLE_INTERVAL), Decoder(opts, linter), *sinks)
+    except OSError as e:
+        if files.sink.failed is None:
+            raise
+        raise write_error(files.paths[-1], e, _what_is_left(files.sink, files.paths[-1], status.bytes)) from None
     no_data(args.port, dec, src)
 
     where = ", ".join(files.paths)
@@ -187,3 +202,12 @@ def run(args: argparse.Namespace) -> int:
     why = src.message if src.reason == STOPPED else f"{args.duration:g} s recorded"
     print(f"rs30x-sniff: {why}: {summary}", file=sys.stderr)
     return 0
+
+
+def _what_is_left(sink: McapSink, name: str, received: int) -> str:
+    """After a failed write: how much of the recording was kept, and whether it reads as a finished file."""
+    kept = f"recording stopped after {received:,} bytes received; "
+    if sink.finalized:
+        return kept + f"{name} is finalized: {sink.readable_bytes:,} bytes, readable to its end"
+    return kept + (f"{name} is not finalized: its first {sink.readable_bytes:,} bytes are whole chunks, "
+                   "readable (`rs30x-sniff info` reads it up to its damage)")

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import IO
 
 from ..io.captures import FORMATS, MCAP, format_for_output, write_capture
 from ..wire import BAUD_RATES, DEFAULT_BAUD
 from .common import CliError, check_positive
-from .outputs import STDOUT, output_path, write_stream
+from .outputs import STDOUT, output_binary, output_path, write_stream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -20,7 +21,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scenario", default="hexapod", metavar="NAME", help="what to simulate (see --list)")
     p.add_argument("--list", action="store_true", help="list the scenarios and exit")
     p.add_argument("-o", "--output", metavar="FILE",
-                   help="capture file to write (.bin/.raw, .hex, .thex/.log timestamped hex, .mcap)")
+                   help="capture file to write (.bin/.raw, .hex, .thex/.log timestamped hex, .mcap); - for stdout")
     p.add_argument("--output-format", choices=FORMATS, default=None, help="capture format, if not by extension")
     p.add_argument("--port", metavar="PORT",
                    help="play the bus in real time onto a serial device, pty or pyserial URL")
@@ -65,37 +66,37 @@ def run(args: argparse.Namespace) -> int:
         fmt = format_for_output(args.output, args.output_format)
         if args.port:
             chunks = list(chunks)  # the same bytes go to both
-        if args.output == STDOUT:
-            if fmt == MCAP:
-                raise CliError("-o -: MCAP needs a file (give --output-format bin, hex or timestamped for stdout)")
+        if fmt == MCAP:
+            with output_binary(args.output, force=args.force) as out:  # - streams it to stdout
+                n = write_file(out, chunks, fmt, args.baud)
+        elif args.output == STDOUT:
             n = write_stream(sys.stdout.buffer, chunks, fmt)
         else:
             with output_path(args.output, force=args.force) as tmp:
                 n = write_file(tmp, chunks, fmt, args.baud)
         if not args.port:
-            print(f"rs30x-sniff: {args.scenario}: {n:,} bytes to {args.output}", file=sys.stderr)
+            where = "stdout" if args.output == STDOUT else args.output
+            print(f"rs30x-sniff: {args.scenario}: {n:,} bytes to {where}", file=sys.stderr)
     if args.port:
         return play_port(args.port, args.baud, chunks, args.scenario)
     return 0
 
 
-def write_file(path: str, chunks, fmt: str, baud: int) -> int:
+def write_file(path: str | IO[bytes], chunks, fmt: str, baud: int) -> int:
     """Write the simulated chunks as a capture of ``fmt``; an MCAP file is decoded and linted too, by
-    the same settings and sink as `convert` (so both give the same file for the same bytes)."""
-    try:
-        if fmt == MCAP:
-            from ..lint import Linter
-            from ..pipeline import Decoder, drive
-            from ..settings import resolve
-            from .convert import open_mcap_sink
+    the same settings and sink as `convert` (so both give the same file for the same bytes). A write
+    error is raised as it is: :func:`output_path` names the output and says what became of it."""
+    if fmt == MCAP:
+        from ..lint import Linter
+        from ..pipeline import Decoder, drive
+        from ..settings import resolve
+        from .convert import open_mcap_sink
 
-            settings = resolve({"baud": baud})
-            sink = open_mcap_sink(path, "rs30x-sniff simulate", settings, timed=True)
-            dec = drive(chunks, Decoder(settings.decode_options(), Linter(settings.lint_config())), sink)
-            return dec.bytes_in
-        return write_capture(path, chunks, fmt)
-    except OSError as e:
-        raise CliError(f"{path}: cannot write: {e.strerror}") from None
+        settings = resolve({"baud": baud})
+        sink = open_mcap_sink(path, "rs30x-sniff simulate", settings, timed=True)
+        dec = drive(chunks, Decoder(settings.decode_options(), Linter(settings.lint_config())), sink)
+        return dec.bytes_in
+    return write_capture(path, chunks, fmt)
 
 
 def play_port(port: str, baud: int, chunks, name: str) -> int:

@@ -25,7 +25,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("input", metavar="INPUT", help="capture file (.bin/.raw, .hex, timestamped hex, .mcap), - for stdin")
     p.add_argument("--of", required=True, choices=KINDS, help="which table")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="table to write (.csv, .parquet); - writes CSV to stdout")
+                   help="table to write (.csv, .parquet); - writes CSV (or --format parquet) to stdout")
     p.add_argument("--format", choices=TABLE_FORMATS, default=None,
                    help="table format (default: from OUT's extension)")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
@@ -40,8 +40,6 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"{args.output}: cannot tell the table format from the extension (use .csv or .parquet, "
                        "or --format)")
     if fmt == PARQUET:
-        if args.output == STDOUT:
-            raise CliError("-o -: Parquet is written to a file (give -o OUT.parquet, or --format csv for stdout)")
         try:
             require_pyarrow()  # before any work: say so now, not after decoding the whole capture
         except MissingPyarrow as e:
@@ -61,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     elif args.of == "findings" and getattr(chunks, "format", None) in (HEX, TIMESTAMPED):
         kw["locate"] = chunks.locate  # text captures: where each finding's byte is written
 
-    if args.output == STDOUT:
+    if args.output == STDOUT and fmt == CSV:  # streamed; Parquet to stdout is made whole, then copied
         sink = SINKS[args.of](open_table(STDOUT, CSV, sys.stdout), **kw)
         drive(chunks, decoder, sink)
         no_data(args.input, decoder, chunks)
@@ -72,10 +70,7 @@ def run(args: argparse.Namespace) -> int:
     sink = None
     try:
         with output_path(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as tmp:
-            try:
-                stream = open(tmp, "w", encoding="utf-8", newline="") if fmt == CSV else None
-            except OSError as e:
-                raise CliError(f"{args.output}: cannot write: {e.strerror}") from None
+            stream = open(tmp, "w", encoding="utf-8", newline="") if fmt == CSV else None
             try:
                 sink = SINKS[args.of](open_table(tmp, fmt, stream), **kw)
                 drive(chunks, decoder, sink)
@@ -85,5 +80,5 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as e:
         stopped = str(e) or "Ctrl-C"
     no_data(args.input, decoder, chunks)
-    summary = f"{args.output}: {sink.rows if sink else 0} rows of {args.of}"
+    summary = f"{'stdout' if args.output == STDOUT else args.output}: {sink.rows if sink else 0} rows of {args.of}"
     return report_end(summary, stopped)

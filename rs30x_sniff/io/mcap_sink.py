@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import errno
 import heapq
 import json
 import struct
@@ -277,7 +278,9 @@ class McapSink(JsonChannels):
         if time_base not in TIME_BASES:
             raise ValueError(f"time_base must be one of {TIME_BASES}, not {time_base!r}")
         if isinstance(path, (str, bytes)) or hasattr(path, "__fspath__"):
-            self._file: IO[bytes] = open(path, "wb")
+            # Unbuffered: the SDK hands over whole chunks, and no bytes wait in a buffer that a failed
+            # write would leave to be written later, past the footer of a salvaged file.
+            self._file: IO[bytes] = open(path, "wb", buffering=0)
             self._owns_file = True
         else:
             self._file = path
@@ -313,6 +316,7 @@ class McapSink(JsonChannels):
         self._chunk_start: int | None = None   # log time of the first message in the open chunk
         self._chunk_bytes = 0
         self._finished = False
+        self._finalized = False
         self.messages = 0
         self.chunks = 0
         self.stats = CaptureStats(baud)  # what passes through the drive loop, summed as `info` sums it
@@ -323,17 +327,22 @@ class McapSink(JsonChannels):
         self._sdk(self._writer.write_metadata, METADATA_NAME, meta)
 
     def _sdk(self, call: Any, *args: Any, **kwargs: Any) -> Any:
-        """A call into the SDK's writer that may write to the file: a failed write (a full disk, or
-        Ctrl-C while Python code wrote a chunk) comes back from the SDK as a RuntimeError with the
-        cause left out; it is raised as itself, so the CLI reports an OSError in one line and a stop
-        as a stop."""
+        """A call into the SDK's writer that may write to the file. A failed write (a full disk, a
+        closed pipe) is kept from the SDK (:class:`_SdkFile` takes the bytes and drops them), so the
+        SDK never prints its own complaint when it is closed or dropped; the OSError is raised here,
+        once, for the command to report in one line. Ctrl-C while Python code wrote a chunk comes back
+        from the SDK as a RuntimeError with the cause left out: it is raised as itself."""
         try:
-            return call(*args, **kwargs)
+            result = call(*args, **kwargs)
         except Exception:
             error, self._out.error = self._out.error, None
             if error is not None:
                 raise error from None
             raise
+        error, self._out.error = self._out.error, None
+        if error is not None:
+            raise error
+        return result
 
     # ---- context manager -----------------------------------------------------------------------
     def __enter__(self) -> McapSink:
@@ -347,6 +356,22 @@ class McapSink(JsonChannels):
     def bytes_written(self) -> int:
         """Bytes in the file so far (what has reached the file object)."""
         return self._out.position
+
+    @property
+    def failed(self) -> OSError | None:
+        """The write error that stopped the file, if one did (nothing was written after it)."""
+        return self._out.failed
+
+    @property
+    def readable_bytes(self) -> int:
+        """How much of the file a reader gets: all of it once finished, else the whole chunks before
+        the last flush that reached the OS (a failed write may have left a cut chunk after them)."""
+        return self._out.readable
+
+    @property
+    def finalized(self) -> bool:
+        """Whether the file ends with an MCAP footer (finished, or salvaged after a failed write)."""
+        return self._finalized
 
     # ---- channels -----------------------------------------------------------------------------
     def _channel(self, topic: str, schema_name: str) -> Any:
@@ -409,30 +434,46 @@ class McapSink(JsonChannels):
         self.finish()
 
     def finish(self) -> None:
-        """Write the last chunk, the models metadata, the summary and the footer; idempotent."""
+        """Write the last chunk, the models metadata, the summary and the footer; idempotent.
+
+        After a failed write the SDK's end goes nowhere (its bytes are dropped) and the file is
+        salvaged instead: cut back to its last whole chunk and closed with a footer of its own, where
+        the file allows it (a regular file with room for 50 bytes)."""
         if self._finished:
             return
-        self.flush()
-        self._finished = True
         try:
-            self._sdk(self._writer.write_metadata, MODELS_METADATA_NAME, {"models": _models_text(self._models)})
-            if self.stats.bytes_in:
-                self.stats.close()
-                self._sdk(self._writer.write_metadata, STATS_METADATA_NAME,
-                          {"stats": json.dumps(self.stats.as_dict())})
-            self._sdk(self._writer.close)
+            self.flush()
         finally:
-            for ch in self._channels.values():
-                ch.close()  # out of the context: nothing keeps this file's channels alive
-            self._out.release()
-            if self._owns_file:
-                self._file.close()
-            else:
-                self._file.flush()
+            self._finished = True
+            try:
+                self._sdk(self._writer.write_metadata, MODELS_METADATA_NAME, {"models": _models_text(self._models)})
+                if self.stats.bytes_in:
+                    self.stats.close()
+                    self._sdk(self._writer.write_metadata, STATS_METADATA_NAME,
+                              {"stats": json.dumps(self.stats.as_dict())})
+                self._sdk(self._writer.close)
+                self._finalized = self._out.failed is None
+            finally:
+                for ch in self._channels.values():
+                    ch.close()  # out of the context: nothing keeps this file's channels alive
+                if self._out.failed is not None:
+                    self._finalized = self._out.salvage()
+                self._out.release()
+                try:
+                    if self._owns_file:
+                        self._file.close()
+                    elif self._out.failed is None:
+                        self._file.flush()
+                except OSError:
+                    pass  # its write error was raised already; the same one again says nothing new
 
 
 _HEADER = 0x01  # the header record's opcode
 _U32, _U64 = struct.Struct("<I"), struct.Struct("<Q")
+# A salvaged file's end: Data End (opcode 0x0F, data section CRC 0: not computed) and a Footer (opcode
+# 0x02) that points at no summary section, then the closing magic.
+_DATA_END = bytes([0x0F]) + _U64.pack(4) + _U32.pack(0)
+_FOOTER = bytes([0x02]) + _U64.pack(20) + _U64.pack(0) + _U64.pack(0) + _U32.pack(0)
 
 
 class _SdkFile:
@@ -450,18 +491,31 @@ class _SdkFile:
         self.file: IO[bytes] | None = file
         self.library = library.encode()
         self.position = 0
-        self.error: BaseException | None = None  # the last exception a write or flush raised
+        self.readable = 0      # the position of the last flush that reached the OS: whole chunks before it
+        self.error: BaseException | None = None  # the last exception a write or flush raised, not yet raised
+        self.failed: OSError | None = None      # the write error after which nothing more reached the file
 
     def write(self, data: bytes) -> int:
         given = len(data)
+        if self.failed is not None:
+            return given  # the file stopped at its error: the rest goes nowhere, the SDK stays healthy
         try:
             if self.position == 0:
                 data = self._own_header(bytes(data))
-            self.file.write(data)
+            view = memoryview(data)
+            while view:  # an unbuffered file may take part of a write
+                n = self.file.write(view)
+                n = len(view) if n is None else n
+                if n <= 0:
+                    raise OSError(errno.EIO, "the file took none of the bytes written")
+                self.position += n
+                view = view[n:]
+        except OSError as e:
+            self._fail(e)
+            return given
         except BaseException as e:
             self.error = e  # for McapSink._sdk: the SDK passes on only its own error
             raise
-        self.position += len(data)
         return given  # what the writer gave, whatever reached the file
 
     def seek(self, offset: int, whence: int = 0) -> int:
@@ -473,12 +527,40 @@ class _SdkFile:
         return self.position
 
     def flush(self) -> None:
-        if self.file is not None:
-            try:
-                self.file.flush()
-            except BaseException as e:
-                self.error = e
-                raise
+        if self.file is None or self.failed is not None:
+            return
+        try:
+            self.file.flush()
+        except OSError as e:
+            self._fail(e)
+            return
+        except BaseException as e:
+            self.error = e
+            raise
+        self.readable = self.position
+
+    def _fail(self, e: OSError) -> None:
+        name = getattr(self.file, "name", None)
+        if e.filename is None and isinstance(name, str):
+            e.filename = name  # the file's own name, so the error says which output it was
+        self.failed = self.error = e
+
+    def salvage(self) -> bool:
+        """After a failed write: cut the file back to its last whole chunk and end it with a footer
+        (no summary: a reader finds the chunks by scanning), so it reads as a finished file. Whether
+        that worked; a pipe, a device or a disk without 50 bytes to spare keeps what it got."""
+        f = self.file
+        if f is None:
+            return False
+        try:
+            f.seek(self.readable)
+            f.truncate()
+            f.write(_DATA_END + _FOOTER + _MAGIC)
+            f.flush()
+        except (OSError, ValueError, AttributeError):
+            return False
+        self.position = self.readable = self.readable + len(_DATA_END) + len(_FOOTER) + len(_MAGIC)
+        return True
 
     def release(self) -> None:
         # The SDK may hold on to this object after closing; the file (or a BytesIO's buffer) need not.

@@ -30,7 +30,7 @@ from .direction import decide as decide_senders
 HEADER = frozenset({"P001", "P002", "P003", "P004", "P005", "P006", "P007", "P010", "P011", "P012",
                     "M001", "M002", "M004", "B004", "B005"})
 # Silent on a Block's rows whenever the checks below pass (what they watch sends the Block away).
-SILENT = frozenset({"F001", "F002", "F003", "F005", "F006", "F008", "F009", "P008", "P009", "P013", "M005",
+SILENT = frozenset({"F001", "F002", "F003", "F005", "F006", "F008", "F009", "F010", "P008", "P009", "P013", "M005",
                     "B001", "B002", "B003", "B007", "B008", "B009", "S001", "S002", "S003", "S004",
                     "Q001", "Q002", "Q003", "Q005", "Q008", "Q009"})
 # Written out on the columns here.

@@ -61,14 +61,17 @@ def request_before_return(lint, rec, ev):
         return
     gap = ev[2] - t1
     if gap <= reply_due(lint, p):
-        lint.emit("B001", rec, f"sent {gap * 1e3:.3f} ms after request @{p.offset} to ID {p.id}, "
-                               f"whose reply was still due")
+        # A gap the clock puts at or below zero is no duration to print (F005/F006 say why).
+        when = f"{gap * 1e3:.3f} ms after" if gap > 0 else "right after"
+        lint.emit("B001", rec, f"sent {when} request @{p.offset} to ID {p.id}, whose reply was still due")
 
 
 @rule("B002", "missing-return", "error", "A request that asked for a reply got none.", f"""
 ## What it does
-Flags a request that asked for an ACK/NACK or a return when no reply followed before the next request,
-the reply timeout, or the end of the capture. Broadcast requests are P010's business.
+Flags a request that asked for an ACK/NACK or a return when no reply followed before the next request
+or the reply timeout. A request still waiting when the capture (or a time segment, F010) ends is not
+flagged, unless the capture ran on past its reply timeout: its reply may have come after the capture
+stopped. Broadcast requests are P010's business.
 {_TIMING}
 ## Why it matters
 A servo that does not answer is unpowered, on another ID or baud rate, has rejected the packet, or
@@ -93,6 +96,8 @@ def missing_return(lint, rec, ev):
 @rule("B003", "unsolicited-return", "warning", "A reply no request asked for.", f"""
 ## What it does
 Flags a return, ACK or NACK that follows no request asking for one (or comes after the reply timeout).
+Not the first reply of a capture (or of a time segment) that comes within the reply timeout of its start:
+that one answers a request sent before the capture began.
 
 ## Why it matters
 Either a second host is on the bus, a servo answers to the wrong packets, or a reply came so late that
@@ -107,7 +112,8 @@ def unsolicited_return(lint, rec, ev):
     who = f" from ID {ev.id}" if ev.kind == "return" else ""
     late = ""
     p = lint.missing
-    if p is not None and ev[2] is not None and p.event[3] is not None and (ev.kind != "return" or p.id == ev.id):
+    if p is not None and ev[2] is not None and p.event[3] is not None and (ev.kind != "return" or p.id == ev.id) \
+            and ev[2] > p.event[3]:
         late = f"; {(ev[2] - p.event[3]) * 1e3:.3f} ms after request @{p.offset}, past the reply timeout"
     lint.emit("B003", rec, f"{ev.kind.upper() if ev.kind != 'return' else 'return'}{who} that no request asked for{late}")
 

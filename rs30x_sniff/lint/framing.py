@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..chunks import UART_ERRORS
+from ..events import CAPTURE_EDGES, TRUNCATED
 from ..wire import encode_short
 from .registry import example, rule
 
@@ -37,7 +38,8 @@ def _xor(data: bytes) -> int:
 @rule("F002", "garbage-bytes", "warning", "Bytes on the bus that belong to no frame.", f"""
 ## What it does
 Flags a run of bytes with no frame header in it (noise), or with a header whose length could not be a
-real frame (more than 1024 data bytes).
+real frame (more than 1024 data bytes). Not the tail of a frame that began before the capture did (the
+bytes before its first frame), nor a frame the capture's end cut off: those are the capture's edges.
 
 ## Why it matters
 The RS30x bus is quiet between frames: stray bytes mean electrical noise, a baud-rate mismatch (a servo
@@ -45,11 +47,12 @@ answering at its old rate), or another device on the line. Each stray byte can a
 servo's own parser and cost the next command.
 
 ## Example
-{example(bytes.fromhex("123456"), _GOAL, note="three stray bytes before a goal_position write:")}
+{example(_GOAL, bytes.fromhex("123456"), _GOAL, note="three stray bytes between two goal_position writes:")}
 """, kinds=("garbage",))
 def garbage_bytes(lint, rec, ev):
-    # Cut-short frames are F003's, and bytes the capturing UART flagged are F008's (rs30x_sniff.chunks).
-    if ev.reason == "truncated" or ev.reason in UART_ERRORS:
+    # Cut-short frames are F003's, bytes the capturing UART flagged are F008's (rs30x_sniff.chunks), and
+    # frames the capture's own start or end cut are no fault of the bus.
+    if ev.reason == "truncated" or ev.reason in UART_ERRORS or ev.reason in CAPTURE_EDGES:
         return
     prev = lint.prev
     if prev is not None and prev.event.kind == "garbage" and prev.event.end_offset == ev.offset \
@@ -62,8 +65,9 @@ def garbage_bytes(lint, rec, ev):
 @rule("F003", "truncated-frame", "error", "A frame that was cut short.", f"""
 ## What it does
 Flags a frame header followed by fewer bytes than its Length and Count promise: the sender stopped
-(an idle gap of more than the decoder's gap, 20 byte times by default), another frame started inside it,
-or the capture ended.
+(an idle gap of more than the decoder's gap, 20 byte times by default) or another frame started inside it.
+A frame cut by the capture's own start or end (or a seam of its clock) is not flagged: the bus did not
+cut it.
 
 ## Why it matters
 A servo that receives half a packet waits for the rest and may swallow the start of the next packet
@@ -71,7 +75,7 @@ as its tail, so two commands are lost instead of one. A host that stops mid-fram
 was pre-empted, or filled a transmit buffer.
 
 ## Example
-{example(_GOAL[:8], note="a goal_position write that stops after 8 of its 10 bytes:")}
+{example((0.0, _GOAL[:8]), (0.01, _GOAL), note="a goal_position write that stops after 8 of its 10 bytes, then another:")}
 """, kinds=("garbage",))
 def truncated_frame(lint, rec, ev):
     if ev.reason == "truncated":
@@ -100,6 +104,9 @@ def inter_byte_gap(lint, rec, ev):
     idle = (t1 - t0) - len(ev[1]) * bt
     if idle > lint.config.inter_byte_gap * bt:
         lint.emit("F004", rec, f"{idle * 1e3:.3f} ms ({idle / bt:.1f} byte times) of idle line inside the frame")
+
+
+_ONE_FRAME = (TRUNCATED, *CAPTURE_EDGES)
 
 
 class _Stretch:
@@ -147,7 +154,9 @@ def wrong_baud_rate(st, lint, rec, ev):
     t0 = ev[2]
     if t0 is not None:
         st.times.chunk(ev[1], t0)
-    if ev.kind != "garbage" or not st.run.garbage(len(ev[1]), t0, ev[3]):
+    # One cut frame is F003's (or the capture's edge), not a stretch at another rate: its bytes do not
+    # count, though it does not end the stretch either.
+    if ev.kind != "garbage" or ev[4] in _ONE_FRAME or not st.run.garbage(len(ev[1]), t0, ev[3]):
         return
     from ..autobaud import wrong_baud_message
 

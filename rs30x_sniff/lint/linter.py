@@ -150,6 +150,18 @@ class Linter:
         for rec in blk.records():
             feed(rec)
 
+    def seam(self, seam: Any) -> list[Finding]:
+        """A seam of the capture's clock (rs30x_sniff.framing.Seam) before the next record: nothing before
+        it is compared in time with anything after it (the rules of kind "seam" forget their times)."""
+        new = self._new = []
+        if self.timed is None:
+            self._setup(True)  # only timestamps have seams
+        self.missing = None
+        self.prev = None
+        for fn in self._on["seam"]:
+            fn(self, seam)
+        return new
+
     def close(self) -> list[Finding]:
         """Findings only the end of input reveals (they still attach to the records they concern)."""
         new = self._new = []

@@ -25,12 +25,14 @@ FAMILIES = {"F": "Framing", "P": "Packet structure", "M": "Memory map", "B": "Bu
 #   moved                                     check(lint, rec, moves) after a write of servo_id moved servos to
 #                                             new IDs (at once, table 4.6 No. 4): moves lists (old, new) pairs,
 #                                             and the Shadows have moved; a rule moves its own per-servo memory
+#   seam                                      check(lint, seam) where the capture's clock restarts or resumes
+#                                             (rs30x_sniff.framing.Seam): a rule forgets the times it holds
 #   close                                     check(lint) at end of input
 # A rule declared with state= keeps its own memory: the linter makes one state object per run by calling
 # that factory, and passes it first to every call of the rule's checks: check(state, lint, rec, ev).
 # One function serves every kind of a rule; ``@the_check.on(kind)`` gives a kind a function of its own.
 KINDS = ("short", "long", "return", "ack", "nack", "garbage", "corrupt", "command", "write", "target", "moved",
-         "close")
+         "seam", "close")
 
 
 # Preconditions a rule may declare with when=: the linter tests each once per record (for the kinds that

@@ -133,7 +133,7 @@ power during one: a reboot in the middle can leave the stored settings half writ
 
 ## Example
 {example((0.0, encode_command(1, _FLASH)), (0.002, encode_command(1, _REBOOT)), note="a reboot 1.3 ms after the flash write:")}
-""", kinds=("command", "moved"), needs_time=True, state=dict)
+""", kinds=("command", "moved", "seam"), needs_time=True, state=dict)
 def reboot_too_soon_after_flash(flashed, lint, rec, ev):
     # flashed: servo -> (time its last flash write is done, the time that write ended, its offset)
     flag, sid = ev.flag, ev.id
@@ -151,13 +151,19 @@ def reboot_too_soon_after_flash(flashed, lint, rec, ev):
             entry = flashed.get(key)
             if entry is not None and ev[2] < entry[0]:
                 dt = ev[2] - (entry[1] or 0)
-                lint.emit("Q003", rec, f"reboot {dt * 1e3:.1f} ms after the flash write @{entry[2]}; "
+                when = f"{dt * 1e3:.1f} ms after" if dt > 0 else "right after"  # never a held clock's 0 or less
+                lint.emit("Q003", rec, f"reboot {when} the flash write @{entry[2]}; "
                                        f"allow {lint.config.flash_write_time * 1e3:.0f} ms (or wait for its ACK)")
                 break
         flashed.pop(sid, None)
 
 
 reboot_too_soon_after_flash.on("moved")(_carry)
+
+
+@reboot_too_soon_after_flash.on("seam")
+def _flash_times_end_at_seam(flashed, lint, seam):
+    flashed.clear()  # a flash write's time says nothing of a reboot on the other side of a seam
 
 
 @rule("Q004", "goal-while-torque-off", "warning", "A goal position sent to a servo whose torque is off.", f"""

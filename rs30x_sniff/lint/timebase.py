@@ -16,9 +16,10 @@ def _times(n: int) -> str:
 
 @rule("F005", "time-went-backwards", "warning", "The capture's timestamps go back in time.", f"""
 ## What it does
-Flags a timestamped capture in which a chunk is stamped earlier than the chunk before it, once, at the
-first place it happens, with how often it happened. Such chunks are placed at the previous chunk's time,
-so the clock the other rules and figures use never runs backwards.
+Flags a timestamped capture in which a chunk is stamped earlier than the chunk before it, by up to
+10 ms, once, at the first place it happens, with how often it happened. Such chunks are placed at the
+previous chunk's time, so the clock the other rules and figures use never runs backwards, and replies
+placed so get no latency. A jump back by more than that is a restarted clock (F010), not a fault.
 
 ## Why it matters
 Bytes cannot arrive before the bytes ahead of them. Backwards times come from a logger that merged
@@ -26,7 +27,7 @@ several reads out of order, a clock that was stepped (NTP, a laptop waking up) o
 Read as they stand they give negative latencies, a zero-length capture and a bus load of 100 %.
 
 ## Example
-{example((0.2, _GOAL), (0.1, _READ), note="the second line is stamped 0.1 s before the first:")}
+{example((0.2, _GOAL), (0.195, _READ), note="the second line is stamped 5 ms before the first:")}
 """, kinds=("close",), needs_time=True)
 def time_went_backwards(lint):
     fault = getattr(lint, "time_faults", {}).get(TIME_BACKWARDS)
@@ -61,3 +62,23 @@ def time_too_close(lint):
                      f"could have crossed the wire at {lint.config.baud} bit/s (first here, "
                      f"{(fault.earliest - fault.t) * 1e6:.0f} us early): are the times each read's arrival "
                      f"(--time-ref arrival), or is the baud rate another?")
+
+
+@rule("F010", "capture-seam", "info", "The capture's clock restarts, or resumes after a long silence.", f"""
+## What it does
+Notes each place where a timestamped capture's times jump back by more than 10 ms (two captures
+joined with `cat`, a logger restarted) or forward by more than 10 s of silence (a capture stopped and
+resumed). A new time segment begins there: nothing is paired, timed or counted across the seam, a
+request still waiting for its reply at the seam is left unknown, not missing, and the first reply after
+it may answer a request from before. Durations add up over the segments; rates, latencies and the bus
+load are computed within them.
+
+## Why it matters
+Nothing is wrong on the bus: the capture has two parts. Read as one clock, its figures would come out
+false (a duration of half the traffic, a bus load of 100 %, latencies of 0 ms) and its findings too.
+
+## Example
+{example((3.0, _GOAL), (0.0, _READ), note="a capture that ended at 3 s joined to one that starts at 0 s:")}
+""", kinds=("seam",), needs_time=True)
+def capture_seam(lint, seam):
+    lint.emit_at("F010", seam.offset, seam.t_start, seam.describe())

@@ -2,7 +2,7 @@
 
 import pytest
 
-from rs30x_sniff.events import BAD_HEADER, NOISE, TRUNCATED, Ack, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
+from rs30x_sniff.events import BAD_HEADER, CAPTURE_END, NOISE, TRUNCATED, Ack, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
 from rs30x_sniff.framing import FrameDecoder
 from rs30x_sniff.wire import byte_time, encode_return, encode_short
 from tests.conftest import decode_three_ways, h
@@ -92,7 +92,7 @@ def test_implausible_header_is_bad_header_garbage():
 def test_incomplete_frame_at_end_of_input():
     evs = decode_three_ways(GOAL_90 + GOAL_90[:5])
     assert kinds(evs) == [("ShortPacket", 0, 10), ("Garbage", 10, 5)]
-    assert evs[1].reason == TRUNCATED
+    assert evs[1].reason == CAPTURE_END  # cut by the end of the capture, not by its sender
 
 
 def test_decoder_waits_for_the_rest_of_a_frame():

@@ -52,8 +52,10 @@ CASES: dict[str, tuple[str, list]] = {
         (goal(1, 900), "", ""), (bytes.fromhex("00 55 AA"), "F002", "noise"),
         (goal(2, 900), "", ""),
     ]),
-    "F003": ("a frame cut short by the end of the capture", [
-        (goal(1, 900), "", ""), (goal(2, 900)[:7], "F003", "only 7 of 10 bytes"),
+    "F003": ("a frame cut short by its sender", [
+        (0.000, goal(1, 900), "", ""), (0.010, goal(2, 900)[:7], "F003", "only 7 of 10 bytes, then silence"),
+        (0.020, goal(3, 900), "", ""),
+        (0.030, goal(4, 900)[:7], "", "cut by the end of the capture: no fault of the bus"),
     ]),
     "F004": ("bytes of one frame with idle time between them", [
         (0.000, goal(1, 900), "", "back to back: fine"),
@@ -64,9 +66,15 @@ CASES: dict[str, tuple[str, list]] = {
     ]),
     "F005": ("a logger's timestamps that go back in time", [
         (0.100, READ1, "", "read present_position"),
-        (0.090, RET1, "F005", "its return, stamped 10 ms before the read"),
+        (0.095, RET1, "F005", "its return, stamped 5 ms before the read"),
         (0.200, goal(1, 900), "", ""),
-        (0.150, goal(2, 900), "", "back again: counted, not flagged twice"),
+        (0.196, goal(2, 900), "", "back again: counted, not flagged twice"),
+    ]),
+    "F010": ("two captures joined: the clock restarts at 0", [
+        (0.000000, READ1, "", ""), (0.000800, RET1, "", ""),
+        (3.000000, encode_read(2, 0x2A, 2), "", "the first capture's last request ..."),
+        (0.000000, READ1, "F010", "... and the second capture's first: nothing is paired across the seam"),
+        (0.000800, RET1, "", ""),
     ]),
     "F006": ("chunks stamped closer than their bytes could travel at 115200 bit/s", [
         (0.0000, goal(1, 900), "", "10 bytes take 0.868 ms"),
@@ -167,7 +175,8 @@ CASES: dict[str, tuple[str, list]] = {
     "B002": ("requests nobody answers", [
         (READ1, "B002", ""), (encode_read(2, 0x2A, 2), "", ""), (ret(2, 0x2A, POS), "", ""),
         (w(3, 0x24, b"\x01", 0x01), "B002", "write asking for an ACK"), (READ1, "", ""), (RET1, "", ""),
-        (encode_read(4, 0x2A, 2), "B002", "the last request of the capture"),
+        (encode_read(4, 0x2A, 2), "B002", ""), (goal(1, 900), "", "the next request: no reply came"),
+        (encode_read(5, 0x2A, 2), "", "the capture ends here: its reply may still have come"),
     ]),
     "B003": ("replies nobody asked for", [
         (goal(1, 900), "", ""), (RET1, "B003", ""), (b"\x07", "F002", "an ACK byte without an ACK request is noise"),
