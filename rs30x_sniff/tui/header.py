@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from rich.cells import cell_len
 from rich.text import Text
 from textual.widgets import Static
 
@@ -44,74 +45,123 @@ def _clock(s: float) -> str:
     return f"{h}:{m:02d}:{sec:02d}" if h else f"{m}:{sec:02d}.{int((s % 1) * 10)}"
 
 
-def status_text(store: Store, info: SessionInfo) -> Text:
-    """The header's two lines as Text (every value from a file name or the wire goes through ``clean``)."""
-    st = store.stats
-    sep = (" │ ", "grey42")
-    t = Text(no_wrap=True, overflow="ellipsis")
-    t.append("rs30x-sniff ", "bold")
-    t.append(f"{info.source_kind}: ", "grey70")
-    t.append(clean(info.source), "bold cyan")
-    t.append(*sep)
-    t.append(f"{info.baud} bit/s")
-    t.append(*sep)
-    t.append("models ", "grey70")
-    t.append(clean(info.models))
-    t.append(*sep)
-    span = store.span
-    t.append("capture " if span is not None else "elapsed ", "grey70")
-    t.append(_clock(span if span is not None else info.elapsed))
-    t.append(*sep)
-    if info.recording:
-        t.append("● REC ", "bold red")
-        t.append(clean(info.recording), "red")
-    else:
-        t.append("○ not recording", "grey62")
-    t.append(*sep)
-    state = info.state
-    t.append(clean(state), "bold red" if state.startswith("error") else ("green" if state == "live" else "grey70"))
-    if info.paused:
-        t.append("  ⏸ PAUSED", "bold black on yellow")
-    if not info.follow:
-        t.append("  (not following: f)", "grey62")
+_SEP = (" │ ", "grey42")
 
-    t.append("\n")
-    t.append("bytes ", "grey70")
-    t.append(f"{store.bytes_seen:,}")
-    t.append(*sep)
-    t.append("packets ", "grey70")
-    t.append(f"{st.packets:,}")
-    t.append(*sep)
-    t.append("replies ", "grey70")
-    t.append(f"{st.replies:,}")
+
+class _Field:
+    """One field of a header line: whole or not at all (a number is never cut); ``rank`` says which go
+    first when the line is too long (the highest), and a ``shrink`` field (a name, not a number) may
+    instead lose the middle of its ``name`` to an ellipsis."""
+
+    def __init__(self, rank: int, *parts: tuple[str, str], shrink: int | None = None) -> None:
+        self.rank = rank
+        self.parts = list(parts)
+        self.shrink = shrink  # index of the part that may be shortened
+
+    @property
+    def width(self) -> int:
+        return sum(cell_len(p) for p, _ in self.parts)
+
+    def shorten(self, by: int) -> bool:
+        """Take ``by`` cells out of the shrinkable part (an ellipsis in their place); False if it cannot."""
+        if self.shrink is None:
+            return False
+        text, style = self.parts[self.shrink]
+        keep = len(text) - by - 1
+        if keep < 6:
+            return False
+        head = keep // 3  # a path's end (the file name) says more than its start
+        self.parts[self.shrink] = (text[:head] + "…" + text[len(text) - (keep - head):], style)
+        return True
+
+
+def _fit(fields: list[_Field], width: int | None) -> list[_Field]:
+    """The fields that fit in ``width`` cells with their separators: the highest ranks are left out
+    first; then the fields of rank 0, which always show, have their names shortened."""
+    fields = list(fields)
+
+    def over() -> int:
+        return sum(f.width for f in fields) + cell_len(_SEP[0]) * (len(fields) - 1) - width
+
+    while width is not None and over() > 0:
+        droppable = [f for f in fields if f.rank > 0]
+        if droppable:
+            fields.remove(max(reversed(droppable), key=lambda f: f.rank))  # ties: the rightmost goes
+        elif not any(f.shorten(over()) for f in fields):
+            break  # the line ends in an ellipsis (status_text)
+    return fields
+
+
+def _line(fields: list[_Field], width: int | None) -> Text:
+    t = Text(no_wrap=True, overflow="ellipsis")
+    for k, f in enumerate(_fit(fields, width)):
+        if k:
+            t.append(*_SEP)
+        for text, style in f.parts:
+            t.append(text, style)
+    if width is not None and t.cell_len > width:
+        t.truncate(width, overflow="ellipsis")
+    return t
+
+
+def status_text(store: Store, info: SessionInfo, width: int | None = None) -> Text:
+    """The header's two lines as Text, each fitted to ``width`` cells (None: no limit) by leaving
+    whole fields out, least useful first, so no field is ever cut in the middle (every value from a
+    file name or the wire goes through ``clean``)."""
+    st = store.stats
+    first: list[_Field] = [
+        _Field(0, (f"{info.source_kind}: ", "grey70"), (clean(info.source), "bold cyan"), shrink=1),
+        _Field(3, (f"{info.baud} bit/s", "")),
+        _Field(5, ("models ", "grey70"), (clean(info.models), ""), shrink=1),
+    ]
+    span = store.span
+    first.append(_Field(1, ("capture " if span is not None else "elapsed ", "grey70"),
+                        (_clock(span if span is not None else info.elapsed), "")))
+    if info.recording:
+        first.append(_Field(0, ("● REC ", "bold red"), (clean(info.recording), "red"), shrink=1))
+    else:
+        first.append(_Field(6, ("○ not recording", "grey62")))
+    state = info.state
+    first.append(_Field(0, (clean(state), "bold red" if state.startswith("error") else
+                            ("green" if state == "live" else "grey70")), shrink=0))
+    if info.paused:
+        first.append(_Field(0, ("⏸ PAUSED", "bold black on yellow")))
+    if not info.follow:
+        first.append(_Field(2, ("not following: f", "grey62")))
+    # The program's name goes first, and is the first to go.
+    first.insert(0, _Field(7, ("rs30x-sniff", "bold")))
+
+    second: list[_Field] = [
+        _Field(3, ("bytes ", "grey70"), (f"{store.bytes_seen:,}", "")),
+        _Field(1, ("packets ", "grey70"), (f"{st.packets:,}", "")),
+    ]
+    replies = _Field(2, ("replies ", "grey70"), (f"{st.replies:,}", ""))
     if st.missing:
-        t.append(f" ({st.missing:,} missing)", "yellow")
+        replies.parts.append((f" ({st.missing:,} missing)", "yellow"))
+    second.append(replies)
     if st.garbage:
-        t.append(*sep)
-        t.append(f"garbage {st.garbage:,}", "yellow")
-    t.append(*sep)
-    t.append("findings ", "grey70")
+        second.append(_Field(2, (f"garbage {st.garbage:,}", "yellow")))
+    found = _Field(0, ("findings ", "grey70"))
     if not info.lint:
-        t.append("(lint unavailable) ", "grey62")
+        found.parts.append(("(lint unavailable) ", "grey62"))
     for k, sev in enumerate(("error", "warning", "info")):
         n = st.severities.get(sev, 0)
-        t.append(f"{' ' if k else ''}{SEVERITY_MARKS[sev]}{n:,}", SEVERITY_STYLES[sev] if n else "grey50")
-    t.append(*sep)
+        found.parts.append((f"{' ' if k else ''}{SEVERITY_MARKS[sev]}{n:,}", SEVERITY_STYLES[sev] if n else "grey50"))
+    second.append(found)
     load = store.bus_load
-    t.append("load ", "grey70")
-    t.append("-" if load is None else f"{load * 100:.1f}%", "bold red" if load is not None and load > 0.8 else "")
-    t.append(*sep)
-    t.append("mem ", "grey70")
-    t.append(f"{store.memory_estimate() / 1e6:.1f} MB")
-    t.append(f" ({_si(len(store))}/{_si(store.history)} rows)", "grey62")
+    second.append(_Field(4, ("load ", "grey70"), ("-" if load is None else f"{load * 100:.1f}%",
+                                                  "bold red" if load is not None and load > 0.8 else "")))
+    second.append(_Field(5, ("mem ", "grey70"), (f"{store.memory_estimate() / 1e6:.1f} MB", ""),
+                         (f" ({_si(len(store))}/{_si(store.history)} rows)", "grey62")))
     if info.filter_text:
-        t.append(*sep)
-        t.append("filter ", "grey70")
-        t.append(clean(info.filter_text), "bold magenta")
-        t.append(f" {store.view_len():,} shown", "grey70")
+        # An active filter always shows: what it is and how many rows it lets through.
+        flt = _Field(0, ("filter: ", "grey70"), (clean(info.filter_text), "bold magenta"),
+                     (f" {store.view_len():,} shown", "grey70"), shrink=1)
         if info.filter_progress is not None:
-            t.append(f" scanning {info.filter_progress * 100:.0f}%", "yellow")
-    return t
+            flt.parts.append((f" scanning {info.filter_progress * 100:.0f}%", "yellow"))
+        second.append(flt)
+
+    return Text("\n", no_wrap=True).join([_line(first, width), _line(second, width)])
 
 
 class StatusHeader(Static):
@@ -121,6 +171,14 @@ class StatusHeader(Static):
     StatusHeader { height: 2; background: $panel; color: $text; padding: 0 1; }
     """
 
+    _last: tuple[Store, SessionInfo] | None = None
+
     def show(self, store: Store, info: SessionInfo) -> None:
         # Two lines of fixed height: new text needs no layout of the screen (a tick would cost a full one).
-        self.update(status_text(store, info), layout=False)
+        self._last = (store, info)
+        width = self.content_region.width
+        self.update(status_text(store, info, width or None), layout=False)
+
+    def on_resize(self) -> None:
+        if self._last is not None:
+            self.show(*self._last)

@@ -37,7 +37,8 @@ FILTERS = (
                     "request reply"),
     ("reg:goal_position", "packets that write, read or return this register"),
     ("sev>=warning  sev:error", "packets with a finding of that severity (>=, >, <=, <, :)"),
-    ("present_temperature>40  reg:goal_position<=-30",
+    # Two examples on two lines: on one, the column would leave the text beside it no room at 80 columns.
+    ("present_temperature>40\nreg:goal_position<=-30",
      "a register's value in engineering units (> >= < <= = !=; a long packet: any of its servos)"),
     ("latency>1ms  latency<=120us", "replies by their latency (s, ms, us)"),
     ("t:1.5-3.0  t:2-  t>2.5", "packets by capture time, in seconds"),
@@ -67,8 +68,8 @@ class HelpScreen(ModalScreen[None]):
     ]
     DEFAULT_CSS = """
     HelpScreen { align: center middle; }
-    HelpScreen > VerticalScroll { width: 100; height: auto; max-height: 90%; border: thick $accent;
-                                  background: $surface; padding: 1 2; }
+    HelpScreen > VerticalScroll { width: 100; max-width: 100%; height: auto; max-height: 100%;
+                                  border: thick $accent; background: $surface; padding: 0 1; }
     """
 
     def compose(self) -> ComposeResult:

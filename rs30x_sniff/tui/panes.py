@@ -167,6 +167,18 @@ class FindingsPane(DataTable):
             self.post_message(self.JumpTo(self._shown[i]))
 
 
+def range_label(t0: float, t1: float, shown: str, vmin: float | None, vmax: float | None, width: int) -> str:
+    """The plot's time span and value range in ``width`` cells: the longest form that fits, down to
+    the value range alone, then an ellipsis (a number is never cut without a mark)."""
+    values = "" if vmin is None else f"{vmin:g}..{vmax:g}"
+    forms = [f"{t0:.2f}-{t1:.2f} s ({shown})", f"{t0:.2f}-{t1:.2f} s", f"{t0:.3g}-{t1:.3g} s", ""]
+    for times in forms:
+        text = f"{times}  {values}" if times and values else times or values
+        if cell_len(text) <= width:
+            return text
+    return values[:max(width - 1, 0)] + "…"
+
+
 class PlotPane(Vertical):
     """One register over time: the selected servo (and with `a` every servo), each column's min to max;
     `z`/`Z` zoom the time axis in and out, `[`/`]` pan, `0` shows it all again (following the newest)."""
@@ -175,6 +187,7 @@ class PlotPane(Vertical):
         super().__init__(**kwargs)
         self.window = Window()
         self._shown: dict[str, tuple] = {}  # selector -> what its label shows
+        self._store: Store | None = None    # drawn again at its new size when the pane is resized
 
     def compose(self) -> ComposeResult:
         yield Label(Text("plot: no servo yet"), id="plot-title")
@@ -198,7 +211,14 @@ class PlotPane(Vertical):
     def reset(self) -> None:
         self.window = Window()
 
+    def on_resize(self) -> None:
+        # A pane hidden at first (a narrow terminal shows one bottom pane at a time) has no size when
+        # the data comes; it is drawn when it gets one, not at the next key that asks for a redraw.
+        if self._store is not None:
+            self.update_from(self._store)
+
     def update_from(self, store: Store) -> None:
+        self._store = store
         title = Text("plot: ")
         if store.plot_id is None:
             title.append("no servo yet")
@@ -209,20 +229,19 @@ class PlotPane(Vertical):
             title.append(" " + store.plot_register, "cyan")
         self._label("#plot-title", title)
         line = self.query_one("#plot-line", Static)
-        width, height = max(1, line.size.width or self.size.width - 2), max(1, line.size.height or 6)
         b = self.bounds(store)
         if b is None:
             line.update(Text(""), layout=False)  # its height is the pane's (1fr), whatever it holds
             self._label("#plot-range", Text("no samples", "grey70"))
             return
+        width, height = line.size.width, line.size.height
+        if width <= 0 or height <= 0:
+            return  # not laid out (hidden): drawn at its first resize
         t0, t1 = self.window.bounds(*b)
         rows, vmin, vmax = render(list(store.plot_series.values()), width, height, t0, t1)
         line.update(Text("\n").join(rows), layout=False)
         shown = "all" if self.window.span is None else f"{t1 - t0:.3g} s"
-        rng = Text(f"{t0:.2f}-{t1:.2f} s ({shown})", "grey70")
-        if vmin is not None:
-            rng.append(f"  {vmin:g}..{vmax:g}", "grey70")
-        self._label("#plot-range", rng)
+        self._label("#plot-range", Text(range_label(t0, t1, shown, vmin, vmax, width), "grey70"))
 
     def _label(self, selector: str, text: Text) -> None:
         # A label's new text may wrap to another number of lines (a layout of the whole screen): only

@@ -201,14 +201,32 @@ class Timeline(ScrollView, can_focus=True):
             return Strip.blank(width, self.rich_style)
         cursor = seq == self.cursor_seq
         key = (seq, len(rec.findings), cursor, self.has_focus, rec.latency, rec.status, compact)
-        strip = self._cache.get(key)
-        if strip is None:
+        base: Style = self.rich_style
+        if cursor:
+            base = base + self.get_component_rich_style("timeline--cursor")
+        cached = self._cache.get(key)
+        if cached is None:
             prev = self.store.get(seq - 1)
             text = row_text(rec, prev.event.t_start if prev is not None else None, compact)
-            base: Style = self.rich_style
-            if cursor:
-                base = base + self.get_component_rich_style("timeline--cursor")
             strip = Strip(text.render(self.app.console), text.cell_len)
             strip = strip.extend_cell_length(ROW_WIDTH).apply_style(base)
-            self._cache[key] = strip
-        return strip.crop_extend(scroll_x, scroll_x + width, self.rich_style)
+            cached = self._cache[key] = (strip, text.cell_len)
+        strip, length = cached
+        # The mark goes at the last cell in sight: the scrollbar covers the line's last cells.
+        shown = min(width, self.scrollable_content_region.width) or width
+        return _marked(strip, length, scroll_x, shown, base).extend_cell_length(width, self.rich_style)
+
+
+def _marked(strip: Strip, length: int, x: int, width: int, style: Style) -> Strip:
+    """Cells ``x`` to ``x + width`` of a row ``length`` cells long, with an ellipsis at an edge the row
+    runs past: a value cut at the edge of the view (``present_position=-2`` of -24.9) is never
+    shown as if it were whole."""
+    view = strip.crop_extend(x, x + width, style)
+    if width < 2:
+        return view
+    more = Strip([Segment("…", style)], 1)
+    if length > x + width:
+        view = Strip.join([view.crop(0, width - 1), more])
+    if x > 0 and length > x:
+        view = Strip.join([more, view.crop(1, width)])
+    return view

@@ -323,7 +323,7 @@ async def test_slash_filters_the_timeline():
         assert [app.store.get(app.store.view_seq(i)).offset for i in range(2)] == [34, 219]
         assert not app.query_one("#filter-bar").display
         assert app.focused is tl
-        assert "filter id:1 kind:read" in header_text(app)
+        assert "filter: id:1 kind:read 2 shown" in header_text(app)
         await type_filter(pilot, "")  # an empty filter shows everything again
         assert tl.row_count == 24 and "filter" not in header_text(app)
 
