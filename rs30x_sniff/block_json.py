@@ -10,7 +10,10 @@ which of those are there at all (its pairing, its times), which in a Block's row
 
 from __future__ import annotations
 
+import math
 from typing import Any
+
+import numpy as np
 
 from .events import LongPacket, ReturnPacket, ShortPacket
 from .frame_runs import LONG
@@ -20,6 +23,18 @@ from .render import _COMPACT, _NO_FIELDS, _SPACED, record_json, record_json_text
 _SLOTS = ("offset", "t", "t_end", "raw", "reply_to", "reply", "latency_s")
 _TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any, Any]] = {}  # key -> (format, slots, layout, model)
 _MAX_TEMPLATES = 4096
+
+
+class NonFiniteError(ValueError):
+    """A time or latency that is NaN or infinite reached the JSON writer: JSON has no text for it.
+
+    Sources refuse such times as input errors (with where they are); this is the guard behind them,
+    so a line is never written with ``NaN`` or ``Infinity`` (or Python's ``inf``) in it.
+    """
+
+
+def _not_finite(offset: int, what: str, value: float) -> NonFiniteError:
+    return NonFiniteError(f"the packet at byte {offset}: {what} {value!r} is not a finite number (JSON has none)")
 
 
 def block_json_lines(blk: Any, only: set[int] | None = None, compact: bool = False, rows: Any = None) -> str:
@@ -48,6 +63,11 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
     kinds = blk.cols["kind"].tolist()
     timed = blk.t0 is not None
     if timed:
+        for what, col in (("t", blk.t0), ("t_end", blk.t1)):
+            bad = ~np.isfinite(col)
+            if bad.any():  # one check a Block, not one a row
+                k = int(np.argmax(bad))
+                raise _not_finite(base + starts[k], what, float(col[k]))
         t0, t1 = blk.t0.tolist(), blk.t1.tolist()
         lat = blk.latencies().tolist()
     models, default = blk.models, blk.default
@@ -83,7 +103,10 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
             elif name == "reply":
                 vals.append(str(base + starts[k + 1]))
             elif name == "latency_s":
-                vals.append(repr(lat[k]))
+                x = lat[k]
+                if x - x != 0.0:  # NaN or infinite (a difference of finite times never is)
+                    raise _not_finite(base + s, "latency_s", x)
+                vals.append(repr(x))
             else:  # fields
                 if layout is None:
                     vals.append("")
@@ -146,10 +169,16 @@ def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = Fal
     plain floats (whose text ``repr`` might not give as JSON does) is written by record_json_text
     itself. The fields are filled in by Record.fields_json, so the template holds no layout."""
     ev = rec.event
+    t0, t1, latency = ev.t_start, ev.t_end, rec.latency
+    # x - x is 0.0 for every finite number, NaN for NaN and the infinities: three checks on the hot path.
+    if ((t0 is not None and t0 - t0 != 0.0) or (t1 is not None and t1 - t1 != 0.0)
+            or (latency is not None and latency - latency != 0.0)):
+        what, x = next((w, v) for w, v in (("t", t0), ("t_end", t1), ("latency_s", latency))
+                       if v is not None and not math.isfinite(v))
+        raise _not_finite(ev.offset, what, x)
     t = type(ev)
     if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket):
         return record_json_text(rec, only, compact)
-    t0, t1, latency = ev[2], ev[3], rec.latency
     if ((t0 is not None and type(t0) is not float) or (t1 is not None and type(t1) is not float)
             or (latency is not None and type(latency) is not float)):
         return record_json_text(rec, only, compact)

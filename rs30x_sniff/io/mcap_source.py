@@ -1,10 +1,11 @@
-"""Read the /rs30x/raw channel of an MCAP file back as (bytes, t) chunks, surviving a killed writer and damage."""
+"""Read the /rs30x/raw channel of any writer's MCAP back as (bytes, t) chunks, surviving a killed writer and damage."""
 
 from __future__ import annotations
 
 import base64
 import binascii
 import json
+import math
 import os
 import stat
 import struct
@@ -17,6 +18,9 @@ from mcap.opcode import Opcode
 from ..chunks import SENDERS, UART_ERRORS, Marked
 from .captures import MCAP_MAGIC, CaptureError, CaptureWarning, open_capture, stderr_warning
 from .mcap_sink import METADATA_NAME, MODELS_METADATA_NAME, RAW_TOPIC
+
+RAW_SCHEMA = "rs30x.Raw"
+RAW_ENCODING = "json"
 
 _RECORD_HEAD = struct.Struct("<BQ")
 _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
@@ -31,6 +35,12 @@ _MAX_CHUNK = 256 << 20
 _SUMMARY_ONLY = {Opcode.FOOTER, Opcode.CHUNK_INDEX, Opcode.ATTACHMENT_INDEX, Opcode.STATISTICS,
                  Opcode.METADATA_INDEX, Opcode.SUMMARY_OFFSET}
 _KNOWN = {int(op) for op in Opcode}
+# Raw messages that arrive ahead of a gap in the capture bytes (another writer's chunk order, a copy
+# sorted by log time where the capture's clock went back) wait for it up to this much capture data;
+# a gap still open then, or at the end of the file, is a hole: reading stops before it.
+_MAX_PENDING = 64 << 20
+# The largest capture time an MCAP log time (nanoseconds in 64 bits) can hold, about year 2554.
+MAX_TIME = (2 ** 64 - 1) / 1e9
 
 _stderr_warning = stderr_warning  # kept: the name other modules knew
 
@@ -42,10 +52,11 @@ Raw = tuple[bytes, float | None, int, "tuple[str | None, str | None] | None"]
 class _Damage(Exception):
     """The bytes at ``pos`` are not what an rs30x-sniff MCAP holds there."""
 
-    def __init__(self, pos: int, what: str) -> None:
+    def __init__(self, pos: int, what: str, chunks: int | None = None) -> None:
         super().__init__(what)
         self.pos = pos
         self.what = what
+        self.chunks = chunks  # the chunks before it, where that is not the count read so far
 
 
 class _Bad(Exception):
@@ -98,7 +109,7 @@ class _Body:
 
 
 class McapRawReader:
-    """Iterates ``(data, t, log_time_ns)`` of every /rs30x/raw message in file order.
+    """Iterates ``(data, t, log_time_ns, marks)`` of every /rs30x/raw message in capture order.
 
     Reads the data section record by record, so a file cut anywhere (no summary, no footer, half a
     chunk) is read up to its last complete chunk, and a damaged one up to the last whole chunk before
@@ -106,8 +117,15 @@ class McapRawReader:
     offset) and what was lost, and the same is kept in ``warnings`` as a
     :class:`~rs30x_sniff.io.captures.CaptureWarning`. Every chunk is checked (lengths, CRC, and the
     stream offsets of its raw messages following on from the last), so what is returned is always
-    the start of the capture, never a capture with a hole. A file with no readable rs30x data (not
-    an MCAP, another tool's MCAP, damage before the first chunk) is a CaptureError.
+    the start of the capture, never a capture with a hole.
+
+    The file is known by its content, not by who wrote it: the channel with topic /rs30x/raw, schema
+    rs30x.Raw and JSON bodies, whatever the header's library, the record order (chunked or not, raw
+    messages put back in stream order), the summary (none needed) or the metadata (defaults, said
+    once, where it has none). A copy that starts later in the stream (trimmed by time) is read from
+    its first byte, and says so (such notes go to ``warn`` only: nothing was lost). A file with no readable rs30x data (not an MCAP, another tool's MCAP,
+    damage before the first chunk), another encoding on /rs30x/raw, or a time that is not a finite
+    number an MCAP log time can hold, is a CaptureError.
     ``t`` is None where the capture had no timestamps (``log_time_ns`` is then synthetic).
     ``metadata`` fills in as the file is read (it sits at the start of files we write).
     An MCAP needs a seekable file: a pipe is refused with a CaptureError.
@@ -188,13 +206,28 @@ class McapRawReader:
                 except _Bad as e:
                     raise _Damage(pos, f"a damaged {_name(opcode)} record ({e})") from None
                 pos = body_pos + length
+            # The data section ends (whole or cut): raw messages still waiting for a gap are past a hole.
+            yield from self._released(state.order.finish(), state)
+            state.order.check()
         except _Damage as d:
             self._damaged(d, size, state)
         finally:
             if self.complete is None:
                 self.complete = False
-        if state.raw_channel is None and self.chunks:
-            raise CaptureError(f"{path}: an MCAP without a {RAW_TOPIC} channel: nothing to decode")
+        if state.raw_channel is None:
+            if state.header and not state.ours():
+                # Another tool's MCAP: say who wrote it. The name is the file's text: shown quoted if it
+                # is not plain, so the error stays one line.
+                library = state.library or ""
+                shown = library if library.isprintable() and len(library) <= 60 else repr(library[:60])
+                raise CaptureError(f"{path}: not an rs30x-sniff MCAP (written by "
+                                   f"{shown or 'an unnamed tool'}; it has no {RAW_TOPIC} channel)")
+            if self.chunks:
+                raise CaptureError(f"{path}: an MCAP without a {RAW_TOPIC} channel: nothing to decode")
+        elif METADATA_NAME not in self.metadata and state.raw_messages:
+            # Another writer's copy without our metadata: what the capture's settings were is not known.
+            self._note(f"{path}: no {METADATA_NAME!r} metadata in this MCAP: its baud rate, time base and "
+                       "servo models are not recorded (the defaults, or --baud and --model, apply)")
 
     def _record(self, opcode: int, body: bytes, pos: int, state: _State) -> Iterator[Raw]:
         b = _Body(body)
@@ -204,11 +237,8 @@ class McapRawReader:
             b.string()
             library = b.string()
             b.done()
-            if not library.startswith(_TOOL):
-                # The name is the file's text: shown quoted if it is not plain, so the error stays one line.
-                shown = library if library.isprintable() and len(library) <= 60 else repr(library[:60])
-                raise CaptureError(f"{self.path}: not an rs30x-sniff MCAP (written by "
-                                   f"{shown or 'an unnamed tool'}; it has no {RAW_TOPIC} channel)")
+            # Who wrote the file decides nothing (its channels do): kept for what is said about it.
+            state.library = library
             state.header = True
             return
         if opcode == Opcode.METADATA:
@@ -222,16 +252,19 @@ class McapRawReader:
                 self._warn(f"{self.path}: ignored a damaged metadata record at byte {pos} ({e})", pos, 0)
                 return
             self.metadata[name] = values
+            state.metadata.add(name)
             return
         if opcode == Opcode.CHUNK:
             messages = self._chunk(b, pos, state)
             self.chunks += 1
-            yield from messages
+            yield from self._released(state.order.add(messages, pos, self.chunks - 1), state)
+            state.order.check()
             return
         if opcode in (Opcode.CHANNEL, Opcode.MESSAGE, Opcode.SCHEMA):
             out = self._inner(opcode, b, pos, state)
             if out is not None:
-                yield out
+                yield from self._released(state.order.add([out], pos, self.chunks), state)
+                state.order.check()
             return
         if opcode == Opcode.MESSAGE_INDEX:
             b.u16()
@@ -245,7 +278,7 @@ class McapRawReader:
             raise _Bad("a summary record before Data End")
         # Attachments and anything else a reader may skip: not needed to get the bytes back.
 
-    def _chunk(self, b: _Body, pos: int, state: _State) -> list[Raw]:
+    def _chunk(self, b: _Body, pos: int, state: _State) -> list[tuple[int | None, Raw]]:
         _, _, size, crc = _CHUNK_HEAD.unpack(b.take(_CHUNK_HEAD.size))
         compression = b.string()
         data = b.take(b.u64())
@@ -280,65 +313,103 @@ class McapRawReader:
         if crc and zlib.crc32(raw) != crc:
             raise _Bad("its CRC does not match its data")
         # Decode the whole chunk before returning any of it: a chunk is returned whole or not at all.
-        out: list[Raw] = []
+        out: list[tuple[int | None, Raw]] = []
         inner = _Body(raw)
-        mark = state.offset
-        try:
-            while inner.pos < len(raw):
-                opcode = inner.take(1)[0]
-                rec = _Body(inner.take(inner.u64()))
-                if opcode in (Opcode.CHANNEL, Opcode.MESSAGE, Opcode.SCHEMA):
-                    m = self._inner(opcode, rec, pos, state)
-                    if m is not None:
-                        out.append(m)
-        except _Bad:
-            state.offset = mark
-            raise
+        while inner.pos < len(raw):
+            opcode = inner.take(1)[0]
+            rec = _Body(inner.take(inner.u64()))
+            if opcode in (Opcode.CHANNEL, Opcode.MESSAGE, Opcode.SCHEMA):
+                m = self._inner(opcode, rec, pos, state)
+                if m is not None:
+                    out.append(m)
         return out
 
-    def _inner(self, opcode: int, b: _Body, pos: int, state: _State) -> Raw | None:
-        """A schema, channel or message record (in a chunk, or not): the raw message it is, if one."""
+    def _inner(self, opcode: int, b: _Body, pos: int, state: _State) -> tuple[int | None, Raw] | None:
+        """A schema, channel or message record (in a chunk, or not): the raw message it is, if one,
+        with the stream offset it says it starts at (None from a writer that did not say)."""
         if opcode == Opcode.SCHEMA:
+            sid = b.u16()
+            name = b.string()
+            b.string()
+            b.take(b.u32())
+            b.done()
+            state.schemas[sid] = name
             return None
         if opcode == Opcode.CHANNEL:
             cid = b.u16()
-            b.u16()
+            sid = b.u16()
             topic = b.string()
-            b.string()
+            encoding = b.string()
             b.string_map()
             b.done()
             if topic == RAW_TOPIC:
-                if state.raw_channel not in (None, cid):
-                    raise _Bad(f"a second {RAW_TOPIC} channel")
-                state.raw_channel = cid
+                self._raw_channel(cid, sid, encoding, state)
             return None
         channel, _, log_time, _ = _MESSAGE_HEAD.unpack(b.take(_MESSAGE_HEAD.size))
         if channel != state.raw_channel:
             return None
+        state.raw_messages += 1
         try:
             obj = json.loads(b.take(len(b.data) - b.pos))
             data = base64.b64decode(obj["data"], validate=True)
             t = obj["t"]
-            t = float(t) if t is not None else None
             offset = obj.get("offset")
             length = obj.get("length")
             sender, error = obj.get("sender"), obj.get("error")
             if (sender is not None and sender not in SENDERS) or (error is not None and error not in UART_ERRORS):
                 raise ValueError("a mark we do not write")
+            if not (t is None or type(t) in (int, float)) or not all(
+                    v is None or (type(v) is int and v >= 0) for v in (offset, length)):
+                raise ValueError("a value of the wrong type")
         except (ValueError, KeyError, TypeError, AttributeError, binascii.Error):
             raise _Bad(f"a {RAW_TOPIC} message that is not what we write") from None
-        # The writer numbers every raw byte: a message that does not start where the last one ended
-        # means a lost chunk (one whose record type was damaged, say), and a hole must not be read on.
-        if offset is not None and offset != state.offset:
-            raise _Bad(f"capture bytes {state.offset}..{offset} are missing")
+        if t is not None:
+            # JSON as Python reads it takes NaN and Infinity, and numbers no clock reaches: an input
+            # error where it is, not a traceback (or NaN in JSON output) further on.
+            if not (isinstance(t, float) and math.isfinite(t) or isinstance(t, int)) or abs(t) > MAX_TIME:
+                shown = json.dumps(t) if isinstance(t, float) else f"{t:.6g}" if abs(t) < 10 ** 300 else "(huge)"
+                raise CaptureError(f"{self.path}: {RAW_TOPIC} message {state.raw_messages} (log time {log_time} ns, "
+                                   f"in the record at byte {pos}): time {shown} is not a finite number of "
+                                   f"seconds an MCAP log time can hold (|t| <= {MAX_TIME:.3g} s)")
+            t = float(t)
         if length is not None and length != len(data):
             raise _Bad(f"a {RAW_TOPIC} message of {len(data)} bytes that says {length}")
-        state.offset += len(data)
-        return data, t, log_time, (None if sender is None and error is None else (sender, error))
+        return offset, (data, t, log_time, (None if sender is None and error is None else (sender, error)))
+
+    def _raw_channel(self, cid: int, sid: int, encoding: str, state: _State) -> None:
+        """A channel on /rs30x/raw: the one to read, if its schema and encoding are ours."""
+        schema = state.schemas.get(sid)
+        if sid and schema is not None and schema != RAW_SCHEMA:
+            shown = schema if schema.isprintable() and len(schema) <= 60 else repr(schema[:60])
+            raise CaptureError(f"{self.path}: not an rs30x-sniff capture: its {RAW_TOPIC} channel has the "
+                               f"schema {shown or '(unnamed)'}, not {RAW_SCHEMA}")
+        if encoding != RAW_ENCODING:
+            shown = encoding if encoding.isprintable() and len(encoding) <= 40 else repr(encoding[:40])
+            raise CaptureError(f"{self.path}: unsupported encoding {shown or '(none)'} on {RAW_TOPIC} "
+                               f"(rs30x-sniff reads {RAW_SCHEMA} messages in {RAW_ENCODING})")
+        if state.raw_channel not in (None, cid):
+            raise _Bad(f"a second {RAW_TOPIC} channel")
+        state.raw_channel = cid
+
+    def _released(self, raws: list[Raw], state: _State) -> list[Raw]:
+        """Raw messages now in stream order: counted, and a late start said once."""
+        order = state.order
+        if order.start and not state.said_start:
+            state.said_start = True
+            self._note(f"{self.path}: the capture starts at byte {order.start} of the recorded stream "
+                       "(a copy trimmed by time?): offsets here count from there")
+        for r in raws:
+            self.raw_bytes += len(r[0])
+        return raws
 
     # ---- what reading lost ---------------------------------------------------------------------
     def _warn(self, text: str, offset: int | None, lost: int) -> None:
         self.warnings.append(CaptureWarning(self.path, text, offset, lost))
+        if self.warn is not None:
+            self.warn(text)
+
+    def _note(self, text: str) -> None:
+        # Said (to ``warn``), but not one of ``warnings``: nothing was lost, the file is read whole.
         if self.warn is not None:
             self.warn(text)
 
@@ -361,18 +432,22 @@ class McapRawReader:
         if not state.header:
             raise CaptureError(f"{self.path}: corrupt MCAP at byte {d.pos}, in its header ({d.what}): "
                                "not a readable rs30x-sniff MCAP")
-        if not self.chunks and state.offset == 0:
+        if d.chunks is not None:
+            self.chunks = d.chunks  # a hole found later: the chunks after it were read but not returned
+        if not self.chunks and self.raw_bytes == 0:
             raise CaptureError(f"{self.path}: corrupt MCAP at byte {d.pos} ({d.what}), "
                                "before any capture data could be read")
         self._warn(f"{self.path}: corrupt MCAP at byte {d.pos} ({d.what}): read the {_n(self.chunks, 'chunk')} "
-                   f"before it ({state.offset} capture bytes), skipped the last {self.lost_bytes} bytes",
+                   f"before it ({self.raw_bytes} capture bytes), skipped the last {self.lost_bytes} bytes",
                    d.pos, self.lost_bytes)
 
     # ---- metadata ------------------------------------------------------------------------------
     def read_metadata(self) -> dict[str, dict[str, str]]:
-        """Read only the metadata at the start of the file (before its first chunk) and return it.
+        """Read the metadata up to our own (``rs30x``) and return it, without decompressing a chunk.
 
-        Stops quietly at anything it does not expect: damage is for the full read to report.
+        Our writer puts it first; another writer may put it after chunks (the record headers are read
+        and the chunks seeked over to find it). Stops quietly at anything it does not expect: damage
+        is for the full read to report.
         """
         try:
             f, size = self._open()
@@ -383,22 +458,27 @@ class McapRawReader:
                 if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
                     raise CaptureError(f"{self.path}: not an MCAP file (bad magic)")
                 pos = len(MCAP_MAGIC)
-                while True:
+                while METADATA_NAME not in self.metadata:
                     head = f.read(_RECORD_HEAD.size)
                     if len(head) < _RECORD_HEAD.size:
                         break
                     opcode, length = _RECORD_HEAD.unpack(head)
                     pos += _RECORD_HEAD.size
-                    if length > size - pos or opcode not in (Opcode.HEADER, Opcode.METADATA):
+                    if length > size - pos or opcode not in _KNOWN or opcode in _SUMMARY_ONLY or \
+                            opcode == Opcode.DATA_END or (pos == len(MCAP_MAGIC) + _RECORD_HEAD.size
+                                                          and opcode != Opcode.HEADER):
                         break
+                    if opcode != Opcode.METADATA:
+                        f.seek(length, os.SEEK_CUR)
+                        pos += length
+                        continue
                     body = _Body(f.read(length))
                     pos += length
-                    if opcode == Opcode.METADATA:
-                        try:
-                            name = body.string()
-                            self.metadata[name] = body.string_map()
-                        except _Bad:
-                            break
+                    try:
+                        name = body.string()
+                        self.metadata[name] = body.string_map()
+                    except _Bad:
+                        break
         except OSError as e:
             raise CaptureError(f"{self.path}: cannot read: {e.strerror}") from None
         return self.metadata
@@ -421,12 +501,94 @@ class McapRawReader:
 
 
 class _State:
-    __slots__ = ("header", "raw_channel", "offset")
+    __slots__ = ("header", "library", "metadata", "schemas", "raw_channel", "raw_messages", "order", "said_start")
 
     def __init__(self) -> None:
         self.header = False
+        self.library: str | None = None
+        self.metadata: set[str] = set()         # names of the metadata records read
+        self.schemas: dict[int, str] = {}       # schema id -> name
         self.raw_channel: int | None = None
-        self.offset = 0  # stream offset of the next raw byte
+        self.raw_messages = 0                   # /rs30x/raw messages seen, for where an error is
+        self.order = _StreamOrder()
+        self.said_start = False
+
+    def ours(self) -> bool:
+        """Whether the file says it is an rs30x-sniff log (its header or metadata), channels or not."""
+        return (self.library or "").startswith(_TOOL) or METADATA_NAME in self.metadata
+
+
+class _StreamOrder:
+    """Puts raw messages back in stream order by the offsets they carry, and finds holes.
+
+    Our writer numbers every raw byte, so a message that does not start where the last one ended is
+    either early (another writer's order: it waits, within _MAX_PENDING) or past a hole (a lost
+    chunk: reading stops at the first chunk a message waiting for it came in). Where the stream starts
+    is the offset 0, or, in a copy trimmed by time, the lowest offset seen once the waiting messages
+    can tell no more (the end of the data section, or the limit).
+    """
+
+    __slots__ = ("next", "start", "pending", "pending_bytes", "hole")
+
+    def __init__(self) -> None:
+        self.next: int | None = None   # stream offset of the next raw byte, once the start is known
+        self.start = 0
+        self.pending: dict[int, tuple[Raw, int, int]] = {}  # offset -> (message, record position, chunks before)
+        self.pending_bytes = 0
+        self.hole = False
+
+    def add(self, items: list[tuple[int | None, Raw]], pos: int, chunks: int) -> list[Raw]:
+        """The messages of one record (a chunk's, whole), and those they release, in stream order."""
+        out: list[Raw] = []
+        for offset, raw in items:
+            if offset is None:
+                # A writer that did not number its bytes: its messages are taken in file order.
+                if self.pending:
+                    raise _Bad(f"a {RAW_TOPIC} message without an offset among numbered ones")
+                self.next = (self.next or 0) + len(raw[0])
+                out.append(raw)
+                continue
+            if self.next is None and offset == 0:
+                self.next = 0
+            if offset == self.next:
+                out.append(raw)
+                self.next += len(raw[0])
+                self._drain(out)
+                continue
+            if (self.next is not None and offset < self.next) or offset in self.pending:
+                raise _Bad(f"capture bytes from {offset} come twice")
+            self.pending[offset] = (raw, pos, chunks)
+            self.pending_bytes += len(raw[0])
+        if self.pending_bytes > _MAX_PENDING:
+            self._settle(out)
+            self.hole = self.pending_bytes > _MAX_PENDING
+        return out
+
+    def finish(self) -> list[Raw]:
+        """At the end of the data section: what waited for the start; what still waits is past a hole."""
+        out: list[Raw] = []
+        self._settle(out)
+        self.hole = bool(self.pending)
+        return out
+
+    def check(self) -> None:
+        """Damage at the first chunk whose messages wait for bytes that will not come."""
+        if self.hole:
+            _, pos, chunks = min(self.pending.values(), key=lambda p: p[1])
+            raise _Damage(pos, f"capture bytes {self.next}..{min(self.pending)} are missing", chunks)
+
+    def _settle(self, out: list[Raw]) -> None:
+        if self.next is None and self.pending:
+            self.next = self.start = min(self.pending)  # a stream that starts later: a trimmed copy
+            self._drain(out)
+
+    def _drain(self, out: list[Raw]) -> None:
+        pending = self.pending
+        while self.next in pending:
+            raw = pending.pop(self.next)[0]
+            self.pending_bytes -= len(raw[0])
+            out.append(raw)
+            self.next += len(raw[0])
 
 
 def _n(count: int, noun: str) -> str:
