@@ -67,7 +67,7 @@ class Block:
         if got is None and self.run.t0 is not None:
             t0, t1 = self.t0, self.t1
             replies = np.flatnonzero(self.answered) + 1
-            got = self._latencies = (replies, t0[replies] - t1[replies - 1])  # all above 0 (feed_run)
+            got = self._latencies = (replies, t0[replies] - t1[replies - 1])  # none below 0 (feed_run)
         return got
 
     def latencies(self) -> np.ndarray | None:
@@ -222,9 +222,9 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     if run.t0 is not None and n > 1:
         in_time = np.zeros(n, dtype=bool)
         gap = run.t0[1:] - run.t1[:-1]
-        # Within the timeout, and after the request ended: a reply the clock puts no later than its
-        # request's end has no latency to give (bus.reply_latency); the tracker takes that pair.
-        in_time[:-1] = (gap > 0.0) & ~(gap > tracker.reply_timeout)
+        # Within the timeout, and not before the request ended: a reply the clock puts earlier has no
+        # latency to give (bus.reply_latency); the tracker takes that pair.
+        in_time[:-1] = (gap >= 0.0) & ~(gap > tracker.reply_timeout)
         ok_pair &= in_time
     answered_return = np.zeros(n, dtype=bool)
     answered_return[1:] = ok_pair[:-1]
@@ -293,6 +293,12 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
     vid_models = None
     if not tracker._uniform and vid_groups:
         vid_models = {i: tracker.model_of(i) for g in vid_groups for i in np.unique(g[1]).tolist()}
+        # Long packets of Length 1 carry VIDs only; their records still have a model (bus.Record.vid_models).
+        for r in np.flatnonzero(is_long & (length == 1)).tolist():
+            s0 = int(starts[r]) + 7
+            for v in a[s0:s0 + int(count[r])].tolist():
+                if v not in vid_models:
+                    vid_models[v] = tracker.model_of(v)
     # Counters: requests per short packet to a servo, returns per return.
     req_counts = np.bincount(sid[is_short & (sid != BROADCAST_ID)], minlength=256)
     ret_counts = np.bincount(sid[is_return], minlength=256)

@@ -29,16 +29,15 @@ DEFAULT_REPLY_TIMEOUT = 0.050
 def reply_latency(request: AnyEvent, reply: AnyEvent) -> float | None:
     """Seconds from the end of ``request`` to the start of ``reply`` (None without times).
 
-    None also where the clock cannot support one: a reply cannot start before (or as) its request
-    ended, so stamps that say otherwise (a logger's arrival times read as first-byte times, a wrong
+    None also where the clock cannot support one: a reply cannot start before its request ended, so stamps that say otherwise (a logger's arrival times read as first-byte times, a wrong
     baud, a held clock) give no latency rather than a false 0; F005/F006 report them. Blocks
-    (rs30x_sniff.blocks) hold only replies with a latency above zero: ``Block.reply_latencies``.
+    (rs30x_sniff.blocks) hold only replies with a latency of zero or more: ``Block.reply_latencies``.
     """
     t0, t1 = reply[2], request[3]
     if t0 is None or t1 is None:
         return None
     latency = t0 - t1
-    return latency if latency > 0.0 else None
+    return latency if latency >= 0.0 else None
 
 
 class Record:

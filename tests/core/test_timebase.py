@@ -62,7 +62,8 @@ def test_an_arrival_stamped_capture_gives_true_latencies(capsys, tmp_path, setup
 def test_the_frame_decoder_keeps_its_clock_monotonic():
     req, ret = encode_read(1, 0x2A, 2), encode_return(1, 0x2A, b"\x84\x03")
     dec = FrameDecoder(115200)
-    events = dec.feed(req, 0.2) + dec.feed(ret, 0.1) + dec.feed(req, 0.2000001) + dec.close()
+    # 5 ms back: a clock fault (F005), held; 10 ms or more back would be a restarted clock (a seam).
+    events = dec.feed(req, 0.2) + dec.feed(ret, 0.195) + dec.feed(req, 0.2000001) + dec.close()
     starts = [e.t_start for e in events]
     assert starts == sorted(starts)
     assert events[1].t_start == pytest.approx(0.2)  # held at the request's time, not before it
@@ -71,13 +72,15 @@ def test_the_frame_decoder_keeps_its_clock_monotonic():
 
 
 def test_backwards_timestamps_are_a_finding_not_a_negative_figure(capsys, tmp_path):
-    """`0.2`, `0.1`, `0.1001`: once a duration of 0.000868 s and a bus load of 100 %."""
+    """`0.2`, `0.195`, `0.1951`: once a duration of 0.000868 s and a bus load of 100 %."""
     req, ret = encode_read(1, 0x2A, 2), encode_return(1, 0x2A, b"\x84\x03")
     path = tmp_path / "back.thex"
-    write_capture(path, [(req, 0.2), (ret, 0.1), (req, 0.1001)], "timestamped")
+    write_capture(path, [(req, 0.2), (ret, 0.195), (req, 0.1951)], "timestamped")
     info = _info(capsys, path, "--time-ref", "first")
     assert "F005 time-went-backwards" in info["findings_by_rule"]
-    assert info["latency_s"]["p50"] >= 0 and (info["bus_load"] is None or info["bus_load"] <= 1.0)
+    # The reply was held at its request's time: it has no latency, not a held clock's 0.000 ms.
+    assert info["latency_s"]["p50"] is None and info["latency_s"]["count"] == 0
+    assert info["bus_load"] is None or info["bus_load"] <= 1.0
     assert main(["lint", str(path), "--isolated", "--time-ref", "first", "--select", "F005", "--fail-on",
                  "warning"]) == 1
     out = capsys.readouterr().out
