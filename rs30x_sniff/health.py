@@ -328,16 +328,22 @@ def _any_model() -> Any:
     return default_registry().default
 
 
-def timer(first_t: float | None, timed: bool, byte_s: float):
-    """``when(t, offset)`` -> (seconds since the capture start, ISO wall clock or None); an untimed
-    capture is measured in line time, as its duration is."""
-    epoch = timed and first_t is not None and first_t > EPOCH_MIN
+def timer(first_t: float | None, timed: bool, byte_s: float, anchor: float | None = None):
+    """``when(t, offset)`` -> (capture time, ISO wall clock or None): the times ``lint`` and ``decode``
+    print, and the wall clock where the capture has one (epoch times, or ``anchor``: the epoch time of
+    capture time 0); an untimed capture is measured in line time, as its duration is."""
+    epoch = anchor if anchor is not None else (0.0 if timed and first_t is not None and first_t > EPOCH_MIN else None)
 
     def when(t: float | None, offset: int) -> tuple[float | None, str | None]:
         if timed and t is not None and first_t is not None:
-            wall = (datetime.fromtimestamp(t, tz=timezone.utc).isoformat(timespec="milliseconds")
-                    .replace("+00:00", "Z")) if epoch else None
-            return round(t - first_t, 6), wall
+            wall = None
+            if epoch is not None:
+                try:
+                    wall = (datetime.fromtimestamp(epoch + t, tz=timezone.utc).isoformat(timespec="milliseconds")
+                            .replace("+00:00", "Z"))
+                except (OverflowError, OSError, ValueError):
+                    wall = None  # no calendar date: the capture time alone
+            return round(t, 6), wall
         if not timed:
             return round(offset * byte_s, 6), None
         return None, None
@@ -418,7 +424,7 @@ def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[s
         if st.returns + st.acks + st.nacks == 0:
             say("error", sid, f"ID {sid} never answered: {_plural(st.missing, 'request')} missing", tw)
         else:
-            asked = st.missing + st.returns + st.acks + st.nacks
+            asked = st.missing + st.answered  # requests that asked for a reply, not the replies heard
             say("error", sid, f"ID {sid} left {st.missing} of {asked} requests unanswered, first{_at(*tw)}", tw)
     # Damaged traffic.
     if stats.bad_checksums:

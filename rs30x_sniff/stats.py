@@ -28,6 +28,7 @@ _LATENCY_BIN = 1e-6
 _LOAD_WINDOW = 1.0
 # (flag, carries data) -> (op word, asks for a return): both follow from those two alone (table 4.2, 4.3).
 _OPS: dict[tuple[int, bool], tuple[str, bool]] = {}
+_NO_SEAM = 1 << 62  # a stream offset no capture reaches
 
 
 @dataclass
@@ -42,17 +43,31 @@ class ServoStats:
     acks: int = 0
     nacks: int = 0
     missing: int = 0           # requests whose reply never came
-    first_read_t: float | None = None
+    answered: int = 0          # requests whose reply came
+    first_read_t: float | None = None  # ... in the current time segment
     last_read_t: float | None = None
     first_missing: tuple[float | None, int] | None = None  # (t, offset) of the first unanswered request
+    segment_reads: int = 0     # reads in the current time segment
+    read_gaps: int = 0         # intervals between reads in segments already closed ...
+    read_span: float = 0.0     # ... and the seconds they cover
 
     @property
     def poll_rate(self) -> float | None:
-        """Reads per second between this servo's first and last read (None with fewer than two)."""
-        if self.reads < 2 or self.first_read_t is None or self.last_read_t is None:
-            return None
-        span = self.last_read_t - self.first_read_t
-        return (self.reads - 1) / span if span > 0 else None
+        """Reads per second between this servo's first and last read, within each time segment (None
+        with fewer than two reads in one segment)."""
+        gaps, span = self.read_gaps, self.read_span
+        if self.segment_reads >= 2 and self.first_read_t is not None and self.last_read_t is not None:
+            gaps += self.segment_reads - 1
+            span += self.last_read_t - self.first_read_t
+        return gaps / span if gaps and span > 0 else None
+
+    def end_segment(self) -> None:
+        """A seam of the capture's clock: the reads so far are one segment's."""
+        if self.segment_reads >= 2 and self.first_read_t is not None and self.last_read_t is not None:
+            self.read_gaps += self.segment_reads - 1
+            self.read_span += self.last_read_t - self.first_read_t
+        self.segment_reads = 0
+        self.first_read_t = self.last_read_t = None
 
 
 @dataclass
@@ -87,7 +102,11 @@ class CaptureStats(Sink):
     the drive loop it counts the bytes, records and findings that pass through.
 
     Times come from the records; a capture without timestamps is measured in line time: its
-    byte count at the configured baud rate, as if the bus had never been idle.
+    byte count at the configured baud rate, as if the bus had never been idle. Where the capture's
+    clock has seams (rs30x_sniff.framing.Seam, handed over on the steps), durations add up over the
+    time segments and rates and loads are taken within them. ``timing_unsupported`` (a reason) leaves
+    out the figures that need the byte time to be right (latency, bus load): set when the timestamps
+    contradict the baud rate.
     """
 
     takes_blocks = True  # a Block's rows are counted on its columns (add_block), as add() counts each
@@ -107,8 +126,16 @@ class CaptureStats(Sink):
         self.latency = LatencyHistogram()
         self.findings: Counter = Counter()
         self.finding_codes: Counter = Counter()
-        self.first_t: float | None = None
-        self.last_t: float | None = None
+        self.first_t: float | None = None  # the capture's first time
+        self.last_t: float | None = None   # the current time segment's last
+        self.segment_t: float | None = None  # the current time segment's first
+        self.closed_span = 0.0  # seconds of the time segments before it
+        self.seams: list = []   # every seam so far
+        self._next_seam = _NO_SEAM  # stream offset where the next seam takes effect
+        self._pending_seams: list = []
+        self.timing_unsupported: str | None = None
+        self.wall_anchor: float | None = None  # epoch seconds of capture time 0, where the source says
+        self.unmeasured = 0  # paired replies whose times give no latency (stamped before their request ended)
         self.timed = False
         self.health = HealthRecorder()          # per-servo register ranges, status flags, findings
         self.bad_by: Counter = Counter()        # (kind, the ID it claims) of packets with a bad Sum
@@ -124,6 +151,9 @@ class CaptureStats(Sink):
         self.bytes_in += len(data)
 
     def batch(self, step: Step) -> None:
+        if step.seams:
+            self._pending_seams += step.seams
+            self._next_seam = self._pending_seams[0].offset
         add = self.add
         for rec in step:
             if type(rec) is Block:
@@ -146,6 +176,8 @@ class CaptureStats(Sink):
     def add(self, rec: Any) -> None:
         # Per record on captures of millions of frames: events are read by index, not by property.
         ev = rec.event
+        if ev[0] >= self._next_seam:
+            self._end_segment(ev[0])
         self.records += 1
         t = type(ev)
         kind = t.kind
@@ -159,6 +191,8 @@ class CaptureStats(Sink):
             self.timed = True
             if self.first_t is None:
                 self.first_t = ts
+            if self.segment_t is None:
+                self.segment_t = ts
             end = ev[3]
             if end is None:
                 end = ts
@@ -193,8 +227,11 @@ class CaptureStats(Sink):
                 st.requests += 1
                 if st.requests == 1:  # the model it is decoded as, even if it never answers
                     self.health.servo(sid).model = rec.model
+                if rec.status == "answered":
+                    st.answered += 1
                 if op[1]:
                     st.reads += 1
+                    st.segment_reads += 1
                     if ts is not None:
                         if st.first_read_t is None:
                             st.first_read_t = ts
@@ -224,8 +261,11 @@ class CaptureStats(Sink):
                 else:
                     st.nacks += 1
             lat = rec.latency
-            if lat is not None and rec.status == "paired":
-                self.latency.add(lat)
+            if rec.status == "paired":
+                if lat is not None:
+                    self.latency.add(lat)
+                elif ts is not None:
+                    self.unmeasured += 1
 
     def add_block(self, blk: Block) -> None:
         """Count a Block's rows (rs30x_sniff.blocks) on its columns: the same figures as :meth:`add` of
@@ -238,6 +278,8 @@ class CaptureStats(Sink):
         kind, sid, flag, dlen = cols["kind"], cols["id"], cols["flag"], cols["data_len"]
         run, lo, hi = blk.run, blk.lo, blk.hi
         starts, ends = run.starts[lo:hi], run.ends[lo:hi]
+        if run.base + int(starts[0]) >= self._next_seam:  # a Block never spans a seam (framing)
+            self._end_segment(run.base + int(starts[0]))
         self.records += n
         counts = np.bincount(kind, minlength=3).tolist()
         by_kind = self.by_kind
@@ -252,6 +294,8 @@ class CaptureStats(Sink):
             self.timed = True
             if self.first_t is None:
                 self.first_t = float(t0[0])
+            if self.segment_t is None:
+                self.segment_t = float(t0[0])
             last = float(blk.t1.max())
             if self.last_t is None or last > self.last_t:
                 self.last_t = last
@@ -285,6 +329,9 @@ class CaptureStats(Sink):
                 if st.requests == 0:  # the model it is decoded as, even if it never answers
                     health.servo(i).model = models[i]
                 st.requests += int(req_counts[i])
+            answered = np.bincount(sid[to_servo & blk.answered], minlength=256)
+            for i in np.flatnonzero(answered).tolist():
+                servos[i].answered += int(answered[i])
             read_rows = np.flatnonzero(to_servo & table[keys])
             if read_rows.size:
                 rs = sid[read_rows]
@@ -292,6 +339,7 @@ class CaptureStats(Sink):
                 if t0 is None:
                     for i in np.flatnonzero(read_counts).tolist():
                         servos[i].reads += int(read_counts[i])
+                        servos[i].segment_reads += int(read_counts[i])
                 else:
                     tr = t0[read_rows]
                     ids, first = np.unique(rs, return_index=True)
@@ -300,6 +348,7 @@ class CaptureStats(Sink):
                     for i, c, f, la in zip(ids.tolist(), read_counts[ids].tolist(), firsts, lasts):
                         st = servos[i]
                         st.reads += c
+                        st.segment_reads += c
                         if st.first_read_t is None:
                             st.first_read_t = f
                         st.last_read_t = la
@@ -458,6 +507,33 @@ class CaptureStats(Sink):
             self.finding_codes[f"{f.code} {f.name}"] += 1
         self.health.findings(findings)
 
+    def _end_segment(self, offset: int) -> None:
+        """Close the time segment before the seam(s) at or before stream ``offset``: its span is added
+        up, its last bus-load window and each servo's reads are closed, and the clock starts afresh."""
+        while self._pending_seams and self._pending_seams[0].offset <= offset:
+            self.seams.append(self._pending_seams.pop(0))
+        self._next_seam = self._pending_seams[0].offset if self._pending_seams else _NO_SEAM
+        if self.segment_t is None:
+            return
+        if self.last_t is not None:
+            self.closed_span += max(0.0, self.last_t - self.segment_t)
+            self._close_window(self.last_t)
+        self.segment_t = self.last_t = None
+        self._win_start, self._win_end, self._win_bytes = None, float("-inf"), 0
+        for st in self.servos.values():
+            st.end_segment()
+
+    def _close_window(self, last: float) -> None:
+        """The last window of a segment counts over its own span once that is half a window (shorter,
+        one packet would look like a full bus)."""
+        if self._win_start is None:
+            return
+        span = last - self._win_start
+        if span >= _LOAD_WINDOW / 2:
+            load = min(1.0, self._win_bytes * byte_time(self.baud) / min(span, _LOAD_WINDOW))
+            if self._peak is None or load > self._peak[0]:
+                self._peak = (load, self._win_start)
+
     def _roll(self, ts: float) -> None:
         """Close the bus-load window(s) before ``ts`` and open the one holding it."""
         if self._win_start is None:
@@ -482,15 +558,20 @@ class CaptureStats(Sink):
 
     @property
     def duration(self) -> float:
-        """Seconds from the first to the last byte (line time for a capture without timestamps)."""
-        if self.timed and self.first_t is not None and self.last_t is not None:
-            return max(0.0, self.last_t - self.first_t)
+        """Seconds from the first to the last byte, added up over the time segments (line time for a
+        capture without timestamps)."""
+        if self.timed and self.first_t is not None:
+            current = 0.0
+            if self.segment_t is not None and self.last_t is not None:
+                current = max(0.0, self.last_t - self.segment_t)
+            return self.closed_span + current
         return self.line_time
 
     @property
     def bus_load(self) -> float | None:
-        """Fraction of the capture's time the line was busy (None for an instant or untimed capture)."""
-        if not self.timed:
+        """Fraction of the capture's time the line was busy (None for an instant or untimed capture,
+        or where the timestamps contradict the baud rate)."""
+        if not self.timed or self.timing_unsupported:
             return None
         d = self.duration
         return min(1.0, self.line_time / d) if d > 0 else None
@@ -503,18 +584,32 @@ class CaptureStats(Sink):
         would look like a full bus); and no second is quieter than the whole capture's average says
         the busiest must be.
         """
-        if not self.timed or self._win_start is None or self.duration < _LOAD_WINDOW:
+        if not self.timed or self.timing_unsupported or self.duration < _LOAD_WINDOW:
             return None
         best = self._peak
-        span = (self.last_t or self._win_start) - self._win_start
-        if span >= _LOAD_WINDOW / 2:
-            load = min(1.0, self._win_bytes * byte_time(self.baud) / min(span, _LOAD_WINDOW))
-            if best is None or load > best[0]:
-                best = (load, self._win_start)
+        if self._win_start is not None:
+            span = (self.last_t or self._win_start) - self._win_start
+            if span >= _LOAD_WINDOW / 2:
+                load = min(1.0, self._win_bytes * byte_time(self.baud) / min(span, _LOAD_WINDOW))
+                if best is None or load > best[0]:
+                    best = (load, self._win_start)
         avg = self.bus_load
         if avg is not None and self.first_t is not None and (best is None or avg > best[0]):
             best = (avg, self.first_t)
         return best
+
+    def latency_dict(self) -> dict[str, Any]:
+        """Reply latencies: count and percentiles, or none with the reason they cannot be given."""
+        lat = self.latency
+        if self.timing_unsupported:
+            return {"count": 0, "p50": None, "p95": None, "max": None, "unmeasured": lat.count + self.unmeasured,
+                    "absent": self.timing_unsupported}
+        out = {"count": lat.count, "p50": lat.percentile(50), "p95": lat.percentile(95), "max": lat.max,
+               "unmeasured": self.unmeasured}
+        if self.unmeasured:
+            out["absent"] = (f"{self.unmeasured} repl{'y' if self.unmeasured == 1 else 'ies'} stamped before "
+                             f"{'its' if self.unmeasured == 1 else 'their'} request ended (F005/F006): no latency")
+        return out
 
     @property
     def packets(self) -> int:
@@ -535,7 +630,9 @@ class CaptureStats(Sink):
             "by_op": dict(sorted(self.by_op.items())),
             "bad_checksums": self.bad_checksums,
             "garbage_bytes": self.garbage_bytes,
-            "latency_s": {"count": lat.count, "p50": lat.percentile(50), "p95": lat.percentile(95), "max": lat.max},
+            "latency_s": self.latency_dict(),
+            "segments": len(self.seams) + 1 if self.timed else 1,
+            "timing_unsupported": self.timing_unsupported,
             "servos": {
                 str(sid): {"requests": s.requests, "reads": s.reads, "long_writes": s.long_writes,
                            "returns": s.returns, "acks": s.acks, "nacks": s.nacks, "missing": s.missing,
@@ -550,7 +647,7 @@ class CaptureStats(Sink):
     def health_dict(self) -> dict[str, Any]:
         """Per-servo health, the busiest second and the "what happened" lines (keys of :meth:`as_dict`)."""
         self.health.flush()
-        when = timer(self.first_t, self.timed, byte_time(self.baud))
+        when = timer(self.first_t, self.timed, byte_time(self.baud), self.wall_anchor)
         hs = self.health.servos
         # The servos of the traffic table, and any whose registers were seen; not IDs only a finding
         # named (a damaged packet's ID is no servo).

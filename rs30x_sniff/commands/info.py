@@ -35,6 +35,7 @@ def run(args: argparse.Namespace) -> int:
     linter = make_linter(args, settings)
     source = open_input(args.input, args.input_format, settings, duration=args.duration)
     stats = CaptureStats(opts.baud)
+    stats.timing_unsupported = getattr(settings, "timing_unsupported", None)  # the times contradict the baud
     # A file takes the columnar path (the same figures); a port, record by record.
     drive(source, Decoder(opts, linter, columnar=not is_live(source)), stats, *live_sinks(settings, source, args.input))
     no_data(args.input, stats, source)
@@ -64,7 +65,11 @@ def _print_text(out: Any, name: str, s: CaptureStats, linted: bool, time_ref: An
     con = Console(file=out, highlight=False, width=100 if not out.isatty() else None)
     d = s.as_dict()
     load = "-" if s.bus_load is None else f"{s.bus_load * 100:.1f} %"
+    if s.timed and s.timing_unsupported:
+        load += f" ({escape(s.timing_unsupported)})"
     timing = "" if s.timed else " (no timestamps: line time at the baud rate)"
+    if s.timed and d["segments"] > 1:
+        timing = f" in {d['segments']} time segments (F010: the clock restarts or resumes; gaps not counted)"
     con.print(f"[bold]{escape(name)}[/bold]")
     con.print(f"  duration   {s.duration:.6f} s{timing}")
     if time_ref is not None and s.timed:
@@ -75,9 +80,13 @@ def _print_text(out: Any, name: str, s: CaptureStats, linted: bool, time_ref: An
     if d["by_op"]:
         con.print("  requests   " + ", ".join(f"{k} {v}" for k, v in d["by_op"].items()))
     con.print(f"  faults     {s.bad_checksums} bad checksums, {s.garbage_bytes} garbage bytes")
-    lat = s.latency
-    con.print(f"  latency    p50 {_ms(lat.percentile(50))}, p95 {_ms(lat.percentile(95))}, max {_ms(lat.max)} "
-              f"over {lat.count} replies")
+    lat = d["latency_s"]
+    if s.timing_unsupported and s.timed:
+        con.print(f"  latency    - ({escape(s.timing_unsupported)})")
+    else:
+        why = f"; {lat['absent']}" if lat.get("absent") else ""
+        con.print(f"  latency    p50 {_ms(lat['p50'])}, p95 {_ms(lat['p95'])}, max {_ms(lat['max'])} "
+                  f"over {lat['count']} replies{escape(why)}")
     if linted:
         f = d["findings"]
         con.print(f"  findings   {f['error']} errors, {f['warning']} warnings, {f['info']} info")

@@ -58,6 +58,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     source = None
     try:
         source = open_input(path, fmt, settings, duration=duration, locate=True)  # findings by line
+        result.format = getattr(source, "format", None)  # SARIF regions: lines of text, bytes of a binary file
         # A file takes the columnar path (same findings, a fraction of the time); a port, record by record.
         dec = drive(source, Decoder(opts, linter, columnar=not is_live(source)), *sinks,
                     *live_sinks(settings, source, path))

@@ -10,7 +10,7 @@ from ..pipeline import DecodeOptions
 from ..settings import Settings
 from .common import (CliError, add_decode_options, add_lint_options, check_positive, input_options, is_port_path, lint_config,
                      settings_for)
-from .serve import add_foxglove_option, start_foxglove
+from .serve import add_foxglove_option, live_start_time, start_foxglove
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
 
     app = make_app(source, opts, **config)
     # Said before the screen takes the terminal; the feeder's pipeline closes it with its other sinks.
-    fox = start_foxglove(getattr(args, "foxglove", None), source=source.name, baud=opts.baud, models=opts.models)
+    fox = start_foxglove(getattr(args, "foxglove", None), source=source.name, baud=opts.baud, models=opts.models,
+                         start_time=live_start_time(source))  # the simulator's times count from 0, not 1970
     if fox is not None:
         app.feeder.pipeline.add(fox)
     app.run()

@@ -60,9 +60,8 @@ def test_overheat_health_shows_the_limit_with_its_time_flags_and_q009(capsys, si
     q009 = [f for f in lint if f["code"] == "Q009" and f["id"] == 2]
     assert len(q009) == 2  # at 4 s and 5 s: a torque-on every 50 cycles
     hot = info["health"]["2"]
-    t0 = float(sims["overheat"].read_text().split(" ", 1)[0])
     lim = hot["flags"]["temperature_limit"]
-    assert lim["first_t"] == pytest.approx(s001["t"] - t0, abs=1e-6)
+    assert lim["first_t"] == pytest.approx(s001["t"], abs=1e-6)  # the capture time lint (and decode) print
     assert lim["first_wall"] is None  # the simulator's clock starts at 0, not in 1970
     assert lim["count"] > 1 and "temperature_alarm" in hot["flags"]
     assert hot["flags"]["temperature_alarm"]["first_t"] < lim["first_t"]
@@ -181,6 +180,13 @@ def test_wall_clock_for_epoch_times_and_line_time_without_timestamps():
         stats.add(rec)
     d = stats.as_dict()
     lim = d["health"]["3"]["flags"]["temperature_limit"]
+    assert lim["first_t"] == t0 + 0.5 and lim["first_wall"] == "2023-11-14T22:13:20.500Z"
+    # Times rebased to 0 with the wall clock of time 0 beside them (a source that says it) give the same wall.
+    anchored = CaptureStats(115200)
+    anchored.wall_anchor = t0
+    for rec in decode_records([(req, 0.0), (ret, 0.5)]):
+        anchored.add(rec)
+    lim = anchored.as_dict()["health"]["3"]["flags"]["temperature_limit"]
     assert lim["first_t"] == 0.5 and lim["first_wall"] == "2023-11-14T22:13:20.500Z"
     assert "[2023-11-14 22:13:20.500 UTC]" in d["what_happened"][0]["text"]
     assert d["health"]["3"]["registers"]["present_temperature"] == {"min": 80, "max": 80, "unit": "degC",

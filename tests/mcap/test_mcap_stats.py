@@ -33,7 +33,8 @@ def test_untimed_capture_is_measured_in_line_time():
     assert s.bytes == sum(map(len, frames))
     assert s.duration == pytest.approx(s.bytes * byte_time(9600))
     assert s.garbage_bytes == 3 and s.by_kind["garbage"] == 1 and s.packets == 2
-    assert s.servos[2].missing == 1 and s.servos[1].requests == 1 and s.servos[1].reads == 0
+    # The capture ends right after ID 2's poll: its reply may have come after, so it is not counted missing.
+    assert s.servos[2].missing == 0 and s.servos[1].requests == 1 and s.servos[1].reads == 0
 
 
 def test_timed_capture_load_latency_and_poll_rate():

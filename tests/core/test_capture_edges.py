@@ -1,0 +1,121 @@
+"""The edges of a capture are facts, not faults: its start, its end, a seam in its clock (single cases)."""
+
+from __future__ import annotations
+
+import json
+
+from rs30x_sniff.bus import MISSING, UNKNOWN, UNSEEN, UNSOLICITED
+from rs30x_sniff.cli import main
+from rs30x_sniff.events import CAPTURE_END, CAPTURE_START, TRUNCATED
+from rs30x_sniff.io.captures import write_capture
+from rs30x_sniff.lint import Linter
+from rs30x_sniff.pipeline import Decoder, Sink, drive
+from rs30x_sniff.stats import CaptureStats
+from rs30x_sniff.wire import byte_time, encode_long, encode_read, encode_return, encode_short
+
+BT = byte_time(115200)
+READ1, RET1 = encode_read(1, 0x2A, 2), encode_return(1, 0x2A, b"\x84\x03")
+READ3 = encode_read(3, 0x2A, 2)
+
+
+def decode(chunks, columnar=False):
+    stats = CaptureStats(115200)
+    dec = drive(chunks, Decoder(linter=Linter(), columnar=columnar), stats)
+    return dec, stats
+
+
+def timed(frames, t0=0.0, gap=0.0002):
+    """Frames back to back but for ``gap`` seconds between them, from ``t0``."""
+    out, t = [], t0
+    for f in frames:
+        out.append((f, t))
+        t += len(f) * BT + gap
+    return out
+
+
+def records_of(chunks, columnar=False):
+    recs = []
+
+    class Keep(Sink):
+        def batch(self, step):
+            recs.extend(step.expanded())
+
+    drive(chunks, Decoder(linter=Linter(), columnar=columnar), Keep())
+    return recs
+
+
+def test_a_tap_started_mid_frame_and_mid_transaction_says_nothing_is_wrong():
+    # The capture starts 3 bytes into a poll, so its reply answers a request the capture never saw.
+    chunks = timed([READ1[3:], RET1, READ1, RET1])
+    recs = records_of(chunks)
+    assert recs[0].event.kind == "garbage" and recs[0].event.reason == CAPTURE_START
+    assert recs[1].status == UNSEEN and recs[1].request is None
+    assert [f.code for r in recs for f in r.findings] == []
+
+
+def test_a_reply_long_after_the_start_is_still_unsolicited():
+    recs = records_of([(RET1, 0.0 + 1.0)] + timed([READ1, RET1], t0=1.1))
+    assert recs[0].status == UNSEEN  # the first packet, right at the capture's start
+    late = records_of([(b"\x00", 0.0), (RET1, 1.0)] + timed([READ1, RET1], t0=1.1))
+    assert late[1].status == UNSOLICITED and "B003" in [f.code for f in late[1].findings]
+
+
+def test_a_capture_that_ends_after_a_request_leaves_it_unknown_not_missing():
+    for chunks in (timed([READ1, RET1, READ3]), [(READ1 + RET1 + READ3, None)]):
+        dec, stats = decode(chunks)
+        last = [f.code for f in dec.linter.findings]
+        assert last == []
+        assert stats.servos[3].missing == 0
+
+
+def test_a_capture_that_runs_on_past_the_timeout_makes_it_missing():
+    chunks = timed([READ1, RET1, READ3]) + [(b"\x00", 0.5)]  # a stray byte 0.5 s later: the line was watched
+    recs = records_of(chunks)
+    assert [r.status for r in recs if r.event.kind == "short"] == ["answered", MISSING]
+
+
+def test_a_frame_cut_by_the_end_is_capture_end_and_one_cut_frame_is_no_wrong_baud():
+    long = encode_long(0x1E, [(v, b"\x84\x03\x05\x00") for v in range(1, 19)])  # 98 bytes
+    assert len(long) == 98
+    dec, _ = decode(timed([READ1, RET1, long[:79]]))
+    assert [f.code for f in dec.linter.findings] == []
+    recs = records_of(timed([READ1, RET1, long[:79]]))
+    assert recs[-1].event.reason == CAPTURE_END
+    # Cut in the middle by the next frame: the truncated frame it is (F003), never F007.
+    cut = records_of([(READ1, 0.0), (RET1, 0.001), (long[:79], 0.002), (READ1, 0.002 + 79 * BT)])
+    assert cut[2].event.reason == TRUNCATED
+    codes = [f.code for r in cut for f in r.findings]
+    assert "F003" in codes and "F007" not in codes
+
+
+def test_concatenated_captures_are_two_time_segments(tmp_path, capsys):
+    part = [c for k in range(20) for c in timed([READ1, RET1], t0=k * 0.05)]
+    part.append((READ3, 1.0))  # ID 3 never answers: the last request
+    part_end = part[-1][1] + len(READ3) * BT
+    path = tmp_path / "ab.thex"
+    write_capture(path, part + part, "timestamped")
+    assert main(["info", str(path), "--format", "json", "--isolated"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    one = tmp_path / "a.thex"
+    write_capture(one, part, "timestamped")
+    assert main(["info", str(one), "--format", "json", "--isolated"]) == 0
+    single = json.loads(capsys.readouterr().out)
+    assert abs(info["duration_s"] - 2 * part_end) < 1e-6 and info["segments"] == 2
+    assert info["latency_s"]["p50"] == single["latency_s"]["p50"] > 0
+    assert info["bus_load"] == single["bus_load"] < 1
+    assert info["servos"]["1"]["poll_rate_hz"] == single["servos"]["1"]["poll_rate_hz"]
+    # ID 3's request at the seam: unknown; the one at the end: unknown; nothing is missing.
+    assert info["servos"]["3"]["missing"] == 0
+    assert info["findings_by_rule"] == {"F010 capture-seam": 1}
+
+
+def test_a_missing_reply_counts_the_requests_asked_not_the_replies_heard(capsys, tmp_path):
+    # ID 1: 3 polls, 2 answered, 1 not; plus 2 returns nobody asked for.
+    frames = [READ1, RET1, READ1, RET1, READ1, encode_short(2, 0, 0x1E, b"\x00\x00"), RET1, RET1,
+              encode_short(2, 0, 0x1E, b"\x00\x00")]
+    path = tmp_path / "c.hex"
+    write_capture(path, [(b"".join(frames), None)], "hex")
+    assert main(["info", str(path), "--format", "json", "--isolated"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    lines = [w["text"] for w in info["what_happened"]]
+    assert any("ID 1 left 1 of 3 requests unanswered" in x for x in lines), lines
