@@ -59,11 +59,38 @@ def judge(chunks: list[Chunk], baud: int) -> TimeRef:
 
 
 def to_first_byte(chunks: Iterable[Chunk], baud: int) -> Iterator[Chunk]:
-    """Arrival times laid back to each chunk's first byte at the baud rate (t - n x byte time)."""
+    """Arrival times laid back to each chunk's first byte at the baud rate (t - n x byte time), never
+    past the previous chunk's arrival.
+
+    A logger's read returns whatever the OS had buffered, so a read made late is stamped late and the
+    next one, made at once, returns the rest of the backlog: laid back by its whole length, it would
+    start before the previous read returned, i.e. before bytes that were already in hand (socat's
+    stamps only increase, yet such chunks made the clock go backwards). So a chunk starts no earlier
+    than the previous chunk's own stamp; the line rate then says (F006) whether the two overlap.
+    Only while the stamps are in order: a stamp earlier than the previous one (a restarted clock, two
+    logs concatenated) is the log's own, kept for F005 and the time segments to tell.
+
+    The first chunk is laid back as far as 0 and no further when its stamp is after 0: the log counts
+    from a moment before its first read (pyserial's spy:// from the port's opening), and nothing was
+    read before that. A first stamp of exactly 0 is that read's own arrival (socat and jpnevulator
+    logs are read as seconds from their first stamp): its bytes were on the wire before it, and are
+    laid back below 0 rather than squeezed onto the next chunk's.
+    """
     bt = byte_time(baud)
+    prev: float | None = None  # the previous timed chunk's stamp (its arrival)
     for chunk in chunks:
         data, t = chunk
-        yield remark(chunk, data, None if t is None else t - len(data) * bt)
+        if t is None:
+            yield remark(chunk, data, None)
+            continue
+        first = t - len(data) * bt
+        if prev is None:
+            if t > 0:
+                first = max(first, 0.0)
+        elif prev <= t:
+            first = max(first, prev)
+        prev = t
+        yield remark(chunk, data, first)
 
 
 class TimedSource:

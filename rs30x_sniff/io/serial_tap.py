@@ -22,6 +22,17 @@ Chunk = tuple[bytes, float]
 TAP_BAUD_RATES = (*BAUD_RATES, 460800)
 READ_TIMEOUT = 0.05  # how often the reader thread looks at its stop flag
 MAX_AHEAD = 0.05     # seconds a chunk may be placed after its arrival to keep bytes from overlapping
+# A read that returns more bytes than the line could carry since the previous read returned, by more
+# than this (read jitter, which MAX_AHEAD absorbs), means the reader fell behind: a stall. So does one
+# whose bytes took longer than STALL_SPAN on the line (no packet does at any rate: 263 bytes at 9600
+# take 0.27 s), since a reader waiting in read() returns at a chunk's first byte.
+STALL_SLACK = MAX_AHEAD
+STALL_SPAN = 0.5
+# The OS moves a backlog into the port's buffer a few KiB at a time, a moment after each read: a
+# backlog is looked at again after this pause, so that it comes out as one chunk, not one per buffer.
+DRAIN_PAUSE = 0.002
+# The most a read drains into one chunk: an OS buffers about 64 KiB for a port, so a backlog fits.
+DRAIN_MAX = 1 << 20
 # A busy bus hands the drive loop its chunks in batches at most this often, each chunk keeping its own
 # arrival stamp: a pass of the loop per batch instead of per chunk (a packet each on a pty) takes a
 # saturated 230400-baud bus from about 35 % of a core to about 25 % (bench/live.py), for lines printed
@@ -67,7 +78,9 @@ class SerialTap:
 
     Each chunk is stamped with ``time.monotonic_ns()`` when the read returns. Its first byte's time
     is back-computed from the baud rate (``t_arrival - len(chunk) x byte time``) and kept after the
-    previous chunk's last byte. ``t`` is wall-clock time (seconds since the epoch), read from the
+    previous chunk's last byte. A reader that was held up (a stall) finds a backlog: it drains it
+    into one chunk, lays that back from its arrival at the line rate, and notes the stall in
+    :attr:`stalls`. ``t`` is wall-clock time (seconds since the epoch), read from the
     monotonic clock anchored once to the system clock when the port opened (:attr:`wall_start_ns`):
     a log lines up with a ROS bag or a video, and a clock step during the capture cannot make time
     run backwards.
@@ -93,6 +106,11 @@ class SerialTap:
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._next_t = 0.0  # earliest start time of the next chunk (end of the previous one)
+        self._last_t = 0.0  # the previous chunk's time: a stalled chunk's bound
+        self._last_arrival: float | None = None  # when the previous read returned (None: the port's opening)
+        # (t, seconds behind, bytes) of each read that found a backlog: the reader had fallen behind,
+        # and its oldest byte had waited that long in the OS.
+        self.stalls: list[tuple[float, float, int]] = []
 
     # ---- lifecycle ---------------------------------------------------------------------------
     def open(self) -> SerialTap:
@@ -142,13 +160,25 @@ class SerialTap:
                 first = ser.read(1)  # blocks until a byte arrives or the read timeout passes
                 if not first:
                     continue
+                data = bytearray(first)
                 try:
-                    more = ser.in_waiting
-                    data = first + ser.read(more) if more else first
+                    # A held-up reader finds a backlog that the OS hands over a buffer at a time: read
+                    # it all into one chunk, so that laying it back from its arrival at the line rate
+                    # spreads it over the time it took to come in, not over one buffer's worth.
+                    while len(data) < DRAIN_MAX:
+                        more = ser.in_waiting
+                        if not more and len(data) * self.byte_time > STALL_SLACK:
+                            time.sleep(DRAIN_PAUSE)
+                            more = ser.in_waiting
+                            if more * self.byte_time <= 2 * DRAIN_PAUSE:
+                                more = 0  # live traffic, not more backlog: it goes in the next chunk
+                        if not more:
+                            break
+                        data += ser.read(min(more, DRAIN_MAX - len(data)))
                 except Exception:
-                    self._stamp(first, self.clock())  # the port failed: keep the byte already read
+                    self._stamp(bytes(data), self.clock())  # the port failed: keep the bytes already read
                     raise
-                self._stamp(data, self.clock())
+                self._stamp(bytes(data), self.clock())
             more = ser.in_waiting  # a requested stop: keep what has already arrived
             if more:
                 self._stamp(ser.read(more), self.clock())
@@ -159,15 +189,30 @@ class SerialTap:
     def _stamp(self, data: bytes, arrival_ns: int) -> None:
         n = len(data)
         arrival = (self.wall_start_ns + arrival_ns - self.start_ns) / 1e9
-        t = arrival - n * self.byte_time
-        if t < self._next_t:
+        span = n * self.byte_time
+        t = arrival - span
+        since = arrival - (self.wall_start_ns / 1e9 if self._last_arrival is None else self._last_arrival)
+        behind = span - since
+        fits = (self.bytes_read + n) * self.byte_time <= arrival - self.wall_start_ns / 1e9 + STALL_SLACK
+        if (behind > STALL_SLACK or span > STALL_SPAN) and fits:
+            # More bytes than the line could carry since the last read, or than a reader waiting in read()
+            # lets pile up: they waited in the OS while the reader was held up. Laid back from their arrival at the line rate, they start where they
+            # came in, before the previous chunk ended (pushed past it, a 3 s backlog was once stamped
+            # within 0.36 s, at 100 % load); no earlier than the previous chunk, so no time runs
+            # backwards. Not when the whole capture holds more bytes than the line could carry since
+            # the port opened: then the baud rate is wrong, and F006 says so (below).
+            t = max(t, self._last_t)
+            self.stalls.append((t, arrival - t, n))
+        elif t < self._next_t:
             # Bytes cannot overlap the previous chunk's: read jitter (USB latency, a pty's writer catching
             # up) is absorbed by placing the chunk after them. But not by more than MAX_AHEAD past its
             # arrival: at a wrong baud rate every chunk would push the clock further ahead of real time
             # (a 6 s recording stamped as 31.8 s); there it keeps its arrival, and the decoder's F006
             # says the bytes came faster than the rate allows.
             t = self._next_t if self._next_t - arrival <= MAX_AHEAD else arrival
-        self._next_t = t + n * self.byte_time
+        self._next_t = t + span
+        self._last_t = t
+        self._last_arrival = arrival
         self.bytes_read += n
         self.queue.put((data, t))
 
@@ -202,6 +247,21 @@ class LiveSource:
     @property
     def lost(self) -> bool:
         return self.reason == LOST
+
+    @property
+    def stalls(self) -> list[tuple[float, float, int]]:
+        """``(t, seconds behind, bytes)`` of each time the reader fell behind (:attr:`SerialTap.stalls`)."""
+        return self.tap.stalls
+
+    def stall_report(self) -> str | None:
+        """One line saying how often the reader fell behind and how its bytes were timed, or None."""
+        stalls = self.tap.stalls
+        if not stalls:
+            return None
+        t, behind, _ = max(stalls, key=lambda s: s[1])
+        times = "once" if len(stalls) == 1 else f"{len(stalls)} times"
+        return (f"rs30x-sniff: {self.port}: the reader fell behind {times} (longest {behind:.3f} s at "
+                f"{t - self.tap.wall_start_ns / 1e9:.3f} s); their bytes are timed at the line rate")
 
     @property
     def ended(self) -> bool:
@@ -303,6 +363,9 @@ class LiveSource:
         if self.announce and self.reason == LOST:
             print(f"rs30x-sniff: {self.port}: port lost ({self.message}); "
                   f"{self.tap.bytes_read} bytes received", file=sys.stderr)
+        report = self.stall_report()
+        if self.announce and report:
+            print(report, file=sys.stderr)
 
     def close(self) -> None:
         """End the capture now (idempotent)."""
