@@ -195,6 +195,7 @@ class Decoder:
         out += tail
         if self.linter is not None:
             self.linter.time_faults = self.frames.time_faults  # the capture's clock, for F005/F006
+            self.linter.end_t = self.frames.end_time
             out.late = self.late_findings = self.linter.close()
             out.findings = out.findings + self._new_findings()
         return out

@@ -18,6 +18,7 @@ from .events import Ack, Garbage, LongPacket, ReturnPacket, ShortPacket
 from .frame_runs import LONG, RETURN, SHORT
 from .health import _FLUSH_ROWS, Frames, HealthRecorder, servo_health, timer, what_happened
 from .pipeline import Sink, Step
+from .framing import SEAM_BACK_S
 from .wire import BITS_PER_BYTE, BROADCAST_ID, RETURN_FLAG_BITS, byte_time
 
 # Latencies are counted in 1 us bins: exact enough for percentiles of a bus whose return delay
@@ -727,12 +728,29 @@ class RecentLoad:
 
     def extend(self, timed_sizes: Iterable[tuple[float, int]]) -> None:
         """Add ``(t, nbytes)`` items in time order (one call per batch: the window is trimmed once)."""
-        items = self._items
-        n0 = len(items)
-        items.extend(timed_sizes)
-        if len(items) == n0:
+        new = list(timed_sizes)
+        prev = self._last_t
+        restart = None
+        for k, (t, _) in enumerate(new):
+            if prev is not None and t < prev - SEAM_BACK_S:
+                restart = k  # the clock restarted (a seam, rs30x_sniff.framing): nothing is measured across it
+            prev = t
+        if restart is not None:
+            self._start_over()
+            new = new[restart:]
+        self._append(new)
+
+    def _start_over(self) -> None:
+        self._items.clear()
+        self._bytes = 0
+        self._last_t = None
+
+    def _append(self, new: list[tuple[float, int]]) -> None:
+        if not new:
             return
-        self._bytes += sum(n for _, n in itertools.islice(items, n0, None))
+        items = self._items
+        items.extend(new)
+        self._bytes += sum(n for _, n in new)
         last = items[-1][0]
         if self._last_t is None or last > self._last_t:
             self._last_t = last
@@ -746,14 +764,21 @@ class RecentLoad:
         n = len(ts)
         if not n:
             return
+        if self._last_t is not None and float(ts[0]) < self._last_t - SEAM_BACK_S:
+            self._start_over()  # a restarted clock (a seam): nothing is measured across it
+        drops = np.flatnonzero(np.diff(ts) < -SEAM_BACK_S)  # Blocks joined across a seam
+        if drops.size:
+            self._start_over()
+            k = int(drops[-1]) + 1
+            ts, sizes, n = ts[k:], sizes[k:], n - k
         last = float(ts[-1])
         horizon = (last if self._last_t is None or last > self._last_t else self._last_t) - self.window
         p = 0
         items = self._items
         if not items or max(t for t, _ in items) < horizon:
-            old = ts[:-1] < horizon  # the last item is always handed over: extend() settles the window on it
+            old = ts[:-1] < horizon  # the last item is always handed over: _append settles the window on it
             p = n - 1 if old.all() else int(np.argmin(old))
-        self.extend(zip(ts[p:].tolist(), sizes[p:].tolist()))
+        self._append(list(zip(ts[p:].tolist(), sizes[p:].tolist())))
 
     @property
     def value(self) -> float | None:

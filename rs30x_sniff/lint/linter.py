@@ -39,6 +39,7 @@ class Linter:
         self.servos: dict[int, Shadow] = {}
         self.prev: Record | None = None        # the record before this one (B007)
         self.missing: Record | None = None     # the latest request whose reply never came (B001)
+        self.end_t: float | None = None        # when the input's last byte ended (set before close)
         self.ids: set[int] = set()             # servo IDs seen on the bus (Q008)
         self._states = {r.code: r.state() for r in self.rules if r.state is not None}
         self._counting = True

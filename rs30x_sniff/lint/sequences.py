@@ -14,6 +14,10 @@ from ..wire import (
 )
 from .registry import example, rule
 
+# A flash write or reboot still due when a timed capture ends this soon after the write that needs it
+# is no finding: the capture may have stopped before it came (the seams of a capture are not faults).
+ENDED_SOON = 1.0
+
 
 def _deg(raw: int) -> str:
     return f"{raw / 10:.1f}deg"
@@ -34,7 +38,9 @@ def _carry(memory, lint, rec, moves) -> None:
 @rule("Q001", "baud-change-not-applied", "warning", "baud_rate written without a following flash write and reboot.", f"""
 ## What it does
 Flags a write of baud_rate (table 4.6, No. 6) to a servo that is not followed, before the end of the
-capture, by a flash write and then a reboot of that servo (or of ID 255). Said at the end of input.
+capture, by a flash write and then a reboot of that servo (or of ID 255). Said at the end of input (or
+of a time segment, F010), unless a timed capture ended less than a second after the write: the steps
+may have come after it stopped.
 The servo is followed across a change of its ID (the flash and reboot may go to the new ID), and a
 write of the rate it already has (written or read back before) needs neither.
 
@@ -44,7 +50,7 @@ rebooted. A host that switches its own port to the new rate right after the writ
 
 ## Example
 {example(encode_short(1, 0, 0x06, bytes((4,))), encode_command(1, _FLASH), note="the baud rate is flashed but the servo never rebooted:")}
-""", kinds=("target", "command", "moved", "close"), fields=("baud_rate",), state=dict)
+""", kinds=("target", "command", "moved", "seam", "close"), fields=("baud_rate",), state=dict)
 def baud_change_not_applied(pending, lint, rec, plan, targets):
     # pending: servo (by its current ID) -> [the baud_rate write, the step it waits for ("flash" | "reboot"),
     # the rate code, the ID it was written to]
@@ -71,19 +77,34 @@ def _baud_change_flashed_or_rebooted(pending, lint, rec, ev):
             del pending[key]
 
 
+def _left_pending(lint, rec, end_t) -> bool:
+    """Whether a step still due at the end of input (or of a time segment, ending at ``end_t``) is
+    missing rather than cut off: the capture ran on for ENDED_SOON after the write that needed it."""
+    t1 = rec.event[3]
+    return not (lint.timed and end_t is not None and t1 is not None and end_t - t1 < ENDED_SOON)
+
+
 @baud_change_not_applied.on("close")
-def _baud_change_left_pending(pending, lint):
+def _baud_change_left_pending(pending, lint, seam=None):
+    end_t = lint.end_t if seam is None else seam.t_end
     for sid, (rec, stage, code, to) in pending.items():
+        if not _left_pending(lint, rec, end_t):
+            continue
         rate = f"code {code}"
         who = f"ID {to}" if to == sid else f"ID {to} (now ID {sid})"
         why = "no flash write followed" if stage == "flash" else "it was flashed but the servo was never rebooted"
         lint.emit("Q001", rec, f"baud_rate {rate} written to {who} but {why}: it keeps its old rate", sid=to)
+    pending.clear()
+
+
+baud_change_not_applied.on("seam")(_baud_change_left_pending)  # a seam ends the steps' wait as the end does
 
 
 @rule("Q002", "id-change-not-persisted", "warning", "servo_id changed but never written to flash.", f"""
 ## What it does
 Flags a write of servo_id that changes a servo's ID when no flash write to the new ID (or to ID 255)
-follows before the end of the capture. Said at the end of input. A servo renumbered twice (1 to 2,
+follows before the end of the capture. Said at the end of input (or of a time segment, F010), unless a
+timed capture ended less than a second after the write. A servo renumbered twice (1 to 2,
 then 2 to 3) needs one flash write, to its last ID.
 
 ## Why it matters
@@ -92,7 +113,7 @@ power-up (table 4.6, No. 4). A flash write sent to the old ID after the change r
 
 ## Example
 {example(encode_short(1, 0, 0x04, bytes((5,))), encode_command(1, _FLASH), note="ID 1 becomes 5, then the flash write goes to the old ID 1:")}
-""", kinds=("target", "command", "close"), fields=("servo_id",), state=dict)
+""", kinds=("target", "command", "seam", "close"), fields=("servo_id",), state=dict)
 def id_change_not_persisted(pending, lint, rec, plan, targets):
     # pending: new servo ID -> (the write that set it, the ID the servo had when last flashed, as far as known)
     j = plan.index["servo_id"]
@@ -116,10 +137,17 @@ def _id_change_flashed(pending, lint, rec, ev):
 
 
 @id_change_not_persisted.on("close")
-def _id_change_left_pending(pending, lint):
+def _id_change_left_pending(pending, lint, seam=None):
+    end_t = lint.end_t if seam is None else seam.t_end
     for new, (rec, old) in pending.items():
+        if not _left_pending(lint, rec, end_t):
+            continue
         lint.emit("Q002", rec, f"ID {old} changed to {new} but no flash write to ID {new} followed: "
                                f"it reverts at the next power-up", sid=old)
+    pending.clear()
+
+
+id_change_not_persisted.on("seam")(_id_change_left_pending)
 
 
 @rule("Q003", "reboot-too-soon-after-flash", "warning", "A reboot before the flash write had time to finish.", f"""

@@ -202,6 +202,10 @@ class DetailPane(Vertical):
             root.add_leaf(Text("no reply came", "red"), data=None)
         elif rec.status == "unsolicited":
             root.add_leaf(Text("unsolicited: no request asked for this", "yellow"), data=None)
+        elif rec.status == "unknown":
+            root.add_leaf(Text("the capture ended while its reply was still due", "grey70"), data=None)
+        elif rec.status == "request-unseen":
+            root.add_leaf(Text("answers a request sent before the capture began", "grey70"), data=None)
 
     # ---- events ---------------------------------------------------------------------------------------
     def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:

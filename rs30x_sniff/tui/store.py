@@ -15,6 +15,7 @@ from ..blocks import Block
 from ..bus import BusTracker, Record
 from ..events import LongPacket, ReturnPacket, ShortPacket
 from ..frame_runs import LONG, RETURN, SHORT, FrameRun
+from ..framing import SEAM_BACK_S, SEAM_GAP_S
 from ..stats import RecentLoad
 from .filter import SEVERITY_RANK, Filter
 
@@ -287,6 +288,8 @@ class Stats:
     severities: Counter = field(default_factory=Counter)
     first_t: float | None = None
     last_t: float | None = None
+    segment_t: float | None = None  # first time of the current time segment (rs30x_sniff.framing.Seam)
+    closed_span: float = 0.0        # seconds of the segments before it
 
     @property
     def packets(self) -> int:
@@ -425,6 +428,7 @@ class Store:
         missing = 0
         first_t = stats.first_t
         last_t = None
+        seg_t, closed, prev_t = stats.segment_t, stats.closed_span, stats.last_t
         for rec in records:
             ev = rec.event
             kinds[ev.kind] += 1
@@ -434,8 +438,11 @@ class Store:
             t = ev.t_start
             if t is not None:
                 if first_t is None:
-                    first_t = t
-                last_t = t
+                    first_t = seg_t = t
+                elif t < prev_t - SEAM_BACK_S or t - prev_t > SEAM_GAP_S:
+                    closed += max(0.0, prev_t - seg_t)  # a seam of the clock: spans add up, never run back
+                    seg_t = t
+                last_t = prev_t = t
                 load((t, len(ev.raw)))
             if series:
                 if type(ev) is LongPacket:
@@ -469,6 +476,7 @@ class Store:
         self.end_seq = seq
         stats.missing += missing
         stats.first_t = first_t
+        stats.segment_t, stats.closed_span = seg_t, closed
         if last_t is not None:
             stats.last_t = last_t
         self.memory += memory
@@ -510,8 +518,12 @@ class Store:
                 kinds[name] += counts[code]
         t0 = blk.t0
         if t0 is not None:
+            t = float(t0[0])
             if stats.first_t is None:
-                stats.first_t = float(t0[0])
+                stats.first_t = stats.segment_t = t
+            elif t < stats.last_t - SEAM_BACK_S or t - stats.last_t > SEAM_GAP_S:  # a Block never spans a seam
+                stats.closed_span += max(0.0, stats.last_t - stats.segment_t)
+                stats.segment_t = t
             stats.last_t = float(t0[-1])
             run = blk.run
             loads.append((t0, run.ends[blk.lo:blk.hi] - run.starts[blk.lo:blk.hi]))
@@ -601,11 +613,12 @@ class Store:
 
     @property
     def span(self) -> float | None:
-        """Capture time from the first to the last timed record, if the source has timestamps."""
+        """Capture time from the first to the last timed record, added up over the time segments, if
+        the source has timestamps."""
         s = self.stats
-        if s.first_t is None or s.last_t is None:
+        if s.first_t is None or s.last_t is None or s.segment_t is None:
             return None
-        return s.last_t - s.first_t
+        return s.closed_span + max(0.0, s.last_t - s.segment_t)
 
     @property
     def bus_load(self) -> float | None:

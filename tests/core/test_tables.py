@@ -191,11 +191,6 @@ def test_stdout_csv(capsys):
     assert len(rows) == 108 and rows[0]["op"] == "read"
 
 
-def test_parquet_to_stdout_is_refused(capsys):
-    assert main(["table", str(SESSION), "--of", "states", "-o", "-", "--format", "parquet"]) == 2
-    one_line_error(capsys, "Parquet is written to a file")
-
-
 def test_refuses_to_overwrite_without_force(tmp_path, capsys):
     out = tmp_path / "t.csv"
     out.write_text("precious")
