@@ -143,6 +143,62 @@ class BaudFromTimes(Sink):
         return self._cached
 
 
+# ---- 3. rates the timestamps rule out ------------------------------------------------------------
+# Bytes cannot overlap on the wire: at a rate too slow, chunks would start before the previous one
+# ended. Jitter aside (OVERLAP_TOLERANCE of the chunk's line time), a right rate has next to no such
+# pairs; a rate with more than OVERLAP_SHARE of them is contradicted by the timestamps.
+OVERLAP_TOLERANCE = 0.10
+OVERLAP_SHARE = 0.10
+
+
+@dataclass(frozen=True)
+class RateFit:
+    """Which rates a capture's timestamps allow: ``spans`` holds, for each pair of timed neighbours,
+    the seconds from one's time to the next's and the byte count of the shorter of the two.
+
+    Whatever the times mark (a chunk's first byte or its arrival), the later chunk cannot begin
+    within the line time of the shorter one, so a rate is tested without knowing the time reference.
+    """
+
+    spans: tuple[tuple[float, int], ...] = ()
+
+    def overlaps(self, baud: int) -> int:
+        """Pairs that would overlap at ``baud``."""
+        bt = byte_time(baud) * (1 - OVERLAP_TOLERANCE)
+        return sum(1 for d, n in self.spans if d < n * bt)
+
+    def rules_out(self, baud: int) -> bool:
+        """Whether the timestamps contradict ``baud`` (never on fewer than MIN_SAMPLES pairs)."""
+        return len(self.spans) >= MIN_SAMPLES and self.overlaps(baud) > OVERLAP_SHARE * len(self.spans)
+
+    def slowest(self, rates: Iterable[int] = BAUD_RATES) -> int | None:
+        """The slowest of ``rates`` the timestamps allow (on a busy bus, the rate: close neighbours pin
+        the byte time from above), or None when they rule out all of them or are too few to tell."""
+        if len(self.spans) < MIN_SAMPLES:
+            return None
+        return next((r for r in sorted(rates) if not self.rules_out(r)), None)
+
+    def evidence(self, baud: int) -> str:
+        return f"at {baud} bit/s, {self.overlaps(baud)} of {len(self.spans)} chunks would start before the previous one ended"
+
+
+def rate_fit(chunks: Iterable[tuple[bytes, float | None]]) -> RateFit:
+    """The :class:`RateFit` of timed chunks (``t`` in seconds). Neighbours whose times do not increase
+    (a clock that went back, or equal stamps) are left out: they say nothing of the rate."""
+    spans: list[tuple[float, int]] = []
+    prev: tuple[int, float] | None = None
+    for data, t in chunks:
+        if not data:
+            continue
+        if t is None:
+            prev = None
+            continue
+        if prev is not None and t > prev[1]:
+            spans.append((t - prev[1], min(prev[0], len(data))))
+        prev = (len(data), t)
+    return RateFit(tuple(spans))
+
+
 # ---- 1. stretches without a valid frame (F007, BaudWatch) ---------------------------------------
 STRETCH_BYTES = 64      # garbage bytes with no valid frame: a healthy bus has a frame every few dozen
 STRETCH_TIME = 0.5      # ... or this long (timed captures), with at least STRETCH_TIME_BYTES of garbage

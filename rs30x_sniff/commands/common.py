@@ -14,9 +14,10 @@ from ..io import foreign
 from ..io.captures import MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture
 from ..io.inputs import read_input
 from ..timebase import TIME_REFS
+from ..timeunit import UNITS as TIME_UNITS
 from ..wire import DEFAULT_BAUD
 from ..pipeline import Sink, Step
-from ..settings import DEFAULTS, Settings, SettingsError, find_config, load_config, resolve
+from ..settings import COMMAND_LINE, DEFAULTS, Settings, SettingsError, find_config, load_config, resolve
 
 
 TIMESTAMP_SAMPLE = 2000  # chunks of a timestamped capture read ahead to tell its baud rate
@@ -44,6 +45,9 @@ def add_decode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--time-ref", choices=TIME_REFS, default=None,
                    help="what a timestamped hex capture's times mark: each line's first byte, or its arrival "
                         "(the end of its last byte, as serial loggers stamp reads); default: told by the content")
+    p.add_argument("--time-unit", choices=TIME_UNITS, default=None,
+                   help="the unit of a timestamped hex capture's times (counted from its start or from the epoch); "
+                        "default: told by the content, else s")
     p.add_argument("--channel", default=None, metavar="NAME|INDEX",
                    help="a logic capture's channel to decode (.sr): its name (D0, RX) or its index from 0 "
                         "(default: the only channel, else the first that toggles)")
@@ -102,7 +106,7 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
             out.setdefault("models", {})[key.strip()] = name.strip()
         else:
             out["model"] = spec.strip()
-    for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on", "time_ref", "channel"):
+    for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on", "time_ref", "time_unit", "channel"):
         v = getattr(args, key, None)
         if v is not None:
             out[key] = v
@@ -136,9 +140,10 @@ def config_layer(args: argparse.Namespace) -> dict[str, Any]:
 
 def capture_layer(path: str | None, fmt: str | None = None, options: dict[str, Any] | None = None) -> dict[str, Any]:
     """What a capture says about how it was made: an MCAP of ours its baud and models, a timestamped
-    capture the rate its back-to-back frames show, another tool's format what its ``probe`` finds (a
-    logic capture the rate its samples show; ``options`` are the reader's, e.g. the channel); {}
-    otherwise (``origin`` says where each came from)."""
+    capture the rate its back-to-back frames show and the unit of its times, another tool's format
+    what its ``probe`` finds (a logic capture the rate its samples show; ``options`` are the reader's,
+    e.g. the channel, or a timestamped capture's ``time_unit``); {} otherwise (``origin`` says where
+    each came from)."""
     if not path or path == "-" or not os.path.isfile(path):
         return {}
     if fmt is None:
@@ -156,7 +161,7 @@ def capture_layer(path: str | None, fmt: str | None = None, options: dict[str, A
     if fmt == MCAP:
         return _mcap_layer(path)
     if fmt == TIMESTAMPED:
-        return _timestamps_layer(path)
+        return _timestamps_layer(path, (options or {}).get("time_unit"))
     other = foreign.get(fmt)
     if other is not None and other.probe is not None:
         return _probe_layer(path, other, options or {})
@@ -200,11 +205,12 @@ def _mcap_layer(path: str) -> dict[str, Any]:
     return out
 
 
-def _timestamps_layer(path: str) -> dict[str, Any]:
-    """The rate a timestamped capture's back-to-back chunks show (its first lines are read for it)."""
-    from ..autobaud import estimate_baud, estimate_from_spacings
+def _timestamps_layer(path: str, time_unit: str | None = None) -> dict[str, Any]:
+    """The rate a timestamped capture's back-to-back chunks show, the rates its spacing rules out, and
+    the unit of its times when the content tells one other than seconds (its first lines are read)."""
+    from ..autobaud import estimate_baud, estimate_from_spacings, rate_fit
 
-    sample = read_capture(path, TIMESTAMPED, warn=None)
+    sample = read_capture(path, TIMESTAMPED, warn=None, options={"time_unit": time_unit, "locate": False})
     try:
         chunks = [c for c in itertools.islice(sample, TIMESTAMP_SAMPLE) if c[1] is not None and c[0]]
     except CaptureError:
@@ -217,10 +223,23 @@ def _timestamps_layer(path: str) -> dict[str, Any]:
               estimate_from_spacings(((t2 - t1) / len(d2), len(d1)) for (d1, t1), (d2, t2) in zip(chunks, chunks[1:])
                                      if t2 > t1),
               key=lambda e: (e.baud is not None, e.score))
-    out: dict[str, Any] = {"estimate": est}
+    fit = rate_fit(chunks)
+    out: dict[str, Any] = {"estimate": est, "fit": fit, "origin": {}}
+    unit = sample.time_unit
+    if unit is not None and unit.told and unit.exponent:
+        # Read in this unit by every reader of the file from here on (and said once, by settings_for).
+        out["time_unit"] = unit.unit
+        out["origin"]["time_unit"] = f"capture ({unit.describe()}, told by the content: {unit.evidence})"
+        out["unit_note"] = unit.describe()
     if est.baud is not None:
         out["baud"] = est.baud
-        out["origin"] = {"baud": f"capture (its timestamps: {est.evidence})"}
+        out["origin"]["baud"] = f"capture (its timestamps: {est.evidence})"
+    elif fit.rules_out(DEFAULT_BAUD) and (rate := fit.slowest()) is not None:
+        # No cluster of back-to-back bytes names a rate, but the default would have chunks overlap:
+        # the slowest rate the spacing allows is the one close neighbours point to.
+        out["baud"] = rate
+        out["origin"]["baud"] = (f"capture (its timestamps: {fit.evidence(DEFAULT_BAUD)}; "
+                                 f"{rate} bit/s is the slowest rate they allow)")
     return out
 
 
@@ -229,37 +248,73 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
 
     With ``--baud auto`` a port is scanned at the rates of table 4.7 (listening only) and a capture
     goes by what it records; without it, a timestamped capture's own rate is used when neither the
-    command line nor a config file gives one, and a rate they give that the timestamps contradict
-    is warned about.
+    command line nor a config file gives one (the default 115200 gives way to the rate its spacing
+    allows when the spacing rules the default out), and a rate that the timestamps contradict is
+    warned about and sets ``timing_unsupported``. A timestamped capture's times are read in the unit
+    the content tells (said on stderr when not seconds) unless ``--time-unit`` says otherwise.
     """
     cli = command_line_layer(args)
     conf = config_layer(args) if config is None else config
     # A logic capture's probe decodes its samples to find the rate: it needs the channel, and can skip
-    # the search when the rate is given (the layers' own precedence, before they are checked).
+    # the search when the rate is given (the layers' own precedence, before they are checked). A
+    # timestamped capture's sample is read in the unit given, if one is.
     given = next((layer["baud"] for layer in (cli, conf) if "baud" in layer), None)
     capture = capture_layer(path, getattr(args, "input_format", None),
                             {"channel": cli.get("channel", conf.get("channel")),
-                             "baud": given if isinstance(given, int) else None})
+                             "baud": given if isinstance(given, int) else None,
+                             "time_unit": cli.get("time_unit", conf.get("time_unit"))})
     estimate = capture.pop("estimate", None)
+    fit = capture.pop("fit", None)
     note = capture.pop("note", None)
+    unit_note = capture.pop("unit_note", None)
     try:
         settings = resolve(cli, conf, capture)
     except SettingsError as e:
         raise CliError(str(e)) from None
+    told = capture.get("origin", {})
+    if unit_note is not None and settings.origin.get("time_unit") == told.get("time_unit"):
+        print(f"rs30x-sniff: {path}: {unit_note}, told by the content (--time-unit to say otherwise)", file=sys.stderr)
+    from_capture = "baud" in capture and settings.origin["baud"] == told.get("baud")
     if settings.baud_auto and path and is_port_path(path):
         settings = _scan(path, settings)
-    elif note is not None and settings.origin["baud"] == capture["origin"]["baud"]:
+    elif note is not None and from_capture:
         print(f"rs30x-sniff: {path}: {settings.baud} bit/s, {note} (--baud to say otherwise)", file=sys.stderr)
-    elif "baud" in capture and settings.origin["baud"] == capture["origin"]["baud"] and settings.baud != DEFAULT_BAUD:
-        print(f"rs30x-sniff: {path}: {settings.baud} bit/s, from its timestamps (--baud to say otherwise)",
+    elif from_capture and settings.baud != DEFAULT_BAUD:
+        why = "" if estimate is not None and estimate.baud == settings.baud or fit is None else \
+            f": {fit.evidence(DEFAULT_BAUD)}"
+        print(f"rs30x-sniff: {path}: {settings.baud} bit/s, from its timestamps{why} (--baud to say otherwise)",
               file=sys.stderr)
-    elif estimate is not None and "baud" in capture:
-        from ..autobaud import contradicts
-
-        if contradicts(estimate, settings.baud):
-            print(f"rs30x-sniff: warning: {path}: its timestamps show {estimate.baud} bit/s, not the "
-                  f"{settings.baud} given ({settings.origin['baud']}): {estimate.evidence}", file=sys.stderr)
+    elif not from_capture and (estimate is not None or fit is not None):
+        settings = _contradicted(path, settings, estimate, fit)
     return settings
+
+
+def _contradicted(path: str | None, settings: Settings, estimate: Any, fit: Any) -> Settings:
+    """``settings`` with ``timing_unsupported`` set, and a warning on stderr, when the capture's timestamps
+    contradict the rate it is decoded at: chunks would overlap at it, or back-to-back bytes name another."""
+    from ..autobaud import contradicts
+
+    baud = settings.baud
+    if fit is not None and fit.rules_out(baud):
+        shown = estimate.baud if estimate and not fit.rules_out(estimate.baud) else fit.slowest()
+        evidence = fit.evidence(baud)
+    elif contradicts(estimate, baud):
+        shown, evidence = estimate.baud, estimate.evidence
+    else:
+        return settings
+    where = settings.origin.get("baud", DEFAULTS)
+    if where == COMMAND_LINE:
+        label, given = f"--baud {baud}", f"the {baud} given ({where})"
+    elif where.startswith(DEFAULTS):
+        label = given = f"the default {baud} bit/s"
+    else:
+        label, given = f"baud = {baud} ({where})", f"the {baud} given ({where})"
+    if shown is not None:
+        said, reason = f"its timestamps show {shown} bit/s, not {given}", f"they show {shown} bit/s"
+    else:
+        said, reason = f"its timestamps fit no rate of table 4.7, not even {given}", "they fit no rate of table 4.7"
+    print(f"rs30x-sniff: warning: {path}: {said}: {evidence}", file=sys.stderr)
+    return dataclasses.replace(settings, timing_unsupported=f"the timestamps contradict {label}: {reason}")
 
 
 def is_port_path(path: str, *, unplugged: bool = False) -> bool:
@@ -355,15 +410,17 @@ def open_input(path: str, fmt: str | None, settings: Settings, *, duration: floa
 
         check_positive("--duration", duration)
         return LiveSource(path, settings.baud, duration=duration).start()
+    # A unit the settings do not give is told by the reader itself (a pipe has no capture layer): it says so.
     return read_input(path, fmt, baud=settings.baud, time_ref=settings.time_ref,
-                      options={**input_options(settings), "locate": locate})
+                      options={**input_options(settings), "locate": locate, "say_time_unit": settings.time_unit is None})
 
 
 def input_options(settings: Settings) -> dict[str, Any]:
-    """What another tool's reader is told: the channel, and the baud rate unless it is only the default
-    (None: a logic capture finds it in its samples)."""
+    """What a capture's reader is told: the channel, the baud rate unless it is only the default (None:
+    a logic capture finds it in its samples), and the unit of a timestamped capture's times (None: the
+    reader tells it from the content)."""
     known = not str(settings.origin.get("baud", DEFAULTS)).startswith(DEFAULTS)
-    return {"channel": settings.channel, "baud": settings.baud if known else None}
+    return {"channel": settings.channel, "baud": settings.baud if known else None, "time_unit": settings.time_unit}
 
 
 def is_live(chunks: object) -> bool:

@@ -12,7 +12,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, Callable, Iterable, Iterator
 
+from .. import timeunit
 from ..chunks import Marked
+from ..timeunit import TimeUnit
 from . import foreign
 
 Chunk = tuple[bytes, float | None]
@@ -307,6 +309,10 @@ class CaptureReader:
     The reader keeps a few integers per line with data (and a column per byte only for lines whose
     bytes are not evenly spaced), not the text.
     ``warnings`` lists the :class:`CaptureWarning` objects of the problems worked around so far.
+    ``time_unit`` says how a timestamped hex capture's times were read (rs30x_sniff.timeunit): in the
+    unit of the option ``"time_unit"``, else in the one the content tells; they come out in seconds
+    (epoch times as seconds since the epoch). The option ``"say_time_unit"`` says a told unit other
+    than seconds on stderr.
     """
 
     def __init__(self, path: str, fmt: str | None, warn: Callable[[str], None] | None,
@@ -316,6 +322,8 @@ class CaptureReader:
         # What another tool's reader was given (--channel, --baud) and learned (a found baud rate).
         self.context = foreign.ReadContext(path, dict(options or {}), warn)
         self.warnings: list[CaptureWarning] = []
+        # How a timestamped hex capture's times were read (None until its first times are in).
+        self.time_unit: TimeUnit | None = None
         self._warn = warn
         self._gen: Iterator[Chunk] | None = None
         self._lines: _LineIndex | None = None
@@ -339,14 +347,22 @@ class CaptureReader:
                     opened.stream.close()
                     raise CaptureError(f"{path}: a {fmt} capture needs a seekable file, not a pipe "
                                        "(save it to a file first)")
-                self._gen = _closing(other.read(opened.stream, self.context), opened.stream)
+                self._gen = _closing(_sane_times(other.read(opened.stream, self.context), path), opened.stream)
             else:
                 # 16 bytes a line, for findings' FILE:LINE:COL: a reader nobody will ask (options
                 # "locate": False, as convert's) keeps none (locate() is None), and a long capture's
                 # memory stays flat.
                 self._lines = _LineIndex() if self.context.options.get("locate", True) else None
-                self._gen = _read_text(opened.stream, path, fmt == TIMESTAMPED, self._lines)
+                self._gen = _read_text(opened.stream, path, fmt == TIMESTAMPED, self._lines,
+                                       self.context.options.get("time_unit"), self._unit_decided)
         return self._gen
+
+    def _unit_decided(self, unit: TimeUnit) -> None:
+        self.time_unit = self.context.found["time_unit"] = unit
+        if unit.told and unit.unit != timeunit.SECONDS and self.context.options.get("say_time_unit"):
+            # Seconds are what a timestamped capture holds unless it says otherwise: only other units are said.
+            print(f"rs30x-sniff: {self.path}: {unit.describe()}, told by the content (--time-unit to say otherwise)",
+                  file=sys.stderr)
 
     def _mcap(self, seekable: bool) -> Iterator[Chunk]:
         from .mcap_source import McapRawReader  # imported lazily: only MCAP inputs need the mcap library
@@ -415,6 +431,25 @@ def open_capture(path: str) -> BinaryIO:
         raise CaptureError(f"{path}: cannot read: {e.strerror}") from None
 
 
+def _sane_times(chunks: Iterator[Chunk], path: str) -> Iterator[Chunk]:
+    """Another tool's chunks, each time checked: one that is not finite, after the year 2100, or more
+    than 130 years before the capture's start is an input error naming the byte (a reader that knows
+    the line checks its times first; this catches what it lets through)."""
+    offset = 0
+    try:
+        for chunk in chunks:
+            t = chunk[1]
+            if t is not None and not -timeunit.EPOCH_MAX <= t <= timeunit.EPOCH_MAX:
+                why = timeunit.problem(t) if not math.isfinite(t) or t > 0 else "is more than 130 years before its start"
+                raise CaptureError(f"{path}: the time {t:g} s of the byte at stream offset {offset} {why}")
+            offset += len(chunk[0])
+            yield chunk
+    finally:
+        close = getattr(chunks, "close", None)
+        if close is not None:
+            close()  # the reader's own cleanup, while its file is still open
+
+
 def _closing(chunks: Iterator[Chunk], f: BinaryIO) -> Iterator[Chunk]:
     """A foreign reader's chunks, closing the file when they end or the reader is closed."""
     try:
@@ -435,15 +470,32 @@ def _read_binary(f: BinaryIO) -> Iterator[Chunk]:
         f.close()
 
 
-def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | None) -> Iterator[Chunk]:
+# A timestamped capture's first chunks are held back until their spacing tells the unit of their times
+# (rs30x_sniff.timeunit): at most _UNIT_SAMPLE, fewer when the spacing is clear sooner (at a checkpoint),
+# so a live pipe of timestamped lines waits only for its first few dozen.
+_UNIT_SAMPLE = 512
+_UNIT_CHECKPOINTS = frozenset((32, 128))
+_SampledLine = tuple  # (data, time as written, its token, line number, its column)
+_EPOCH_MAX = timeunit.EPOCH_MAX
+
+
+def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | None,
+               time_unit: str | None = None, decided: Callable[[TimeUnit], None] | None = None) -> Iterator[Chunk]:
     """The chunks of a hex or timestamped-hex capture; each line with data is indexed in ``index``
-    for locate(), unless it is None. An error names the line whether or not there is an index."""
+    for locate(), unless it is None. An error names the line whether or not there is an index.
+
+    A timestamped capture's times come out in seconds: read in ``time_unit`` (s, ms, us, ns) if
+    given, else in the unit the spacing of the first chunks tells; ``decided`` hears the unit once.
+    """
     pending = bytearray()  # untimed hex lines are merged into larger chunks
     readline = f.readline
     if index is not None:
         starts, where, uneven = index.starts.append, index.where.append, index.uneven
     offset = 0
     lineno = 0
+    unit: TimeUnit | None = None
+    exp = 0  # the unit's power of ten below a second, once known
+    sample: list[_SampledLine] = []
     try:
         while True:
             line = readline(_MAX_LINE)
@@ -471,6 +523,7 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | No
                 if not (t >= 0 and math.isfinite(t)):
                     raise CaptureError(f"{path}:{lineno}: time {_show(head)} is not a finite, non-negative number",
                                        line=lineno, column=len(body) - len(body.lstrip()) + 1)
+                tbody = body
                 base = len(body) - len(rest)
                 body = rest
             try:
@@ -501,6 +554,27 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | No
                 index.end = offset + n
             offset += n
             if timestamped:
+                if unit is None:
+                    if time_unit is None:
+                        sample.append((data, t, head, lineno, len(tbody) - len(tbody.lstrip()) + 1))
+                        k = len(sample)
+                        if k < _UNIT_SAMPLE and k not in _UNIT_CHECKPOINTS:
+                            continue
+                        found = _sampled_unit(sample)
+                        if k < _UNIT_SAMPLE and found.how != timeunit.SPACING:
+                            continue  # not clear yet: sample on
+                        unit, exp = found, found.exponent
+                        if decided is not None:
+                            decided(unit)
+                        yield from _in_seconds(sample, unit, path)
+                        sample.clear()
+                        continue
+                    unit = timeunit.given(time_unit, t)
+                    exp = unit.exponent
+                    if decided is not None:
+                        decided(unit)
+                if exp or t > _EPOCH_MAX:  # type: ignore[operator]
+                    t = _seconds(t, head, unit, path, lineno, len(tbody) - len(tbody.lstrip()) + 1)  # type: ignore[arg-type]
                 yield data, t
             else:
                 pending += data
@@ -509,8 +583,43 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | No
                     pending.clear()
         if pending:
             yield bytes(pending), None
+        if sample:
+            unit = _sampled_unit(sample)
+            if decided is not None:
+                decided(unit)
+            yield from _in_seconds(sample, unit, path)
+    except CaptureError:
+        if sample and unit is None:
+            # A bad line within the sample: the lines before it are read (in the unit they tell) first.
+            unit = _sampled_unit(sample)
+            if decided is not None:
+                decided(unit)
+            yield from _in_seconds(sample, unit, path)
+        raise
     finally:
         f.close()
+
+
+def _sampled_unit(sample: list[_SampledLine]) -> TimeUnit:
+    """The unit the sampled lines' times are in (their resolution as written keeps rounding from
+    counting as gaps or overlaps)."""
+    step = max(timeunit.resolution(line[2].decode("ascii")) for line in sample)
+    return timeunit.detect_unit([(line[0], line[1]) for line in sample], step=step)
+
+
+def _in_seconds(sample: list[_SampledLine], unit: TimeUnit, path: str) -> Iterator[Chunk]:
+    for data, t, head, lineno, column in sample:
+        yield data, _seconds(t, head, unit, path, lineno, column)
+
+
+def _seconds(t: float, head: bytes, unit: TimeUnit, path: str, lineno: int, column: int) -> float:
+    """A time as written (``t``, from the token ``head``) in seconds, or a CaptureError for a time after 2100."""
+    if unit.exponent:
+        t = timeunit.seconds(head.decode("ascii"), unit.unit)
+    if t > timeunit.EPOCH_MAX:
+        raise CaptureError(f"{path}:{lineno}: time {_show(head)} in {timeunit.NAMES[unit.unit]} is after the year "
+                           f"2100 (--time-unit to read it in another unit)", line=lineno, column=column)
+    return t
 
 
 def _bad_token(body: bytes) -> tuple[bytes, int]:

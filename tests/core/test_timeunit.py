@@ -1,0 +1,199 @@
+"""The unit of a capture's plain-number times, told by their spacing on the wire; the readers that use it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rs30x_sniff.autobaud import rate_fit
+from rs30x_sniff.io.captures import CaptureError, read_capture
+from rs30x_sniff.sim import run
+from rs30x_sniff.timeunit import (ASSUMED, EPOCH_MAX, GIVEN, SIZE, SPACING, detect_unit, epoch_unit, given,
+                                  problem, resolution, seconds)
+from rs30x_sniff.wire import BAUD_RATES, encode_read
+
+ROOT = Path(__file__).resolve().parents[2]
+SESSION = ROOT / "captures" / "session-mixed.thex"
+EPOCH = 1_732_550_000  # 2024-11-25 15:53:20 UTC, a whole second
+
+
+def _micros(chunks):
+    """Times on a microsecond grid, as whole numbers: each unit below is written from them exactly."""
+    return [(d, round(t * 1e6)) for d, t in chunks]
+
+
+def _in(unit_exp: int, chunks, offset_us: int = 0):
+    return [(d, (us + offset_us) / 10 ** (6 - unit_exp)) for d, us in _micros(chunks)]
+
+
+def _written(us: int, unit: str) -> str:
+    """A time of ``us`` microseconds as a capture in ``unit`` writes it (a decimal, never a float's digits)."""
+    if unit == "s":
+        return f"{us // 10**6}.{us % 10**6:06d}"
+    if unit == "ms":
+        return f"{us // 1000}.{us % 1000:03d}"
+    return str(us) if unit == "us" else str(us * 1000)
+
+
+def _thex(path: Path, chunks, unit: str, offset_us: int = 0) -> Path:
+    path.write_text("".join(f"{_written(us + offset_us, unit)} {d.hex(' ').upper()}\n" for d, us in _micros(chunks)))
+    return path
+
+
+def _session():
+    return list(read_capture(str(SESSION)))
+
+
+# ---- the detector ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("exp,unit", [(0, "s"), (3, "ms"), (6, "us"), (9, "ns")])
+@pytest.mark.parametrize("baud", [9600, 115200, 230400])
+def test_the_spacing_tells_the_unit_at_every_rate(exp, unit, baud):
+    chunks = list(run("hexapod", baud=baud, duration=0.6, seed=1))
+    found = detect_unit(_in(exp, chunks), step=10.0 ** (exp - 6))
+    assert (found.unit, found.how, found.epoch) == (unit, SPACING, False)
+    assert found.scale == 10.0 ** -exp and found.start == pytest.approx(chunks[0][1], abs=1e-6)
+    assert f"{baud} bit/s" in found.evidence
+
+
+@pytest.mark.parametrize("exp,unit", [(0, "s"), (3, "ms"), (6, "us"), (9, "ns")])
+def test_epoch_times_are_told_and_anchor_the_capture(exp, unit):
+    found = detect_unit(_in(exp, _session(), EPOCH * 10**6), step=10.0 ** (exp - 6))
+    assert (found.unit, found.epoch) == (unit, True)
+    assert found.start == pytest.approx(EPOCH + 0.5, abs=1e-6)  # the first byte's wall clock
+    assert found.describe() == f"times in {['seconds', 'milliseconds', 'microseconds', 'nanoseconds'][exp // 3]} " \
+                               "since the epoch"
+
+
+def test_too_few_chunks_go_by_the_size_of_an_epoch_time_else_seconds():
+    req = encode_read(1, 0, 30)
+    found = detect_unit([(req, 1732550000123.0), (req, 1732550000124.0)])
+    assert (found.unit, found.epoch, found.how) == ("ms", True, SIZE)
+    assert "2024-11-25" in found.evidence
+    found = detect_unit([(req, 500.0), (req, 500.8)])
+    assert (found.unit, found.how) == ("s", ASSUMED) and "too few" in found.evidence
+    assert detect_unit([(req, None), (req, None)]).how == ASSUMED
+    assert detect_unit([]).unit == "s"
+
+
+def test_sparse_polls_in_seconds_are_not_taken_for_milliseconds():
+    # One 8-byte request every 2 s, never answered: read in ms they would fit 38400 bit/s back to back,
+    # but nothing of two lengths follows closely: the sample cannot tell, and seconds are assumed.
+    req = encode_read(1, 42, 18)
+    found = detect_unit([(req, 2.0 * k) for k in range(50)])
+    assert (found.unit, found.how) == ("s", ASSUMED)
+
+
+def test_the_spacing_wins_over_a_first_time_that_looks_like_epoch_seconds():
+    # A device's uptime in ms (12 days: 1.0e9 ms) falls where epoch seconds would: the spacing says ms.
+    found = detect_unit(_in(3, _session(), 10**12), step=1e-3)
+    assert (found.unit, found.how, found.epoch) == ("ms", SPACING, False)
+
+
+def test_whole_milliseconds_are_not_taken_for_gaps_or_overlaps():
+    # Written to the whole ms, a reply 0.794 ms after its request may be stamped 1 ms or 0 ms later;
+    # read in seconds, those whole numbers could not show a single frame.
+    rounded = [(d, float(round(us / 1000))) for d, us in _micros(_session())]
+    found = detect_unit(rounded, step=1.0)
+    assert (found.unit, found.how) == ("ms", SPACING)
+
+
+def test_times_after_2100_or_not_finite_are_problems():
+    assert problem(EPOCH_MAX + 1) == "is after the year 2100"
+    assert problem(float("nan")) == problem(float("inf")) == "is not a finite number"
+    assert problem(-1.0) == "is negative" and problem(0.5) is None
+    assert epoch_unit(1732550000123.0) == "ms" and epoch_unit(1.7e9) == "s" and epoch_unit(500.0) is None
+    assert given("ms", 1732550000123.0).epoch and given("ms", 1732550000123.0).how == GIVEN
+    assert not given("s", 12.5).epoch
+
+
+def test_a_time_is_shifted_as_a_decimal():
+    # 500.794 ms is exactly the float 0.500794 s is: a capture reads the same in every unit.
+    assert seconds("500.794", "ms") == float("0.500794")
+    assert seconds("500794", "us") == float("0.500794")
+    assert seconds("1732550000500794000", "ns") == float("1732550000.500794")
+    assert seconds("0.5") == 0.5
+    assert resolution("0.000123") == pytest.approx(1e-6) and resolution("500") == 1.0 and resolution("5e3") == 1000.0
+    assert resolution("nan") == 0.0
+
+
+# ---- rates the timestamps rule out -------------------------------------------------------------------
+def test_the_spacing_rules_out_slow_rates():
+    fit = rate_fit(_session())
+    assert [r for r in BAUD_RATES if fit.rules_out(r)] == [9600, 14400, 19200, 28800, 38400, 57600, 76800]
+    assert fit.slowest() == 115200
+    assert "at 9600 bit/s, 313 of 321 chunks would start before the previous one ended" == fit.evidence(9600)
+    few = rate_fit(_session()[:5])
+    assert not few.rules_out(9600) and few.slowest() is None
+
+
+# ---- the text reader ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("unit", ["ms", "us", "ns"])
+def test_the_reader_gives_seconds_whatever_the_unit(tmp_path, unit):
+    base = _session()
+    path = _thex(tmp_path / f"x.{unit}.thex", base, unit)
+    reader = read_capture(str(path))
+    assert list(reader) == [(d, float(_written(us, "s"))) for d, us in _micros(base)]
+    assert reader.time_unit.unit == unit and reader.time_unit.told
+    assert reader.context.found["time_unit"] is reader.time_unit
+
+
+def test_the_reader_keeps_epoch_times_as_wall_clock_seconds(tmp_path):
+    path = _thex(tmp_path / "wall.thex", _session(), "ms", EPOCH * 10**6)
+    reader = read_capture(str(path))
+    first = next(iter(reader))
+    assert first[1] == EPOCH + 0.5
+    assert reader.time_unit.epoch and reader.time_unit.start == EPOCH + 0.5
+
+
+def test_a_given_unit_overrides_the_content(tmp_path):
+    path = _thex(tmp_path / "ms.thex", _session(), "ms")
+    reader = read_capture(str(path), options={"time_unit": "s"})
+    assert next(iter(reader))[1] == 500.0 and reader.time_unit.how == GIVEN
+
+
+def test_the_reader_says_a_told_unit_once_when_asked(tmp_path, capsys):
+    path = _thex(tmp_path / "ms.thex", _session(), "ms")
+    list(read_capture(str(path), options={"say_time_unit": True}))
+    list(read_capture(str(path)))  # a sample read: silent
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"rs30x-sniff: {path}: times in milliseconds, told by the content (--time-unit to say otherwise)"]
+
+
+def test_lines_before_a_bad_line_in_the_sample_are_read_first(tmp_path):
+    text = "".join(f"{500 + k}.000 FA AF 01 03 00 00 01 03\n" for k in range(5)) + "505.000 FA ZZ\n"
+    path = tmp_path / "bad.thex"
+    path.write_text(text)
+    got = []
+    with pytest.raises(CaptureError) as e:
+        for chunk in read_capture(str(path)):
+            got.append(chunk)
+    assert len(got) == 5 and (e.value.line, e.value.column) == (6, 12)
+
+
+@pytest.mark.parametrize("bad", ["5e9", "1e300", "99999999999"])
+def test_a_time_after_2100_is_an_error_naming_its_line(tmp_path, bad):
+    path = tmp_path / "late.thex"
+    path.write_text(f"0.1 FA AF\n0.2 FA AF\n  {bad} FA AF\n")
+    with pytest.raises(CaptureError) as e:
+        list(read_capture(str(path)))
+    assert str(e.value) == (f"{path}:3: time {bad!r} in seconds is after the year 2100 "
+                            "(--time-unit to read it in another unit)")
+    assert (e.value.line, e.value.column) == (3, 3)
+
+
+def test_epoch_milliseconds_read_as_seconds_are_an_error_at_once(tmp_path):
+    path = _thex(tmp_path / "wall.thex", _session(), "ms", EPOCH * 10**6)
+    with pytest.raises(CaptureError, match=r":1: time '1732550000500.000' in seconds is after the year 2100"):
+        list(read_capture(str(path), options={"time_unit": "s"}))
+
+
+def test_another_tools_absurd_time_is_an_input_error(tmp_path):
+    table = tmp_path / "logic.csv"
+    rows = ["name,type,start_time,duration,data"] + [f'"RX","data",{0.1 + k * 1e-4:.6f},8.24e-05,0xFA' for k in range(4)]
+    rows[3] = '"RX","data",1e300,8.24e-05,0xFA'
+    table.write_text("\n".join(rows) + "\n")
+    with pytest.raises(CaptureError) as e:
+        list(read_capture(str(table)))
+    assert "\n" not in str(e.value) and str(e.value).startswith(f"{table}: the time 1e+300 s")
+    assert "after the year 2100" in str(e.value)

@@ -1,0 +1,228 @@
+"""Times in any unit, and rates, checked against the wire: the same capture in s, ms, us or epoch ms reads the same."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import strategies as st
+from mcap.reader import make_reader
+
+from rs30x_sniff.cli import main
+from rs30x_sniff.commands.common import settings_for
+from rs30x_sniff.io.captures import read_capture, write_capture
+from rs30x_sniff.sim import run
+from rs30x_sniff.sim.scenarios import SCENARIOS
+
+ROOT = Path(__file__).resolve().parents[2]
+SESSION = ROOT / "captures" / "session-mixed.thex"
+EPOCH = 1_732_550_000  # 2024-11-25 15:53:20 UTC
+
+
+def _written(us: int, unit: str) -> str:
+    if unit == "s":
+        return f"{us // 10**6}.{us % 10**6:06d}"
+    if unit == "ms":
+        return f"{us // 1000}.{us % 1000:03d}"
+    return str(us)
+
+
+def _thex(path: Path, chunks, unit: str, offset_us: int = 0) -> str:
+    """The chunks as timestamped hex in ``unit``, their times on one microsecond grid (so every unit
+    writes the same instants exactly)."""
+    path.write_text("".join(f"{_written(round(t * 1e6) + offset_us, unit)} {d.hex(' ').upper()}\n"
+                            for d, t in chunks if d))
+    return str(path)
+
+
+def _lint(capsys, path: str, *argv: str) -> list[dict]:
+    main(["lint", path, "--format", "json", "--isolated", *argv])
+    return [{k: v for k, v in f.items() if k not in ("t", "file")} for f in json.loads(capsys.readouterr().out)]
+
+
+def _info(capsys, path: str, *argv: str) -> tuple[dict, str]:
+    assert main(["info", path, "--format", "json", "--isolated", *argv]) == 0
+    cap = capsys.readouterr()
+    return json.loads(cap.out), cap.err
+
+
+def _figures(info: dict) -> dict:
+    return {k: v for k, v in info.items() if k not in ("input", "settings")}
+
+
+_NUM = re.compile(r"(-?\d+\.\d+)")
+_WALL = re.compile(r" \[\d{4}-\d\d-\d\d [^]]* UTC\]")
+
+
+def _same_but_rounding(a, b, where: str = "") -> None:
+    """``b``, from the epoch capture, is ``a`` up to float rounding: a float holds an epoch time to
+    0.24 us, so times within a microsecond or a last printed digit, and figures made from spans
+    (loads, rates) to 1e-4 of themselves; capture times EPOCH later; wall-clock fields in ``b`` only."""
+    if isinstance(a, dict):
+        assert set(a) == set(b), where
+        for k in a:
+            if k in ("wall", "first_wall"):  # only a moment with a time has a wall clock
+                assert a[k] is None and (b[k] is None or b[k].startswith("2024-11-25T")), (where, k, b[k])
+            elif k in ("t", "first_t") and isinstance(a[k], float):
+                assert b[k] - EPOCH == pytest.approx(a[k], abs=2e-6), (where, k, a[k], b[k])
+            else:
+                _same_but_rounding(a[k], b[k], f"{where}/{k}")
+    elif isinstance(a, list):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b)):
+            _same_but_rounding(x, y, f"{where}[{i}]")
+    elif isinstance(a, float) and isinstance(b, float):
+        assert math.isclose(a, b, rel_tol=1e-4, abs_tol=2e-6), (where, a, b)
+    elif isinstance(a, str) and isinstance(b, str):
+        b = _WALL.sub("", b)
+        pa, pb = _NUM.split(a), _NUM.split(b)
+        assert pa[::2] == pb[::2], (where, a, b)
+        for x, y in zip(pa[1::2], pb[1::2]):
+            digits = len(x.partition(".")[2])
+            off = min(abs(float(x) - float(y)), abs(float(x) + EPOCH - float(y)))  # a duration, or a capture time
+            assert off <= 1.01 * 10.0 ** -digits, (where, a, b)
+    else:
+        assert a == b, where
+
+
+# ---- the same capture in every unit -------------------------------------------------------------------
+# Each example runs eight commands: no shrinking (minutes); a failure prints the scenario, seed and rate.
+@settings(max_examples=6, deadline=None, phases=[Phase.explicit, Phase.reuse, Phase.generate],
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(name=st.sampled_from(sorted(SCENARIOS)), seed=st.integers(0, 50),
+       baud=st.sampled_from([9600, 57600, 115200, 230400]), duration=st.sampled_from([0.5, 0.8]))
+def test_the_same_capture_in_every_unit_gives_the_same_findings_and_figures(tmp_path_factory, capsys, name, seed,
+                                                                            baud, duration):
+    d = tmp_path_factory.mktemp("units")
+    chunks = list(run(name, baud=baud, seed=seed, duration=duration))
+    files = {unit: _thex(d / f"{unit}.thex", chunks, unit) for unit in ("s", "ms", "us")}
+    files["epoch-ms"] = _thex(d / "epoch-ms.thex", chunks, "ms", EPOCH * 10**6)
+    findings = {k: _lint(capsys, p) for k, p in files.items()}
+    infos = {k: _info(capsys, p)[0] for k, p in files.items()}
+    for unit in ("ms", "us"):
+        assert findings[unit] == findings["s"]
+        assert _figures(infos[unit]) == _figures(infos["s"])
+        assert infos[unit]["settings"]["time_unit"] == unit
+    # Epoch times are kept as wall-clock seconds: the same figures up to float rounding, plus the wall clock.
+    assert infos["epoch-ms"]["settings"]["time_unit"] == "ms"
+    assert [(f["code"], f["offset"], f["id"]) for f in findings["epoch-ms"]] == \
+        [(f["code"], f["offset"], f["id"]) for f in findings["s"]]
+    _same_but_rounding(findings["s"], findings["epoch-ms"])
+    _same_but_rounding(_figures(infos["s"]), _figures(infos["epoch-ms"]))
+
+
+def test_an_epoch_ms_capture_is_anchored_at_its_wall_clock(tmp_path, capsys):
+    path = _thex(tmp_path / "wall.thex", read_capture(str(SESSION)), "ms", EPOCH * 10**6)
+    info, err = _info(capsys, path)
+    assert err.splitlines() == [f"rs30x-sniff: {path}: times in milliseconds since the epoch, told by the content "
+                                "(--time-unit to say otherwise)"]
+    assert info["settings"]["origin"]["time_unit"].startswith("capture (times in milliseconds since the epoch")
+    assert info["duration_s"] == pytest.approx(2.747215, abs=1e-6)
+    assert info["what_happened"][0]["wall"] == "2024-11-25T15:53:21.403Z"  # 0.90 s after the first byte
+    out = tmp_path / "wall.mcap"
+    assert main(["convert", path, "-o", str(out), "--isolated"]) == 0
+    with open(out, "rb") as f:
+        stats = make_reader(f).get_summary().statistics
+    assert stats.message_start_time == pytest.approx((EPOCH + 0.5) * 1e9, abs=1e3)
+    assert main(["table", path, "--of", "transactions", "-o", str(tmp_path / "t.csv"), "--isolated"]) == 0
+    header, first = (tmp_path / "t.csv").read_text().splitlines()[:2]
+    assert header.startswith("t,wall_time,") and ",2024-11-25T15:53:20.500000+00:00," in first
+
+
+def test_time_unit_overrides_the_content_from_either_layer(tmp_path, capsys):
+    path = _thex(tmp_path / "ms.thex", read_capture(str(SESSION)), "ms")
+    assert main(["decode", path, "--format", "jsonl", "--no-lint", "--isolated", "--time-unit", "s"]) == 0
+    out, err = capsys.readouterr()
+    assert [json.loads(line)["t"] for line in out.splitlines()[:2]] == [500.0, 500.794] and err == ""
+    info, _ = _info(capsys, path, "--time-unit", "s")
+    assert info["settings"]["time_unit"] == "s" and info["settings"]["origin"]["time_unit"] == "command line"
+    conf = tmp_path / "rs30x-sniff.toml"
+    conf.write_text('time-unit = "us"\n')
+    assert main(["decode", str(SESSION), "--format", "jsonl", "--no-lint", "--config", str(conf)]) == 0
+    assert json.loads(capsys.readouterr().out.splitlines()[1])["t"] == 0.500794e-6
+    assert main(["info", str(SESSION), "--format", "json", "--config", str(conf)]) == 0
+    assert json.loads(capsys.readouterr().out)["settings"]["origin"]["time_unit"] == str(conf)
+    conf.write_text('time-unit = "minutes"\n')
+    assert main(["info", str(SESSION), "--config", str(conf)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "time-unit = 'minutes': must be one of s, ms, us, ns" in err
+
+
+def test_a_pipe_says_its_unit_itself():
+    text = "".join(f"{_written(round(t * 1e6), 'us')} {d.hex(' ')}\n" for d, t in read_capture(str(SESSION)))
+    proc = subprocess.run([sys.executable, "-m", "rs30x_sniff", "info", "-", "--isolated"], input=text.encode(),
+                          capture_output=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    err = proc.stderr.decode().splitlines()
+    assert err == ["rs30x-sniff: -: times in microseconds, told by the content (--time-unit to say otherwise)"]
+    assert "duration   2.747215 s" in proc.stdout.decode()
+
+
+# ---- bad times ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("bad,why", [("nan", "is not a finite, non-negative number"),
+                                     ("inf", "is not a finite, non-negative number"),
+                                     ("1e400", "is not a finite, non-negative number"),
+                                     ("-1e300", "is not a finite, non-negative number"),
+                                     ("5e9", "in seconds is after the year 2100"),
+                                     ("1e300", "in seconds is after the year 2100")])
+@pytest.mark.parametrize("command", ["decode", "info", "lint", "convert"])
+def test_a_bad_time_is_one_line_naming_the_file_and_line(tmp_path, capsys, bad, why, command):
+    path = tmp_path / "bad.thex"
+    path.write_text(f"0.1 FA AF 01 03 00 00 01 03\n0.2 FA AF 01 03 00 00 01 03\n{bad} FA AF 01 03 00 00 01 03\n")
+    argv = [command, str(path), "--isolated"] + (["-o", str(tmp_path / "x.mcap")] if command == "convert" else [])
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == f"rs30x-sniff: error: {path}:3: time {bad!r} {why}" + \
+        (" (--time-unit to read it in another unit)" if "2100" in why else "") + "\n"
+    assert not (tmp_path / "x.mcap").exists()
+
+
+# ---- rates the timestamps contradict ----------------------------------------------------------------------
+def _settings(path: str, **options):
+    return settings_for(argparse.Namespace(isolated=True, **options), path)
+
+
+def test_a_baud_the_timestamps_contradict_is_warned_about_and_unsupported(capsys):
+    s = _settings(str(SESSION), baud=9600)
+    err = capsys.readouterr().err
+    assert s.baud == 9600  # the command line wins ...
+    assert err.splitlines() == [f"rs30x-sniff: warning: {SESSION}: its timestamps show 115200 bit/s, not the 9600 "
+                                "given (command line): at 9600 bit/s, 313 of 321 chunks would start before the "
+                                "previous one ended"]
+    assert s.timing_unsupported == "the timestamps contradict --baud 9600: they show 115200 bit/s"
+    # ... and a rate they allow is not contradicted, nor the capture read without --baud.
+    for options in ({"baud": 115200}, {"baud": 230400}, {}):
+        s = _settings(str(SESSION), **options)
+        assert s.timing_unsupported is None and capsys.readouterr().err == ""
+
+
+def test_the_default_gives_way_to_the_rate_the_timestamps_allow(tmp_path, capsys):
+    # The session played twice as fast: 230400 bit/s, with gaps that leave no run of back-to-back bytes
+    # to name the rate, but replies that would overlap their requests at 115200 or 153600.
+    path = tmp_path / "fast.thex"
+    write_capture(path, [(d, t / 2) for d, t in read_capture(str(SESSION))], "timestamped")
+    info, err = _info(capsys, str(path))
+    assert info["baud"] == 230400 and info["settings"]["origin"]["baud"].startswith("capture (its timestamps: ")
+    assert err.splitlines() == [f"rs30x-sniff: {path}: 230400 bit/s, from its timestamps: at 115200 bit/s, 109 of "
+                                "321 chunks would start before the previous one ended (--baud to say otherwise)"]
+    s = _settings(str(path))
+    assert s.baud == 230400 and s.timing_unsupported is None
+
+
+def test_timestamps_that_fit_no_rate_leave_the_timing_unsupported(tmp_path, capsys):
+    # Every chunk stamped 10 us after the one before: no rate of table 4.7 carries 8 bytes that fast.
+    path = tmp_path / "bunched.thex"
+    write_capture(path, [(d, 0.5 + k * 1e-5) for k, (d, _) in enumerate(read_capture(str(SESSION)))], "timestamped")
+    s = _settings(str(path))
+    err = capsys.readouterr().err
+    assert s.baud == 115200 and s.timing_unsupported == ("the timestamps contradict the default 115200 bit/s: they "
+                                                         "fit no rate of table 4.7")
+    assert err.startswith(f"rs30x-sniff: warning: {path}: its timestamps fit no rate of table 4.7, not even the "
+                          "default 115200 bit/s: at 115200 bit/s, ")
