@@ -188,7 +188,7 @@ def test_stdout_csv(capsys):
     assert main(["table", str(SESSION), "--of", "transactions", "-o", "-"]) == 0
     out = capsys.readouterr().out
     rows = list(csv.DictReader(io.StringIO(out)))
-    assert len(rows) == 108 and rows[0]["op"] == "read"
+    assert len(rows) == 128 and rows[0]["op"] == "read"
 
 
 def test_refuses_to_overwrite_without_force(tmp_path, capsys):

@@ -28,7 +28,7 @@ def _check_every_byte(path: str, fmt: str | None = None) -> int:
 
 def test_locate_in_the_sample_captures():
     assert _check_every_byte(str(CAPTURES / "manual-examples.hex")) > 200
-    assert _check_every_byte(str(CAPTURES / "session-mixed.thex")) == 7543
+    assert _check_every_byte(str(CAPTURES / "session-mixed.thex")) == 7903
 
 
 def test_locate_uneven_lines_and_comments(tmp_path):

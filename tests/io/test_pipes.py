@@ -168,4 +168,4 @@ def test_cli_decode_and_info_of_a_process_substitution():
     info = subprocess.run(["bash", "-c", f"{cli} info --format json <(cat {SESSION})"], capture_output=True,
                           text=True, cwd=ROOT, timeout=60)
     assert info.returncode == 0, info.stderr
-    assert '"bytes": 7543' in info.stdout
+    assert '"bytes": 7903' in info.stdout

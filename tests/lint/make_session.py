@@ -100,6 +100,12 @@ def build() -> list[tuple[float, bytes, str]]:
     put(encode_short(5, 0, 0x06, b"\x09"), "ID 5 to 230400 bit/s, never flashed nor rebooted")
     put(encode_read(5, 0x06, 1), "", 0.0001)
     put(encode_return(5, 0x06, b"\x09"), "")
+    # A second more of polling: the capture runs on long enough to show the change was never applied
+    # (a capture that stopped right after the write could not tell, Q001).
+    for k in range(20):
+        t += 0.05
+        put(encode_read(5, 42, 2), "still polled at the old rate" if k == 0 else "", 0.0001)
+        put(encode_return(5, 42, pos[5].to_bytes(2, "little", signed=True)), "")
     return out
 
 
