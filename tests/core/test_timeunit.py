@@ -13,8 +13,8 @@ from rs30x_sniff.timeunit import (ASSUMED, EPOCH_MAX, GIVEN, SIZE, SPACING, dete
                                   problem, resolution, seconds)
 from rs30x_sniff.wire import BAUD_RATES, encode_read
 
-ROOT = Path(__file__).resolve().parents[2]
-SESSION = ROOT / "captures" / "session-mixed.thex"
+from .gait_capture import gait
+
 EPOCH = 1_732_550_000  # 2024-11-25 15:53:20 UTC, a whole second
 
 
@@ -42,7 +42,7 @@ def _thex(path: Path, chunks, unit: str, offset_us: int = 0) -> Path:
 
 
 def _session():
-    return list(read_capture(str(SESSION)))
+    return gait()
 
 
 # ---- the detector ------------------------------------------------------------------------------------
@@ -120,9 +120,10 @@ def test_a_time_is_shifted_as_a_decimal():
 # ---- rates the timestamps rule out -------------------------------------------------------------------
 def test_the_spacing_rules_out_slow_rates():
     fit = rate_fit(_session())
+    # Each poll's return follows it closer than 8 bytes take below 115200 bit/s.
     assert [r for r in BAUD_RATES if fit.rules_out(r)] == [9600, 14400, 19200, 28800, 38400, 57600, 76800]
-    assert fit.slowest() == 115200
-    assert "at 9600 bit/s, 313 of 321 chunks would start before the previous one ended" == fit.evidence(9600)
+    assert fit.slowest() == 115200 and fit.overlaps(115200) == 0 and fit.overlaps(76800) == 100
+    assert fit.evidence(76800) == "at 76800 bit/s, 100 of 299 chunks would start before the previous one ended"
     few = rate_fit(_session()[:5])
     assert not few.rules_out(9600) and few.slowest() is None
 

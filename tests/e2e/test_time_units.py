@@ -17,12 +17,12 @@ from mcap.reader import make_reader
 
 from rs30x_sniff.cli import main
 from rs30x_sniff.commands.common import settings_for
-from rs30x_sniff.io.captures import read_capture, write_capture
+from rs30x_sniff.io.captures import write_capture
 from rs30x_sniff.sim import run
 from rs30x_sniff.sim.scenarios import SCENARIOS
 
-ROOT = Path(__file__).resolve().parents[2]
-SESSION = ROOT / "captures" / "session-mixed.thex"
+from ..core.gait_capture import gait
+
 EPOCH = 1_732_550_000  # 2024-11-25 15:53:20 UTC
 
 
@@ -119,13 +119,13 @@ def test_the_same_capture_in_every_unit_gives_the_same_findings_and_figures(tmp_
 
 
 def test_an_epoch_ms_capture_is_anchored_at_its_wall_clock(tmp_path, capsys):
-    path = _thex(tmp_path / "wall.thex", read_capture(str(SESSION)), "ms", EPOCH * 10**6)
+    path = _thex(tmp_path / "wall.thex", gait(), "ms", EPOCH * 10**6)
     info, err = _info(capsys, path)
     assert err.splitlines() == [f"rs30x-sniff: {path}: times in milliseconds since the epoch, told by the content "
                                 "(--time-unit to say otherwise)"]
     assert info["settings"]["origin"]["time_unit"].startswith("capture (times in milliseconds since the epoch")
-    assert info["duration_s"] == pytest.approx(2.747215, abs=1e-6)
-    assert info["what_happened"][0]["wall"] == "2024-11-25T15:53:21.403Z"  # 0.90 s after the first byte
+    plain, _ = _info(capsys, _thex(tmp_path / "s.thex", gait(), "s"))
+    assert info["duration_s"] == pytest.approx(plain["duration_s"], abs=1e-6)
     out = tmp_path / "wall.mcap"
     assert main(["convert", path, "-o", str(out), "--isolated"]) == 0
     with open(out, "rb") as f:
@@ -133,36 +133,37 @@ def test_an_epoch_ms_capture_is_anchored_at_its_wall_clock(tmp_path, capsys):
     assert stats.message_start_time == pytest.approx((EPOCH + 0.5) * 1e9, abs=1e3)
     assert main(["table", path, "--of", "transactions", "-o", str(tmp_path / "t.csv"), "--isolated"]) == 0
     header, first = (tmp_path / "t.csv").read_text().splitlines()[:2]
-    assert header.startswith("t,wall_time,") and ",2024-11-25T15:53:20.500000+00:00," in first
+    assert header.startswith("t,wall_time,") and ",2024-11-25T15:53:20.502457+00:00," in first  # the first poll
 
 
 def test_time_unit_overrides_the_content_from_either_layer(tmp_path, capsys):
-    path = _thex(tmp_path / "ms.thex", read_capture(str(SESSION)), "ms")
+    path = _thex(tmp_path / "ms.thex", gait(), "ms")
     assert main(["decode", path, "--format", "jsonl", "--no-lint", "--isolated", "--time-unit", "s"]) == 0
     out, err = capsys.readouterr()
-    assert [json.loads(line)["t"] for line in out.splitlines()[:2]] == [500.0, 500.794] and err == ""
+    assert [json.loads(line)["t"] for line in out.splitlines()[:2]] == [500.0, 502.457] and err == ""
     info, _ = _info(capsys, path, "--time-unit", "s")
     assert info["settings"]["time_unit"] == "s" and info["settings"]["origin"]["time_unit"] == "command line"
     conf = tmp_path / "rs30x-sniff.toml"
     conf.write_text('time-unit = "us"\n')
-    assert main(["decode", str(SESSION), "--format", "jsonl", "--no-lint", "--config", str(conf)]) == 0
-    assert json.loads(capsys.readouterr().out.splitlines()[1])["t"] == 0.500794e-6
-    assert main(["info", str(SESSION), "--format", "json", "--config", str(conf)]) == 0
+    plain = _thex(tmp_path / "s.thex", gait(), "s")
+    assert main(["decode", plain, "--format", "jsonl", "--no-lint", "--config", str(conf)]) == 0
+    assert json.loads(capsys.readouterr().out.splitlines()[1])["t"] == 0.502457e-6
+    assert main(["info", plain, "--format", "json", "--config", str(conf)]) == 0
     assert json.loads(capsys.readouterr().out)["settings"]["origin"]["time_unit"] == str(conf)
     conf.write_text('time-unit = "minutes"\n')
-    assert main(["info", str(SESSION), "--config", str(conf)]) == 2
+    assert main(["info", plain, "--config", str(conf)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "time-unit = 'minutes': must be one of s, ms, us, ns" in err
 
 
 def test_a_pipe_says_its_unit_itself():
-    text = "".join(f"{_written(round(t * 1e6), 'us')} {d.hex(' ')}\n" for d, t in read_capture(str(SESSION)))
+    text = "".join(f"{_written(round(t * 1e6), 'us')} {d.hex(' ')}\n" for d, t in gait())
     proc = subprocess.run([sys.executable, "-m", "rs30x_sniff", "info", "-", "--isolated"], input=text.encode(),
                           capture_output=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     err = proc.stderr.decode().splitlines()
     assert err == ["rs30x-sniff: -: times in microseconds, told by the content (--time-unit to say otherwise)"]
-    assert "duration   2.747215 s" in proc.stdout.decode()
+    assert "at 115200 bit/s" in proc.stdout.decode()
 
 
 # ---- bad times ---------------------------------------------------------------------------------------
@@ -189,29 +190,30 @@ def _settings(path: str, **options):
     return settings_for(argparse.Namespace(isolated=True, **options), path)
 
 
-def test_a_baud_the_timestamps_contradict_is_warned_about_and_unsupported(capsys):
-    s = _settings(str(SESSION), baud=9600)
+def test_a_baud_the_timestamps_contradict_is_warned_about_and_unsupported(tmp_path, capsys):
+    path = _thex(tmp_path / "bus.thex", gait(), "s")
+    s = _settings(path, baud=9600)
     err = capsys.readouterr().err
     assert s.baud == 9600  # the command line wins ...
-    assert err.splitlines() == [f"rs30x-sniff: warning: {SESSION}: its timestamps show 115200 bit/s, not the 9600 "
-                                "given (command line): at 9600 bit/s, 313 of 321 chunks would start before the "
+    assert err.splitlines() == [f"rs30x-sniff: warning: {path}: its timestamps show 115200 bit/s, not the 9600 "
+                                "given (command line): at 9600 bit/s, 299 of 299 chunks would start before the "
                                 "previous one ended"]
     assert s.timing_unsupported == "the timestamps contradict --baud 9600: they show 115200 bit/s"
     # ... and a rate they allow is not contradicted, nor the capture read without --baud.
     for options in ({"baud": 115200}, {"baud": 230400}, {}):
-        s = _settings(str(SESSION), **options)
+        s = _settings(path, **options)
         assert s.timing_unsupported is None and capsys.readouterr().err == ""
 
 
 def test_the_default_gives_way_to_the_rate_the_timestamps_allow(tmp_path, capsys):
-    # The session played twice as fast: 230400 bit/s, with gaps that leave no run of back-to-back bytes
-    # to name the rate, but replies that would overlap their requests at 115200 or 153600.
+    # At 230400 bit/s, with gaps that leave no run of back-to-back bytes to name the rate, but returns
+    # that would overlap their polls at 115200 or 153600.
     path = tmp_path / "fast.thex"
-    write_capture(path, [(d, t / 2) for d, t in read_capture(str(SESSION))], "timestamped")
+    write_capture(path, gait(230400), "timestamped")
     info, err = _info(capsys, str(path))
     assert info["baud"] == 230400 and info["settings"]["origin"]["baud"].startswith("capture (its timestamps: ")
-    assert err.splitlines() == [f"rs30x-sniff: {path}: 230400 bit/s, from its timestamps: at 115200 bit/s, 109 of "
-                                "321 chunks would start before the previous one ended (--baud to say otherwise)"]
+    assert err.splitlines() == [f"rs30x-sniff: {path}: 230400 bit/s, from its timestamps: at 115200 bit/s, 100 of "
+                                "299 chunks would start before the previous one ended (--baud to say otherwise)"]
     s = _settings(str(path))
     assert s.baud == 230400 and s.timing_unsupported is None
 
@@ -219,7 +221,7 @@ def test_the_default_gives_way_to_the_rate_the_timestamps_allow(tmp_path, capsys
 def test_timestamps_that_fit_no_rate_leave_the_timing_unsupported(tmp_path, capsys):
     # Every chunk stamped 10 us after the one before: no rate of table 4.7 carries 8 bytes that fast.
     path = tmp_path / "bunched.thex"
-    write_capture(path, [(d, 0.5 + k * 1e-5) for k, (d, _) in enumerate(read_capture(str(SESSION)))], "timestamped")
+    write_capture(path, [(d, 0.5 + k * 1e-5) for k, (d, _) in enumerate(gait())], "timestamped")
     s = _settings(str(path))
     err = capsys.readouterr().err
     assert s.baud == 115200 and s.timing_unsupported == ("the timestamps contradict the default 115200 bit/s: they "
