@@ -454,3 +454,12 @@ def no_data(name: str, counted: Any, source: object = None) -> bool:
         why = "no data (the capture is empty)"
     print(f"rs30x-sniff: warning: {name}: {why}", file=sys.stderr)
     return True
+
+
+def capture_start_time(source: object) -> float | None:
+    """The wall-clock time (seconds since the epoch) of capture time 0 where the source's format says it
+    (a Saleae ISO table, a socat or jpnevulator log: their first stamp), else None. Read after the source
+    was read (or peeked at): the reader finds it in the file."""
+    found = getattr(getattr(source, "context", None), "found", None) or {}
+    when = found.get("start_time")
+    return None if when is None else when.timestamp()

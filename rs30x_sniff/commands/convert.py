@@ -13,7 +13,8 @@ from ..io.captures import Chunk, detect_format
 from ..pipeline import Decoder, drive
 from ..settings import Settings
 from ..sinks import ProgressSink
-from .common import CliError, add_decode_options, add_lint_options, is_live, make_linter, open_input, settings_for
+from .common import (CliError, add_decode_options, add_lint_options, capture_start_time, is_live, make_linter, open_input,
+                     settings_for)
 from .outputs import STDOUT, check_output, output_binary, report_end
 
 
@@ -99,10 +100,7 @@ def run(args: argparse.Namespace) -> int:
     if start_time is None:
         # Another tool's log may carry the wall-clock time of its first stamp (a Saleae ISO table, a
         # socat or jpnevulator log): the MCAP is anchored there, as --start-time would (which wins).
-        found = getattr(getattr(src, "context", None), "found", None) or {}
-        when = found.get("start_time")
-        if when is not None:
-            start_time = when.timestamp()
+        start_time = capture_start_time(src)
     # A file takes the columnar path (the same messages, in log-time order within each 64 KiB group).
     decoder = Decoder(settings.decode_options(), linter=linter, columnar=not is_live(src))
     source = "stdin" if args.input == "-" else args.input

@@ -8,7 +8,8 @@ from typing import Any
 
 from ..pipeline import Decoder, drive
 from ..stats import CaptureStats
-from .common import (add_decode_options, add_lint_options, add_live_options, check_positive, is_live, live_sinks, make_linter, no_data,
+from .common import (add_decode_options, add_lint_options, add_live_options, capture_start_time, check_positive, is_live,
+                     live_sinks, make_linter, no_data,
                      open_input, settings_for)
 from .outputs import add_output_options, check_output, output_stream
 
@@ -39,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
     # A file takes the columnar path (the same figures); a port, record by record.
     drive(source, Decoder(opts, linter, columnar=not is_live(source)), stats, *live_sinks(settings, source, args.input))
     no_data(args.input, stats, source)
+    stats.wall_anchor = capture_start_time(source)  # wall-clock times beside capture times, where the log has them
     shown = settings.as_json()
     time_ref = getattr(source, "time_ref", None) if stats.timed else None  # what the times mark, and why
     if time_ref is not None:
