@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from datetime import timedelta
 from typing import Iterable, Iterator
 
 from .chunks import remark
@@ -109,8 +110,25 @@ class TimedSource:
     def __iter__(self) -> Iterator[Chunk]:
         if self._it is None:
             it = iter(self.source)
-            self._it = to_first_byte(it, self.baud) if self.time_ref.ref == ARRIVAL else it
+            self._it = self._from_zero(to_first_byte(it, self.baud)) if self.time_ref.ref == ARRIVAL else it
         return self._it
+
+    def _from_zero(self, chunks: Iterator[Chunk]) -> Iterator[Chunk]:
+        """Laid-back times that would start before 0 (a log counting from its first read's arrival, whose
+        bytes were on the wire before it) counted from the first byte instead: every time moves by the
+        same amount, so no duration changes and no time is negative; the log's wall-clock anchor (a
+        reader's ``start_time``) moves back by it, so wall-clock times stay where they were."""
+        shift = None
+        for chunk in chunks:
+            data, t = chunk
+            if t is not None and shift is None:
+                shift = -t if t < 0 else 0.0
+                found = getattr(getattr(self.source, "context", None), "found", None)
+                if shift and found and found.get("start_time") is not None:
+                    found["start_time"] -= timedelta(seconds=shift)
+            if shift and t is not None:
+                chunk = remark(chunk, data, t + shift)
+            yield chunk
 
     def __next__(self) -> Chunk:
         return next(iter(self))

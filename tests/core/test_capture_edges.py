@@ -119,3 +119,26 @@ def test_a_missing_reply_counts_the_requests_asked_not_the_replies_heard(capsys,
     info = json.loads(capsys.readouterr().out)
     lines = [w["text"] for w in info["what_happened"]]
     assert any("ID 1 left 1 of 3 requests unanswered" in x for x in lines), lines
+
+
+def test_a_serial_log_counting_from_its_first_arrival_has_no_negative_time(capsys):
+    # socat's first stamp is the arrival of the first read: its bytes were on the wire before it.
+    from datetime import datetime, timezone
+
+    from rs30x_sniff.cli import build_parser
+    from rs30x_sniff.commands.common import capture_start_time, open_input, settings_for
+    from tests.conftest import CAPTURES
+
+    log = str(CAPTURES / "foreign" / "socat.log")
+    assert main(["decode", log, "--format", "jsonl"]) == 0
+    events = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert events[0]["t"] == 0.0 and all(e["t"] >= 0 and e["t_end"] > e["t"] for e in events if e.get("t") is not None)
+    args = build_parser().parse_args(["decode", log])
+    source = open_input(log, None, settings_for(args, log))
+    first = next(iter(source))
+    # Time 0 is the first byte, one 8-byte read (at 115200 bit/s) before the log's first stamp, and the
+    # wall clock of time 0 moved back with it: the stamp's own wall-clock time stays where it was.
+    assert first[1] == 0.0 and len(first[0]) == 8
+    stamp = datetime(2026, 11, 22, 17, 59, 41, 806796, tzinfo=timezone.utc).timestamp()  # the log's first line
+    assert abs(capture_start_time(source) + 8 * BT - stamp) < 1e-6
+    capsys.readouterr()

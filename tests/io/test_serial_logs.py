@@ -77,8 +77,8 @@ def test_golden_sample(name):
         assert all(b >= a for a, b in zip(times, times[1:]))
         if name == "spy":  # a write is stamped as it starts, in seconds since the port opened
             assert times[0] == float(path.read_text().split()[0])
-        else:  # stamped at arrival, from the first stamp: the first request began its length before it
-            assert times[0] == pytest.approx(-8 * byte_time(w.SAMPLE_BAUD), abs=1e-9)
+        else:  # stamped at arrival: times count from the first request's first byte, its length before
+            assert times[0] == 0.0  # the first stamp (no time is negative)
     else:
         assert times == [None] * len(recs)
 
@@ -168,8 +168,8 @@ def _round_trip(tmp_path, text, fmt: str, baud: int, sent, *, senders: bool = Tr
     path.write_bytes(text if isinstance(text, bytes) else text.encode("latin-1"))
     assert detect_format(str(path)) == fmt
     got = per_byte(read_input(str(path), None, baud=baud, warn=None, options={"baud": baud}), baud)
-    if fmt != "spy":  # wall-clock stamps: times run from the first one, the first read's arrival
-        first = sent[0][1] + len(sent[0][0]) * byte_time(baud)
+    if fmt != "spy":  # wall-clock stamps: times run from the first read's first byte
+        first = sent[0][1]
         sent = [(d, t - first, who) for d, t, who in sent]
     want = per_byte(sent, baud)
     assert bytes(b for b, _, _ in got) == bytes(b for b, _, _ in want)
@@ -225,8 +225,8 @@ def test_jpnevulator_group_keeps_its_stamp_on_the_first_frame(tmp_path):
     path.write_text(f"2026-11-22 14:14:50.{round(arrival * 1e6):06d}:\n" + " ".join(f"{b:02X}" for b in req + ret) + "\n")
     chunks = list(read_input(str(path), "jpnevulator", baud=115200, warn=None, options={"baud": 115200}))
     assert [c[0] for c in chunks] == [req, ret]
-    assert chunks[0][1] == pytest.approx(-len(req) * bt, abs=1e-9)  # the first frame arrived at the stamp
-    assert chunks[1][1] == pytest.approx(0.0, abs=1e-9)  # the rest straight after it
+    assert chunks[0][1] == 0.0  # the first frame arrived at the stamp: times count from its first byte
+    assert chunks[1][1] == pytest.approx(len(req) * bt, abs=1e-9)  # the rest straight after it
 
 
 def test_spy_echo_of_a_one_wire_adapter_is_dropped_even_inside_a_read(tmp_path):
