@@ -94,7 +94,8 @@ def _baud_change_left_pending(pending, lint, seam=None):
         who = f"ID {to}" if to == sid else f"ID {to} (now ID {sid})"
         why = "no flash write followed" if stage == "flash" else "it was flashed but the servo was never rebooted"
         lint.emit("Q001", rec, f"baud_rate {rate} written to {who} but {why}: it keeps its old rate", sid=to)
-    pending.clear()
+    if seam is not None:
+        pending.clear()  # told or let go: nothing waits across a seam
 
 
 baud_change_not_applied.on("seam")(_baud_change_left_pending)  # a seam ends the steps' wait as the end does
@@ -144,7 +145,8 @@ def _id_change_left_pending(pending, lint, seam=None):
             continue
         lint.emit("Q002", rec, f"ID {old} changed to {new} but no flash write to ID {new} followed: "
                                f"it reverts at the next power-up", sid=old)
-    pending.clear()
+    if seam is not None:
+        pending.clear()
 
 
 id_change_not_persisted.on("seam")(_id_change_left_pending)
