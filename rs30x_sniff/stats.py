@@ -146,6 +146,10 @@ class CaptureStats(Sink):
         self._win_end = float("-inf")
         self._win_bytes = 0
         self._peak: tuple[float, float] | None = None  # (load, window start) of the busiest full window
+        self._windows: list[tuple[float, float]] = []  # (load, start) of every closed window
+        # Where a live reader fell behind: (t, seconds, bytes) of bytes timed at the line rate, not as
+        # they came (rs30x_sniff.io.serial_tap); no load is measured over them. The source's own list.
+        self.stalls: list[tuple[float, float, int]] = []
 
     # ---- as a sink ---------------------------------------------------------------------------------
     def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
@@ -532,6 +536,7 @@ class CaptureStats(Sink):
         span = last - self._win_start
         if span >= _LOAD_WINDOW / 2:
             load = min(1.0, self._win_bytes * byte_time(self.baud) / min(span, _LOAD_WINDOW))
+            self._windows.append((load, self._win_start))
             if self._peak is None or load > self._peak[0]:
                 self._peak = (load, self._win_start)
 
@@ -541,6 +546,7 @@ class CaptureStats(Sink):
             self._win_start = ts
         else:
             load = min(1.0, self._win_bytes * byte_time(self.baud) / _LOAD_WINDOW)
+            self._windows.append((load, self._win_start))
             if self._peak is None or load > self._peak[0]:
                 self._peak = (load, self._win_start)
             self._win_start += (ts - self._win_start) // _LOAD_WINDOW * _LOAD_WINDOW
@@ -587,8 +593,9 @@ class CaptureStats(Sink):
         """
         if not self.timed or self.timing_unsupported or self.duration < _LOAD_WINDOW:
             return None
-        best = self._peak
-        if self._win_start is not None:
+        best = self._peak if not self.stalls else max(
+            (w for w in self._windows if not self._stalled(w[1])), default=None)
+        if self._win_start is not None and not self._stalled(self._win_start):
             span = (self.last_t or self._win_start) - self._win_start
             if span >= _LOAD_WINDOW / 2:
                 load = min(1.0, self._win_bytes * byte_time(self.baud) / min(span, _LOAD_WINDOW))
@@ -612,6 +619,11 @@ class CaptureStats(Sink):
                              f"{'its' if self.unmeasured == 1 else 'their'} request ended (F005/F006): no latency")
         return out
 
+    def _stalled(self, start: float) -> bool:
+        """Whether the load window from ``start`` holds bytes a live reader timed at the line rate."""
+        end = start + _LOAD_WINDOW
+        return any(t < end and t + seconds > start for t, seconds, _ in self.stalls)
+
     @property
     def packets(self) -> int:
         return self.records - self.by_kind["garbage"]
@@ -633,6 +645,7 @@ class CaptureStats(Sink):
             "garbage_bytes": self.garbage_bytes,
             "latency_s": self.latency_dict(),
             "segments": len(self.seams) + 1 if self.timed else 1,
+            "reader_stalls": [{"t": t, "seconds": sec, "bytes": n} for t, sec, n in self.stalls],
             "timing_unsupported": self.timing_unsupported,
             "servos": {
                 str(sid): {"requests": s.requests, "reads": s.reads, "long_writes": s.long_writes,

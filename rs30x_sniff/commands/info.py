@@ -37,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
     source = open_input(args.input, args.input_format, settings, duration=args.duration)
     stats = CaptureStats(opts.baud)
     stats.timing_unsupported = getattr(settings, "timing_unsupported", None)  # the times contradict the baud
+    stats.stalls = getattr(source, "stalls", stats.stalls)  # a live reader that fell behind (its own list)
     # A file takes the columnar path (the same figures); a port, record by record.
     drive(source, Decoder(opts, linter, columnar=not is_live(source)), stats, *live_sinks(settings, source, args.input))
     no_data(args.input, stats, source)

@@ -165,8 +165,10 @@ def run(args: argparse.Namespace) -> int:
         extra = dict(src.metadata)
         if part:
             extra["part"] = str(part)
-        return McapSink(path, source=args.port, baud=opts.baud, time_base="wall", models=opts.models,
+        sink = McapSink(path, source=args.port, baud=opts.baud, time_base="wall", models=opts.models,
                         extra_metadata=extra)
+        sink.stats.stalls = src.stalls  # where the reader fell behind: in rs30x.stats, and no load over them
+        return sink
 
     fox = None
     try:

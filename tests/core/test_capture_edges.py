@@ -142,3 +142,23 @@ def test_a_serial_log_counting_from_its_first_arrival_has_no_negative_time(capsy
     stamp = datetime(2026, 11, 22, 17, 59, 41, 806796, tzinfo=timezone.utc).timestamp()  # the log's first line
     assert abs(capture_start_time(source) + 8 * BT - stamp) < 1e-6
     capsys.readouterr()
+
+
+def test_no_load_is_measured_over_a_stall_of_the_reader():
+    # 3 s of a quiet bus, then 1.6 s of bytes a reader that fell behind got at once (timed at the line
+    # rate: back to back), then 2 s quiet again.
+    quiet = [c for k in range(30) for c in timed([READ1, RET1], t0=k * 0.1)]
+    burst_t0 = 3.0
+    burst = timed([READ1, RET1] * 1000, t0=burst_t0, gap=0.0)
+    after = [c for k in range(20) for c in timed([READ1, RET1], t0=burst[-1][1] + 0.1 + k * 0.1)]
+    chunks = quiet + burst + after
+    _, plain = decode(chunks)
+    assert plain.load_peak[0] > 0.9  # the burst reads as a saturated bus
+    stats = CaptureStats(115200)
+    span = burst[-1][1] + len(RET1) * BT - burst_t0
+    stats.stalls = [(burst_t0, span, sum(len(d) for d, _ in burst))]
+    drive(chunks, Decoder(linter=Linter()), stats)
+    peak = stats.load_peak[0]
+    # No window over the stall: the busiest second is no busier than the whole capture's average (which
+    # the bytes do support: they came within its time).
+    assert peak == stats.bus_load < 0.3 and stats.as_dict()["reader_stalls"][0]["t"] == burst_t0
