@@ -6,7 +6,7 @@ import math
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Iterator
 
 from .framing import FrameDecoder
 from .pipeline import Sink, Step
@@ -54,8 +54,9 @@ MIN_CLUSTER = 0.10    # share of bytes that must sit back to back at the estimat
 FULL_CLUSTER_BYTES = 256  # back-to-back bytes for full confidence
 
 
-def _spacings(chunks: Iterable[tuple[bytes, float | None]]) -> list[tuple[float, int]]:
-    out: list[tuple[float, int]] = []
+def _neighbours(chunks: Iterable[tuple[bytes, float | None]]) -> Iterator[tuple[float, int, int]]:
+    """``(seconds between, bytes of the first, bytes of the second)`` of each two timed chunks in a row
+    whose times increase (a clock that went back, or equal stamps, say nothing of the rate)."""
     prev: tuple[int, float] | None = None
     for data, t in chunks:
         if not data:
@@ -64,9 +65,12 @@ def _spacings(chunks: Iterable[tuple[bytes, float | None]]) -> list[tuple[float,
             prev = None
             continue
         if prev is not None and t > prev[1]:
-            out.append(((t - prev[1]) / prev[0], prev[0]))
+            yield t - prev[1], prev[0], len(data)
         prev = (len(data), t)
-    return out
+
+
+def _spacings(chunks: Iterable[tuple[bytes, float | None]]) -> list[tuple[float, int]]:
+    return [(gap / n, n) for gap, n, _ in _neighbours(chunks)]
 
 
 def estimate_from_spacings(samples: Iterable[tuple[float, int]], rates: Iterable[int] = BAUD_RATES) -> BaudEstimate:
@@ -185,18 +189,7 @@ class RateFit:
 def rate_fit(chunks: Iterable[tuple[bytes, float | None]]) -> RateFit:
     """The :class:`RateFit` of timed chunks (``t`` in seconds). Neighbours whose times do not increase
     (a clock that went back, or equal stamps) are left out: they say nothing of the rate."""
-    spans: list[tuple[float, int]] = []
-    prev: tuple[int, float] | None = None
-    for data, t in chunks:
-        if not data:
-            continue
-        if t is None:
-            prev = None
-            continue
-        if prev is not None and t > prev[1]:
-            spans.append((t - prev[1], min(prev[0], len(data))))
-        prev = (len(data), t)
-    return RateFit(tuple(spans))
+    return RateFit(tuple((gap, min(n, m)) for gap, n, m in _neighbours(chunks)))
 
 
 # ---- 1. stretches without a valid frame (F007, BaudWatch) ---------------------------------------
