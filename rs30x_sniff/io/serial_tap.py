@@ -151,9 +151,10 @@ class SerialTap:
     def _run(self) -> None:
         ser = self._serial
         put = self.queue.put
-        if hasattr(signal, "pthread_sigmask"):
+        if hasattr(signal, "pthread_sigmask") and threading.current_thread() is not threading.main_thread():
             # Ctrl-C and SIGTERM go to the main thread, whose handler stops the capture: delivered
-            # there, they also wake it from its wait at once.
+            # there, they also wake it from its wait at once. (Never blocked in the main thread itself:
+            # the mask would stay, and every process it starts would inherit it.)
             signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             while not self._stop.is_set():
