@@ -157,10 +157,16 @@ class Linter:
         new = self._new = []
         if self.timed is None:
             self._setup(True)  # only timestamps have seams
-        self.missing = None
-        self.prev = None
         for fn in self._on["seam"]:
             fn(self, seam)
+        # Then everything the rules know of the bus starts afresh, as for a capture of its own: the
+        # servos' shadows (torque, positions, limits) and each rule's memory. The IDs seen stay (Q008).
+        self.missing = None
+        self.prev = None
+        self.servos = {}
+        self._states = {r.code: r.state() for r in self.rules if r.state is not None}
+        self._setup(True)
+        self._plans = {}  # their target checks are bound to the old states
         return new
 
     def close(self) -> list[Finding]:

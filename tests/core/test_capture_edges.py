@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import json
+import re
 
 from rs30x_sniff.bus import MISSING, UNKNOWN, UNSEEN, UNSOLICITED
 from rs30x_sniff.cli import main
 from rs30x_sniff.events import CAPTURE_END, CAPTURE_START, TRUNCATED
-from rs30x_sniff.io.captures import write_capture
+from rs30x_sniff.io.captures import read_capture, write_capture
 from rs30x_sniff.lint import Linter
 from rs30x_sniff.pipeline import Decoder, Sink, drive
 from rs30x_sniff.stats import CaptureStats
@@ -162,3 +163,26 @@ def test_no_load_is_measured_over_a_stall_of_the_reader():
     # No window over the stall: the busiest second is no busier than the whole capture's average (which
     # the bytes do support: they came within its time).
     assert peak == stats.bus_load < 0.3 and stats.as_dict()["reader_stalls"][0]["t"] == burst_t0
+
+
+def test_the_bundled_session_joined_to_itself_lints_as_its_two_halves(tmp_path, capsys):
+    from tests.conftest import CAPTURES
+
+    session = CAPTURES / "session-mixed.thex"
+    joined = tmp_path / "twice.thex"
+    joined.write_bytes(session.read_bytes() * 2)
+    size = len(b"".join(d for d, _ in read_capture(str(session), "timestamped", warn=None)))
+
+    def findings(path):
+        main(["lint", str(path), "--format", "json", "--isolated", "--fail-on", "never"])
+        return [(f["offset"], f["code"], f["message"]) for f in json.loads(capsys.readouterr().out)]
+
+    one = findings(session)
+    two = findings(joined)
+    seam = [f for f in two if f[1] == "F010"]
+    assert len(seam) == 1 and seam[0][0] == size
+    # Each half says what the session says alone: no shadow (torque, positions, a pending baud change)
+    # and no rule's memory crosses the seam.
+    # (Messages that name another packet's offset, "@N", name it in the second half's numbering.)
+    shifted = [(o + size, c, re.sub(r"@(\d+)", lambda m: f"@{int(m.group(1)) + size}", msg)) for o, c, msg in one]
+    assert sorted(f for f in two if f[1] != "F010") == sorted(one + shifted)
