@@ -30,10 +30,8 @@ def records_of(name: str, baud: int = 115200, linter=None):
 
 
 def _linter(baud: int = 115200):
-    try:
-        from rs30x_sniff.lint import LintConfig, Linter
-    except ImportError:
-        return None
+    from rs30x_sniff.lint import LintConfig, Linter  # a linter that fails to import fails these tests
+
     return Linter(LintConfig(baud=baud))
 
 
@@ -154,13 +152,11 @@ def test_collision_ands_the_overlapping_bytes():
     assert len(data) == 26 and data[:3] == b"\xfd\xdf\x01" and data[3] == 0
 
 
-# ---- with the linter (issue 3), once it exists -------------------------------------------------
+# ---- with the linter ---------------------------------------------------------------------------
 @pytest.mark.parametrize("baud", [115200, 230400])
 @pytest.mark.parametrize("name", [n for n, s in SCENARIOS.items() if not s.expects])
 def test_healthy_scenarios_lint_clean(name, baud):
     linter = _linter(baud)
-    if linter is None:
-        pytest.skip("rs30x_sniff.lint is not there yet")
     records_of(name, baud, linter=linter)
     assert [f"{f.code} {f.message}" for f in linter.findings] == []
 
@@ -168,8 +164,6 @@ def test_healthy_scenarios_lint_clean(name, baud):
 @pytest.mark.parametrize("name", [n for n, s in SCENARIOS.items() if s.expects])
 def test_fault_scenarios_produce_their_findings(name):
     linter = _linter()
-    if linter is None:
-        pytest.skip("rs30x_sniff.lint is not there yet")
     records_of(name, linter=linter)
     codes = {f.code for f in linter.findings}
     assert set(SCENARIOS[name].expects) <= codes
