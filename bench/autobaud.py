@@ -13,10 +13,10 @@ import argparse
 import gc
 import time
 
-from rs30x_sniff.autobaud import scan
+from rs30x_sniff.decode.autobaud import scan
 from rs30x_sniff.sim import run
 from rs30x_sniff.sim.wire import SimWire
-from rs30x_sniff.wire import BAUD_RATES
+from rs30x_sniff.protocol.wire import BAUD_RATES
 
 START = 2.0  # seconds into the session the scan starts: the bus is busy by then
 

@@ -27,10 +27,10 @@ from mcap.reader import make_reader  # noqa: E402
 from mcap.writer import CompressionType, Writer  # noqa: E402
 
 from rs30x_sniff.commands.convert import CHUNK_SIZE  # noqa: E402
-from rs30x_sniff.io.mcap_sink import McapSink  # noqa: E402
-from rs30x_sniff.pipeline import drive  # noqa: E402
+from rs30x_sniff.sinks.mcap.writer import McapSink  # noqa: E402
+from rs30x_sniff.sinks.pipeline import drive  # noqa: E402
 from rs30x_sniff.lint import Linter  # noqa: E402
-from rs30x_sniff.pipeline import Decoder  # noqa: E402
+from rs30x_sniff.decode.decoder import Decoder  # noqa: E402
 
 
 def run_convert(frames: list, lint: bool, columnar: bool = True) -> tuple[float, int, bytes]:

@@ -3,9 +3,9 @@
 Run: python bench/decode.py [--frames N]
 Target (issues 2, 12): the full decode reaches at least 0.5 of the bare loop's frames/s. Two paths:
 the record path (a Record per frame, as a live port is decoded) and the columnar path files take
-(Blocks, values decoded as numpy columns: rs30x_sniff.blocks), each fed as 4 KiB blocks without
+(Blocks, values decoded as numpy columns: rs30x_sniff.decode.blocks), each fed as 4 KiB blocks without
 timestamps and as one timestamped chunk per frame. The columnar path runs as the commands run it:
-drive() (rs30x_sniff.pipeline.Pipeline) groups the chunks, about 64 KiB at a time (GROUP_BYTES), and
+drive() (rs30x_sniff.sinks.pipeline.Pipeline) groups the chunks, about 64 KiB at a time (GROUP_BYTES), and
 hands each step to a sink that counts.
 """
 
@@ -23,8 +23,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from traffic import bench_inputs  # noqa: E402
 
-from rs30x_sniff.blocks import Block  # noqa: E402
-from rs30x_sniff.pipeline import Decoder, Sink, drive  # noqa: E402
+from rs30x_sniff.decode.blocks import Block  # noqa: E402
+from rs30x_sniff.decode.decoder import Decoder  # noqa: E402
+from rs30x_sniff.sinks.pipeline import Sink, drive
 
 
 class Count(Sink):

@@ -39,10 +39,10 @@ sys.path.insert(0, str(HERE.parent))
 
 from live import TICK, cpu_seconds  # noqa: E402
 
-from rs30x_sniff.io.mcap_source import read_mcap_raw  # noqa: E402
+from rs30x_sniff.sources.mcap_reader import read_mcap_raw  # noqa: E402
 from rs30x_sniff.sim import run  # noqa: E402
 from rs30x_sniff.sim.port import play  # noqa: E402
-from rs30x_sniff.wire import byte_time  # noqa: E402
+from rs30x_sniff.protocol.wire import byte_time  # noqa: E402
 
 SERVER_LINE = re.compile(r"Foxglove server on (ws://\S+?);")
 LAYOUT_TOPICS = re.compile(r"/rs30x/servo/\d+/state|/rs30x/diagnostics")
@@ -153,10 +153,11 @@ def drive_cpu(chunks: list, baud: int, mode: str) -> tuple[float, int]:
     import gc
     import io
 
-    from rs30x_sniff.io.foxglove_sink import FoxgloveSink
-    from rs30x_sniff.io.mcap_sink import McapSink
+    from rs30x_sniff.sinks.mcap.foxglove import FoxgloveSink
+    from rs30x_sniff.sinks.mcap.writer import McapSink
     from rs30x_sniff.lint import Linter
-    from rs30x_sniff.pipeline import Decoder, Pipeline
+    from rs30x_sniff.decode.decoder import Decoder
+    from rs30x_sniff.sinks.pipeline import Pipeline
 
     # decoder: no sink at all; serve: the server alone (`serve PORT`), with no client.
     sinks = [] if mode in ("decoder", "serve") else [McapSink(io.BytesIO(), source="bench", baud=baud,

@@ -37,10 +37,11 @@ from mcap.reader import make_reader  # noqa: E402
 from mcap.writer import CompressionType, Writer  # noqa: E402
 
 from rs30x_sniff.commands.convert import CHUNK_SIZE  # noqa: E402
-from rs30x_sniff.io.foxglove_sink import FoxgloveSink  # noqa: E402
-from rs30x_sniff.io.mcap_sink import McapSink  # noqa: E402
+from rs30x_sniff.sinks.mcap.foxglove import FoxgloveSink  # noqa: E402
+from rs30x_sniff.sinks.mcap.writer import McapSink  # noqa: E402
 from rs30x_sniff.lint import Linter  # noqa: E402
-from rs30x_sniff.pipeline import Decoder, drive  # noqa: E402
+from rs30x_sniff.decode.decoder import Decoder  # noqa: E402
+from rs30x_sniff.sinks.pipeline import drive
 
 
 def plan_of(frames: list) -> tuple[list, dict]:
@@ -74,7 +75,7 @@ def bare_writer(plan: list, channels: dict, path: str) -> float:
 def sdk_as_mcap_sink(plan: list, channels: dict, path: str) -> float:
     """The SDK's writer with McapSink's options and calls, on the same messages (its own chunk cuts by
     size only: the plan's log times are those of a capture, so time cuts would be the same)."""
-    from rs30x_sniff.io.mcap_sink import _SdkFile
+    from rs30x_sniff.sinks.mcap.writer import _SdkFile
 
     gc.collect()
     t0 = time.perf_counter()

@@ -21,7 +21,8 @@ from decode import Count, bare_loop, best_of  # noqa: E402
 from traffic import bench_inputs  # noqa: E402
 
 from rs30x_sniff.lint import LintConfig, Linter  # noqa: E402
-from rs30x_sniff.pipeline import Decoder, drive  # noqa: E402
+from rs30x_sniff.decode.decoder import Decoder  # noqa: E402
+from rs30x_sniff.sinks.pipeline import drive
 
 
 def decode_only(chunks, columnar: bool = False) -> int:

@@ -23,10 +23,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rs30x_sniff.io.mcap_source import read_mcap_raw  # noqa: E402
+from rs30x_sniff.sources.mcap_reader import read_mcap_raw  # noqa: E402
 from rs30x_sniff.sim import run  # noqa: E402
 from rs30x_sniff.sim.port import play  # noqa: E402
-from rs30x_sniff.wire import byte_time  # noqa: E402
+from rs30x_sniff.protocol.wire import byte_time  # noqa: E402
 
 TICK = os.sysconf("SC_CLK_TCK")
 

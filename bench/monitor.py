@@ -5,7 +5,7 @@ Target (issue 12): a 1,000,000-frame capture is fully loaded in at most 1.2 time
 `rs30x-sniff lint` takes to decode and lint it (the columnar path), and the store stays under 400 MB.
 The monitor runs headless (Textual's test driver) at 160x48; "open" ends when every record is in
 the store and on the timeline. The record path's decode + lint is shown beside it, for reference.
-A capture this big is read by a second process (rs30x_sniff.io.read_ahead) while the monitor decodes
+A capture this big is read by a second process (rs30x_sniff.sources.read_ahead) while the monitor decodes
 it; `lint` reads it itself. Both processes' peak memory is shown.
 """
 
@@ -26,9 +26,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from decode import Count  # noqa: E402
 from traffic import hexapod_frames  # noqa: E402
 
-from rs30x_sniff.io.captures import read_capture, write_capture  # noqa: E402
+from rs30x_sniff.sources.captures import read_capture, write_capture  # noqa: E402
 from rs30x_sniff.lint import Linter  # noqa: E402
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, drive  # noqa: E402
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder  # noqa: E402
+from rs30x_sniff.sinks.pipeline import drive
 from rs30x_sniff.tui.app import make_app  # noqa: E402
 from rs30x_sniff.tui.sources import FileSource  # noqa: E402
 
@@ -86,7 +87,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.open:
         t_open, records, memory = asyncio.run(open_in_monitor(args.open, args.limit, args.pilot_polls))
-        # RUSAGE_CHILDREN: the process that read the file (rs30x_sniff.io.read_ahead), reaped by now.
+        # RUSAGE_CHILDREN: the process that read the file (rs30x_sniff.sources.read_ahead), reaped by now.
         print(json.dumps({"t_open": t_open, "records": records, "memory": memory, "rss": rss_mb(),
                           "reader_rss": rss_mb(resource.RUSAGE_CHILDREN)}))
         return

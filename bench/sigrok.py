@@ -20,11 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rs30x_sniff.io.captures import read_capture
-from rs30x_sniff.io.uart import encode
-from rs30x_sniff.pipeline import Decoder, drive
+from rs30x_sniff.sources.captures import read_capture
+from rs30x_sniff.sources.uart import encode
+from rs30x_sniff.decode.decoder import Decoder
+from rs30x_sniff.sinks.pipeline import drive
 from rs30x_sniff.sim import run
-from rs30x_sniff.wire import BAUD_RATES
+from rs30x_sniff.protocol.wire import BAUD_RATES
 
 CHUNK = 4 << 20  # bytes per logic-1-N file, as sigrok-cli writes them
 

@@ -19,7 +19,7 @@ sys.path.insert(0, str(HERE))
 
 from traffic import hexapod_frames  # noqa: E402
 
-from rs30x_sniff.io.captures import write_capture  # noqa: E402
+from rs30x_sniff.sources.captures import write_capture  # noqa: E402
 
 
 def main() -> None:

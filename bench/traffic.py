@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import random
 
-from rs30x_sniff.wire import byte_time, encode_long, encode_return, encode_short
+from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_return, encode_short
 
 SERVOS = 18
 POLLS_PER_CYCLE = 3  # 42-59 polls fitted into each 20 ms cycle at 115200 baud

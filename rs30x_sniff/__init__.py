@@ -1,10 +1,11 @@
 """rs30x-sniff: protocol analyzer and bus logger for the Futaba RS30x command-type servo bus."""
 
-from .bus import BusTracker, Record, ServoState
-from .events import Ack, Event, Garbage, LongPacket, LongRecord, Nack, ReturnPacket, ShortPacket
-from .framing import FrameDecoder, decode_all
-from .memmap import Field, Model, ModelError, ModelRegistry, Register, default_registry, load_model
-from .pipeline import DecodeOptions, Decoder, decode_records
+from .decode.pairing import BusTracker, Record, ServoState
+from .protocol.events import Ack, Event, Garbage, LongPacket, LongRecord, Nack, ReturnPacket, ShortPacket
+from .decode.framing import FrameDecoder, decode_all
+from .protocol.memmap import Field, Model, ModelError, ModelRegistry, Register, default_registry, load_model
+from .decode.decoder import DecodeOptions, Decoder
+from .sinks.pipeline import decode_records
 from .lint import RULES, Finding, LintConfig, Linter
 
 __version__ = "0.1.0"

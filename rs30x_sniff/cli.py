@@ -15,8 +15,8 @@ from typing import Any
 
 from . import __version__
 from .commands.common import CliError
-from .io.captures import CaptureError
-from .memmap import ModelError
+from .sources.captures import CaptureError
+from .protocol.memmap import ModelError
 
 # Subcommands, in the order `--help` lists them; each is a module rs30x_sniff.commands.<name>
 # with add_parser(subparsers) and run(args) -> exit code.

@@ -8,10 +8,10 @@ import re
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .bus import Record
-from .events import LongPacket, ReturnPacket, ShortPacket
-from .memmap import Model, ModelRegistry, Register, default_registry
-from .render import direction, kind_word, summary
+from .decode.pairing import Record
+from .protocol.events import LongPacket, ReturnPacket, ShortPacket
+from .protocol.memmap import Model, ModelRegistry, Register, default_registry
+from .render.records import direction, kind_word, summary
 
 SEVERITIES = ("info", "warning", "error")
 SEVERITY_RANK = {name: i for i, name in enumerate(SEVERITIES)}

@@ -8,16 +8,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from .bus import DEFAULT_REPLY_TIMEOUT
-from .framing import DEFAULT_GAP_BYTES
+from .decode.pairing import DEFAULT_REPLY_TIMEOUT
+from .decode.framing import DEFAULT_GAP_BYTES
 from .lint.config import FAIL_ON, FORMATS, ConfigError, LintConfig
 from .lint.config import resolve as resolve_rules
 from .lint.registry import SEVERITIES
-from .memmap import ModelError, ModelRegistry, default_registry
-from .pipeline import DecodeOptions
-from .timebase import TIME_REFS
-from .timeunit import UNITS as TIME_UNITS
-from .wire import BAUD_RATES, DEFAULT_BAUD
+from .protocol.memmap import ModelError, ModelRegistry, default_registry
+from .decode.decoder import DecodeOptions
+from .sources.timebase import TIME_REFS
+from .sources.timeunit import UNITS as TIME_UNITS
+from .protocol.wire import BAUD_RATES, DEFAULT_BAUD
 
 CONFIG_NAME = "rs30x-sniff.toml"
 TABLE = "tool.rs30x-sniff"
@@ -264,8 +264,8 @@ class Settings:
     models: Mapping[int, str] = field(default_factory=dict)
     gap_bytes: float | None = DEFAULT_GAP_BYTES   # None: gap detection off
     reply_timeout: float = DEFAULT_REPLY_TIMEOUT
-    time_ref: str | None = None                    # None: told by the content (rs30x_sniff.timebase)
-    time_unit: str | None = None                   # None: told by the content (rs30x_sniff.timeunit)
+    time_ref: str | None = None                    # None: told by the content (rs30x_sniff.sources.timebase)
+    time_unit: str | None = None                   # None: told by the content (rs30x_sniff.sources.timeunit)
     channel: str | None = None                     # a logic capture's channel (name or index); None: its reader picks
     baud_auto: bool = False                        # --baud auto: a port is scanned, a capture's times tell
     lint: Mapping[str, Any] = field(default_factory=dict)  # select, ignore, severity, fail_on, thresholds

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from rs30x_sniff.framing import FrameDecoder
-from rs30x_sniff.wire import byte_time
+from rs30x_sniff.decode.framing import FrameDecoder
+from rs30x_sniff.protocol.wire import byte_time
 
 ROOT = Path(__file__).resolve().parent.parent
 CAPTURES = ROOT / "captures"

@@ -10,13 +10,15 @@ import stat
 import sys
 from typing import Any, Iterator
 
-from ..io import foreign
-from ..io.captures import MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture
-from ..io.inputs import read_input
-from ..timebase import TIME_REFS
-from ..timeunit import UNITS as TIME_UNITS
-from ..wire import DEFAULT_BAUD
-from ..pipeline import Sink, Step
+from ..sources import foreign
+from ..sources.captures import (
+    MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture)
+from ..sources.inputs import read_input
+from ..sources.timebase import TIME_REFS
+from ..sources.timeunit import UNITS as TIME_UNITS
+from ..protocol.wire import DEFAULT_BAUD
+from ..sinks.pipeline import Sink
+from ..decode.decoder import Step
 from ..settings import COMMAND_LINE, DEFAULTS, Settings, SettingsError, find_config, load_config, resolve
 
 
@@ -181,8 +183,8 @@ def _probe_layer(path: str, other: foreign.ForeignFormat, options: dict[str, Any
 
 
 def _mcap_layer(path: str) -> dict[str, Any]:
-    from ..io.mcap_source import McapRawReader  # only MCAP inputs need the mcap library
-    from ..memmap import ModelError, default_registry
+    from ..sources.mcap_reader import McapRawReader  # only MCAP inputs need the mcap library
+    from ..protocol.memmap import ModelError, default_registry
 
     reader = McapRawReader(path, warn=None)
     try:
@@ -208,7 +210,7 @@ def _mcap_layer(path: str) -> dict[str, Any]:
 def _timestamps_layer(path: str, time_unit: str | None = None) -> dict[str, Any]:
     """The rate a timestamped capture's back-to-back chunks show, the rates its spacing rules out, and
     the unit of its times when the content tells one other than seconds (its first lines are read)."""
-    from ..autobaud import estimate_baud, estimate_from_spacings, rate_fit
+    from ..decode.autobaud import estimate_baud, estimate_from_spacings, rate_fit
 
     sample = read_capture(path, TIMESTAMPED, warn=None, options={"time_unit": time_unit, "locate": False})
     try:
@@ -292,7 +294,7 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
 def _contradicted(path: str | None, settings: Settings, estimate: Any, fit: Any) -> Settings:
     """``settings`` with ``timing_unsupported`` set, and a warning on stderr, when the capture's timestamps
     contradict the rate it is decoded at: chunks would overlap at it, or back-to-back bytes name another."""
-    from ..autobaud import contradicts
+    from ..decode.autobaud import contradicts
 
     baud = settings.baud
     if fit is not None and fit.rules_out(baud):
@@ -320,14 +322,14 @@ def _contradicted(path: str | None, settings: Settings, estimate: Any, fit: Any)
 def is_port_path(path: str, *, unplugged: bool = False) -> bool:
     """A serial port (a device or a pyserial URL) rather than a capture file; with ``unplugged``, a /dev
     path that does not exist counts too (an adapter not plugged in: the monitor says so as a port)."""
-    from ..io.serial_tap import is_port  # no pyserial import unless INPUT is a port
+    from ..sources.serial_tap import is_port
 
     return is_port(path) or (unplugged and path.startswith("/dev/") and not os.path.exists(path))
 
 
 def _scan(port: str, settings: Settings) -> Settings:
     """``--baud auto`` on a port: listen at each rate of table 4.7 and take the one with valid frames."""
-    from ..io.serial_tap import scan_port
+    from ..sources.serial_tap import scan_port
 
     result = scan_port(port)
     if not result:
@@ -342,7 +344,7 @@ class BaudWatchWarning(Sink):
     frames (a baud change written to the servos mid-session is common during setup)."""
 
     def __init__(self, port: str, baud: int) -> None:
-        from ..autobaud import BaudWatch
+        from ..decode.autobaud import BaudWatch
 
         self.port = port
         self.watch = BaudWatch(baud)
@@ -406,7 +408,7 @@ def open_input(path: str, fmt: str | None, settings: Settings, *, duration: floa
     error in a text capture names its line either way.
     """
     if fmt is None and is_port_path(path):
-        from ..io.serial_tap import LiveSource
+        from ..sources.serial_tap import LiveSource
 
         check_positive("--duration", duration)
         return LiveSource(path, settings.baud, duration=duration).start()

@@ -9,10 +9,11 @@ import os
 import sys
 from typing import IO, Any, Iterator
 
-from ..io.captures import Chunk, detect_format
-from ..pipeline import Decoder, drive
+from ..sources.captures import Chunk, detect_format
+from ..decode.decoder import Decoder
+from ..sinks.pipeline import drive
 from ..settings import Settings
-from ..sinks import ProgressSink
+from ..sinks.lines import ProgressSink
 from .common import (CliError, add_decode_options, add_lint_options, capture_start_time, is_live, make_linter, open_input,
                      settings_for)
 from .outputs import STDOUT, check_output, output_binary, report_end
@@ -74,7 +75,7 @@ def open_mcap_sink(path: str | IO[bytes], source: str, settings: Settings, *, ti
                    start_time: float | None = None, **extra: str) -> Any:
     """The MCAP sink of a converted (or simulated) capture, with its settings in the metadata; ``path``
     may be a file object (the writer only appends, so stdout will do)."""
-    from ..io.mcap_sink import McapSink
+    from ..sinks.mcap.writer import McapSink
 
     try:
         return McapSink(path, source=source, baud=settings.baud, time_base="capture" if timed else "synthetic",

@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 
 from ..filters import FilterError, parse_filter
-from ..pipeline import Decoder, drive
-from ..sinks import JsonlSink, TextSink
+from ..decode.decoder import Decoder
+from ..sinks.pipeline import drive
+from ..sinks.lines import JsonlSink, TextSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, is_live,
                      is_whole_file, live_sinks, make_linter, no_data, open_input, settings_for)
 from .outputs import add_output_options, output_stream

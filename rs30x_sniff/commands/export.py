@@ -6,8 +6,8 @@ import argparse
 import sys
 from typing import Iterator
 
-from ..io.captures import BINARY, HEX, MCAP, TIMESTAMPED, Chunk, detect_format, format_for_output, write_capture
-from ..io.tables import KINDS, TABLE_FORMATS, table_format
+from ..sources.captures import BINARY, HEX, MCAP, TIMESTAMPED, Chunk, detect_format, format_for_output, write_capture
+from ..sinks.tables import KINDS, TABLE_FORMATS, table_format
 from .common import CliError, add_decode_options, add_lint_options
 from .outputs import STDOUT, check_output, output_path, write_stream
 
@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
 
         args.of = args.table
         return table.run(args)
-    from ..io.mcap_source import McapRawReader
+    from ..sources.mcap_reader import McapRawReader
 
     if detect_format(args.input) != MCAP:
         raise CliError(f"{args.input}: not an MCAP file (export reads MCAP logs; convert makes them)")

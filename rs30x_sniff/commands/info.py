@@ -6,8 +6,9 @@ import argparse
 import json
 from typing import Any
 
-from ..pipeline import Decoder, drive
-from ..stats import CaptureStats
+from ..decode.decoder import Decoder
+from ..sinks.pipeline import drive
+from ..sinks.stats import CaptureStats
 from .common import (add_decode_options, add_lint_options, add_live_options, capture_start_time, check_positive, is_live,
                      live_sinks, make_linter, no_data,
                      open_input, settings_for)

@@ -9,14 +9,15 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, Callable
 
-from ..io.captures import CaptureError
+from ..sources.captures import CaptureError
 from ..lint.config import FAIL_ON, FORMATS
 from ..lint.linter import Linter
 from ..lint.report import FileResult, fails, write_report
-from ..memmap import ModelError
-from ..pipeline import Decoder, drive
+from ..protocol.memmap import ModelError
+from ..decode.decoder import Decoder
+from ..sinks.pipeline import drive
 from ..settings import Settings
-from ..sinks import FindingsSink, ProgressSink
+from ..sinks.lines import FindingsSink, ProgressSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, config_layer,
                      is_live, lint_config, live_sinks, no_data, open_input, settings_for)
 from .outputs import add_output_options, check_output, output_stream

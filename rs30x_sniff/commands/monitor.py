@@ -6,7 +6,7 @@ import argparse
 import os
 from typing import Any
 
-from ..pipeline import DecodeOptions
+from ..decode.decoder import DecodeOptions
 from ..settings import Settings
 from .common import (CliError, add_decode_options, add_lint_options, check_positive, input_options, is_port_path, lint_config,
                      settings_for)

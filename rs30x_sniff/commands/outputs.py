@@ -13,7 +13,7 @@ import tempfile
 from contextlib import contextmanager
 from typing import IO, Iterable, Iterator
 
-from ..io.captures import BINARY, TIMESTAMPED
+from ..sources.captures import BINARY, TIMESTAMPED
 from .common import CliError
 
 STDOUT = "-"

@@ -8,11 +8,12 @@ import time
 from pathlib import Path
 from typing import IO
 
-from ..io.mcap_sink import McapSink
-from ..io.serial_tap import LOST, STOPPED, LiveSource, SerialTap
-from ..pipeline import Decoder, Sink, Step, drive
-from ..sinks import TextSink
-from ..stats import RecentLoad
+from ..sinks.mcap.writer import McapSink
+from ..sources.serial_tap import LOST, STOPPED, LiveSource, SerialTap
+from ..decode.decoder import Decoder, Step
+from ..sinks.pipeline import Sink, drive
+from ..sinks.lines import TextSink
+from ..sinks.stats import RecentLoad
 from .common import (CliError, add_decode_options, add_lint_selection, check_positive, live_sinks, make_linter,
                      no_data, settings_for)
 from .outputs import STDOUT, check_output, write_error

@@ -9,14 +9,15 @@ import threading
 import time
 from typing import Any
 
-from ..pipeline import Decoder, Pipeline
+from ..decode.decoder import Decoder
+from ..sinks.pipeline import Pipeline
 from .common import (CliError, add_decode_options, add_lint_options, check_positive, is_port_path, live_sinks,
                      make_linter, settings_for)
 
 
 def foxglove_address(text: str) -> tuple[str, int]:
     """argparse type of ``--foxglove [HOST:]PORT``."""
-    from ..io.foxglove_sink import parse_address
+    from ..sinks.mcap.foxglove import parse_address
 
     try:
         return parse_address(text)
@@ -65,7 +66,7 @@ def start_foxglove(address: tuple[str, int] | None, *, source: str, baud: int,
     anchors times that count from 0 to the wall clock (:func:`live_start_time`)."""
     if address is None:
         return None
-    from ..io.foxglove_sink import FoxgloveError, FoxgloveSink
+    from ..sinks.mcap.foxglove import FoxgloveError, FoxgloveSink
 
     _route_sdk_log()
 

@@ -6,8 +6,8 @@ import argparse
 import sys
 from typing import IO
 
-from ..io.captures import FORMATS, MCAP, format_for_output, write_capture
-from ..wire import BAUD_RATES, DEFAULT_BAUD
+from ..sources.captures import FORMATS, MCAP, format_for_output, write_capture
+from ..protocol.wire import BAUD_RATES, DEFAULT_BAUD
 from .common import CliError, check_positive
 from .outputs import STDOUT, output_binary, output_path, write_stream
 
@@ -88,7 +88,8 @@ def write_file(path: str | IO[bytes], chunks, fmt: str, baud: int) -> int:
     error is raised as it is: :func:`output_path` names the output and says what became of it."""
     if fmt == MCAP:
         from ..lint import Linter
-        from ..pipeline import Decoder, drive
+        from ..decode.decoder import Decoder
+        from ..sinks.pipeline import drive
         from ..settings import resolve
         from .convert import open_mcap_sink
 

@@ -5,11 +5,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..io.captures import HEX, TIMESTAMPED
-from ..io.tables import CSV, KINDS, PARQUET, SINKS, TABLE_FORMATS, MissingPyarrow, open_table, require_pyarrow, \
-    table_format
-from ..memmap import default_registry
-from ..pipeline import Decoder, drive
+from ..sources.captures import HEX, TIMESTAMPED
+from ..sinks.tables import (
+    CSV, KINDS, PARQUET, SINKS, TABLE_FORMATS, MissingPyarrow, open_table, require_pyarrow, table_format)
+from ..protocol.memmap import default_registry
+from ..decode.decoder import Decoder
+from ..sinks.pipeline import drive
 from .common import CliError, add_decode_options, add_lint_options, is_live, make_linter, no_data, open_input, settings_for
 from .outputs import STDOUT, check_output, output_path, report_end
 

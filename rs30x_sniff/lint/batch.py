@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from ..frame_runs import LONG, RETURN, SHORT
-from ..wire import BROADCAST_ID, COMMAND_BITS
-from .direction import decide as decide_senders
+from ..decode.frame_runs import LONG, RETURN, SHORT
+from ..protocol.wire import BROADCAST_ID, COMMAND_BITS
+from .rules.direction import decide as decide_senders
 
 # Pure in the packet's header (and model, and request header): checked once per distinct header.
 HEADER = frozenset({"P001", "P002", "P003", "P004", "P005", "P006", "P007", "P010", "P011", "P012",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..wire import DEFAULT_BAUD
+from ..protocol.wire import DEFAULT_BAUD
 from .registry import RULES, SEVERITIES
 
 FAIL_ON = ("error", "warning", "info", "never")

@@ -5,8 +5,9 @@ from __future__ import annotations
 from types import MethodType
 from typing import Any, Callable
 
-from ..bus import MISSING, Record
-from ..wire import BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, byte_time
+from ..decode.pairing import MISSING, Record
+from ..protocol.wire import (
+    BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, byte_time)
 from .batch import quiet_block
 from .config import LintConfig
 from .registry import KINDS, RULES, WHEN, Finding, Rule
@@ -143,7 +144,7 @@ class Linter:
         return new
 
     def feed_block(self, blk: Any) -> None:
-        """Check a Block's rows (rs30x_sniff.blocks), in wire order, as if fed one by one: on the columns
+        """Check a Block's rows (rs30x_sniff.decode.blocks), in wire order, as if fed one by one: on the columns
         when no rule has anything to say of them (rs30x_sniff.lint.batch), else record by record."""
         if quiet_block(self, blk):
             return
@@ -152,7 +153,7 @@ class Linter:
             feed(rec)
 
     def seam(self, seam: Any) -> list[Finding]:
-        """A seam of the capture's clock (rs30x_sniff.framing.Seam) before the next record: nothing before
+        """A seam of the capture's clock (rs30x_sniff.decode.framing.Seam) before the next record: nothing before
         it is compared in time with anything after it (the rules of kind "seam" forget their times)."""
         new = self._new = []
         if self.timed is None:

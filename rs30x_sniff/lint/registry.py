@@ -6,8 +6,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
-from ..bus import ANSWERED, PAIRED
-from ..wire import REQUEST_HEADER, checksum
+from ..decode.pairing import ANSWERED, PAIRED
+from ..protocol.wire import REQUEST_HEADER, checksum
 
 SEVERITIES = ("info", "warning", "error")
 SEVERITY_RANK = {"info": 1, "warning": 2, "error": 3}
@@ -26,7 +26,7 @@ FAMILIES = {"F": "Framing", "P": "Packet structure", "M": "Memory map", "B": "Bu
 #                                             new IDs (at once, table 4.6 No. 4): moves lists (old, new) pairs,
 #                                             and the Shadows have moved; a rule moves its own per-servo memory
 #   seam                                      check(lint, seam) where the capture's clock restarts or resumes
-#                                             (rs30x_sniff.framing.Seam): a rule forgets the times it holds
+#                                             (rs30x_sniff.decode.framing.Seam): a rule forgets the times it holds
 #   close                                     check(lint) at end of input
 # A rule declared with state= keeps its own memory: the linter makes one state object per run by calling
 # that factory, and passes it first to every call of the rule's checks: check(state, lint, rec, ev).

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..memmap import Model
+from ..protocol.memmap import Model
 
 # Registers the sequence rules follow, and the Shadow attribute each one lands in.
 _TRACKED = {

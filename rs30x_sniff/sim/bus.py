@@ -5,9 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Iterable
 
-from ..events import LongPacket, ShortPacket
-from ..framing import FrameDecoder
-from ..wire import DEFAULT_BAUD, byte_time
+from ..protocol.events import LongPacket, ShortPacket
+from ..decode.framing import FrameDecoder
+from ..protocol.wire import DEFAULT_BAUD, byte_time
 from .servo import Servo
 
 Chunk = tuple[bytes, float]

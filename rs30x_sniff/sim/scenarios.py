@@ -7,17 +7,9 @@ import random
 from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
-from ..wire import (
-    BAUD_RATES,
-    FLAG_REBOOT,
-    FLAG_WRITE_FLASH,
-    RETURN_ACK,
-    RETURN_MODE_RANGES,
-    encode_command,
-    encode_long,
-    encode_read,
-    encode_short,
-)
+from ..protocol.wire import (
+    BAUD_RATES, FLAG_REBOOT, FLAG_WRITE_FLASH, RETURN_ACK, RETURN_MODE_RANGES, encode_command, encode_long,
+    encode_read, encode_short)
 from .bus import Chunk, SimBus
 from .servo import RETURN_DELAY_STEP, Physics, Servo
 

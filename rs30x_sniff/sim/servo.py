@@ -6,20 +6,11 @@ import math
 import random
 from dataclasses import dataclass
 
-from ..events import LongPacket, ShortPacket
-from ..memmap import Model, default_registry
-from ..wire import (
-    ACK,
-    BAUD_RATES,
-    BROADCAST_ID,
-    COMMAND_ADDRESS,
-    NACK,
-    RETURN_FLASH_WRITE_ERROR,
-    RETURN_RECEIVED_ERROR,
-    RETURN_TEMPERATURE_ALARM,
-    RETURN_TEMPERATURE_LIMIT,
-    encode_return,
-)
+from ..protocol.events import LongPacket, ShortPacket
+from ..protocol.memmap import Model, default_registry
+from ..protocol.wire import (
+    ACK, BAUD_RATES, BROADCAST_ID, COMMAND_ADDRESS, NACK, RETURN_FLASH_WRITE_ERROR, RETURN_RECEIVED_ERROR,
+    RETURN_TEMPERATURE_ALARM, RETURN_TEMPERATURE_LIMIT, encode_return)
 
 MEMORY_SIZE = 140            # flag-0F reads reach address 139 (manual, "Direct specified address")
 ROM_START, ROM_END = 4, 30   # the variable ROM area a flash write saves (table 4.6, flag bit 6)

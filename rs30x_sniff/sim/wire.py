@@ -5,7 +5,7 @@ from __future__ import annotations
 from bisect import bisect_right
 from typing import Iterable, Iterator
 
-from ..wire import BITS_PER_BYTE
+from ..protocol.wire import BITS_PER_BYTE
 
 Chunk = tuple[bytes, float]
 

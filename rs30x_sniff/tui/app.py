@@ -19,8 +19,8 @@ from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Footer, Input, Label
 
-from ..memmap import default_registry
-from ..pipeline import DecodeOptions
+from ..protocol.memmap import default_registry
+from ..decode.decoder import DecodeOptions
 from .detail import DetailPane
 from .feed import Batch, Feeder, default_linter
 from .sources import Source

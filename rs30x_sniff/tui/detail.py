@@ -12,9 +12,9 @@ from textual.message import Message
 from textual.widgets import Static, Tree
 from textual.widgets.tree import TreeNode
 
-from ..bus import Record
-from ..events import Garbage, LongPacket, ReturnPacket, ShortPacket
-from ..render import format_value, kind_word
+from ..decode.pairing import Record
+from ..protocol.events import Garbage, LongPacket, ReturnPacket, ShortPacket
+from ..render.records import format_value, kind_word
 from .rows import SEVERITY_STYLES, clean, kind_style, short_summary
 
 HEADER_NAMES = ("header", "header", "id", "flag", "address", "length", "count")

@@ -8,11 +8,12 @@ from dataclasses import dataclass, field
 from queue import Empty, SimpleQueue
 from typing import Any, Callable, Iterator
 
-from ..blocks import MIN_BLOCK, Block
-from ..bus import Record
-from ..io.captures import CaptureError
-from ..pipeline import GROUP_BYTES, DecodeOptions, Decoder, Pipeline, Sink, Step
-from ..stats import CaptureStats
+from ..decode.blocks import MIN_BLOCK, Block
+from ..decode.pairing import Record
+from ..sources.captures import CaptureError
+from ..sinks.pipeline import GROUP_BYTES, Pipeline, Sink
+from ..decode.decoder import DecodeOptions, Decoder, Step
+from ..sinks.stats import CaptureStats
 from .sources import Source
 from .store import ServoRow, servo_snapshot
 
@@ -179,7 +180,7 @@ class Feeder:
         self.options = options
         self.post = post
         self.linter = linter
-        # A file is decoded columnar (rs30x_sniff.blocks): clean stretches come as Blocks, which the
+        # A file is decoded columnar (rs30x_sniff.decode.blocks): clean stretches come as Blocks, which the
         # screen keeps as columns and makes Records of only for the rows it shows; a live source
         # (port, simulator, replay) goes record by record as it comes.
         self.loading = getattr(source, "kind", None) == "file"
@@ -345,7 +346,7 @@ class Feeder:
             return
         factory = self.sink_factory
         if factory is None:
-            from ..io.mcap_sink import McapSink  # only a recording needs the mcap library
+            from ..sinks.mcap.writer import McapSink  # only a recording needs the mcap library
             factory = McapSink
         models = {i: m for i, m in self.options.models.items()}
         try:

@@ -6,8 +6,8 @@ import re
 
 from rich.text import Text
 
-from ..bus import Record
-from ..render import bad_sum, direction, kind_word, summary
+from ..decode.pairing import Record
+from ..render.records import bad_sum, direction, kind_word, summary
 from .filter import SEVERITY_RANK
 
 # Control characters (C0, DEL, C1) shown as \xNN, so nothing from a file name or the wire can move

@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import sys
 
-from ..pipeline import DecodeOptions
+from ..decode.decoder import DecodeOptions
 from .app import make_app
 from .sources import ChunkSource
 

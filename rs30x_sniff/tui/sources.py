@@ -8,11 +8,11 @@ import threading
 import time
 from typing import Callable, Iterable, Iterator, Protocol
 
-from ..chunks import remark
-from ..io.captures import CaptureError
-from ..io.inputs import read_input
-from ..io.read_ahead import ReadAhead
-from ..wire import DEFAULT_BAUD, byte_time
+from ..protocol.chunks import remark
+from ..sources.captures import CaptureError
+from ..sources.inputs import read_input
+from ..sources.read_ahead import ReadAhead
+from ..protocol.wire import DEFAULT_BAUD, byte_time
 
 Chunk = tuple[bytes, "float | None"]
 REPLAY_SLICE = 64        # bytes per step when replaying a capture that has no timestamps
@@ -160,7 +160,7 @@ class PortSource:
     time_base = "wall"
 
     def __init__(self, port: str, baud: int) -> None:
-        from ..io.serial_tap import LiveSource  # pyserial is needed only for live capture
+        from ..sources.serial_tap import LiveSource  # pyserial is needed only for live capture
 
         self.name = port
         self.live = LiveSource(port, baud, announce=False)

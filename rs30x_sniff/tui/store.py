@@ -11,12 +11,12 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from ..blocks import Block
-from ..bus import BusTracker, Record
-from ..events import LongPacket, ReturnPacket, ShortPacket
-from ..frame_runs import LONG, RETURN, SHORT, FrameRun
-from ..framing import SEAM_BACK_S, SEAM_GAP_S
-from ..stats import RecentLoad
+from ..decode.blocks import Block
+from ..decode.pairing import BusTracker, Record
+from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
+from ..decode.frame_runs import LONG, RETURN, SHORT, FrameRun
+from ..decode.framing import SEAM_BACK_S, SEAM_GAP_S
+from ..sinks.stats import RecentLoad
 from .filter import SEVERITY_RANK, Filter
 
 DEFAULT_HISTORY = 1_000_000
@@ -125,7 +125,7 @@ def register_value(rec: Record, servo_id: int, name: str) -> Any:
         return None
 
 
-# ---- Blocks (rs30x_sniff.blocks): rows kept as columns ---------------------------------------------------
+# ---- Blocks (rs30x_sniff.decode.blocks): rows kept as columns ---------------------------------------------------
 _BLOCK_BASE = sys.getsizeof(Block.__new__(Block)) + sys.getsizeof({}) + 8 * 112  # the object, cols, views
 
 
@@ -288,7 +288,7 @@ class Stats:
     severities: Counter = field(default_factory=Counter)
     first_t: float | None = None
     last_t: float | None = None
-    segment_t: float | None = None  # first time of the current time segment (rs30x_sniff.framing.Seam)
+    segment_t: float | None = None  # first time of the current time segment (rs30x_sniff.decode.framing.Seam)
     closed_span: float = 0.0        # seconds of the segments before it
 
     @property
@@ -312,7 +312,7 @@ class Store:
     """The monitor's model. Records are numbered by ``seq`` (0 for the first one since the last clear);
     only the newest ``history`` are held, so a seq below :attr:`first_seq` has been dropped.
 
-    The history is a list of segments in wire order: lists of Records, and Blocks (rs30x_sniff.blocks:
+    The history is a list of segments in wire order: lists of Records, and Blocks (rs30x_sniff.decode.blocks:
     a file's clean stretches, kept as columns). A Block's row becomes a Record only when it is asked
     for (:meth:`get`, and the Block keeps it); counts, load, plot series and the memory figure come
     from its columns, and a filter scan makes its rows' Records for the moment and lets them go.

@@ -18,7 +18,7 @@ from mcap.reader import make_reader
 
 from rs30x_sniff import cli
 from rs30x_sniff.commands import outputs
-from rs30x_sniff.io import mcap_sink
+from rs30x_sniff.sinks.mcap import writer as mcap_sink
 from rs30x_sniff.settings import KEYS
 from tests.e2e.helpers import Pty
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from rs30x_sniff.wire import byte_time, encode_long, encode_read, encode_return
+from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return
 
 
 def gait(baud: int = 115200, cycles: int = 100) -> list[tuple[bytes, float]]:

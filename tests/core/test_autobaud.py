@@ -4,19 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from rs30x_sniff.autobaud import (
-    BaudFromTimes,
-    BaudWatch,
-    NoFrameStretch,
-    contradicts,
-    estimate_baud,
-    scan,
-    score_bytes,
-)
-from rs30x_sniff.pipeline import Decoder, DecodeOptions, Pipeline
+from rs30x_sniff.decode.autobaud import (
+    BaudFromTimes, BaudWatch, NoFrameStretch, contradicts, estimate_baud, scan, score_bytes)
+from rs30x_sniff.decode.decoder import Decoder, DecodeOptions
+from rs30x_sniff.sinks.pipeline import Pipeline
 from rs30x_sniff.sim import run
 from rs30x_sniff.sim.wire import SimWire, retime
-from rs30x_sniff.wire import BAUD_RATES
+from rs30x_sniff.protocol.wire import BAUD_RATES
 
 
 @pytest.mark.parametrize("baud", BAUD_RATES)

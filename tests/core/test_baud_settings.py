@@ -10,9 +10,9 @@ import threading
 import pytest
 
 from rs30x_sniff.cli import main
-from rs30x_sniff.io.captures import write_capture
+from rs30x_sniff.sources.captures import write_capture
 from rs30x_sniff.sim import run
-from rs30x_sniff.wire import byte_time
+from rs30x_sniff.protocol.wire import byte_time
 
 
 def _info(capsys, *argv: str) -> tuple[dict, str]:

@@ -1,4 +1,4 @@
-"""JSON from templates (rs30x_sniff.block_json), a Block's lines and a single Record's, is byte for byte the
+"""JSON from templates (rs30x_sniff.render.block_json), a Block's lines and a single Record's, is byte for byte the
 records' own JSON (render.record_json_text)."""
 
 import sys
@@ -8,12 +8,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff import block_json, blocks
-from rs30x_sniff.block_json import block_json_lines, record_json_line
-from rs30x_sniff.blocks import Block
+from rs30x_sniff.render import block_json
+from rs30x_sniff.decode import blocks
+from rs30x_sniff.render.block_json import block_json_lines, record_json_line
+from rs30x_sniff.decode.blocks import Block
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import Decoder
-from rs30x_sniff.render import record_json_text
+from rs30x_sniff.decode.decoder import Decoder
+from rs30x_sniff.render.records import record_json_text
 from rs30x_sniff.sim import scenarios
 from tests.core.test_block_text import odd_traffic
 from tests.core.test_columnar import traffic
@@ -73,7 +74,7 @@ def test_random_traffic(monkeypatch, seed, n, timed, rare, lint):
 def test_a_write_and_a_return_with_the_same_header_bytes():
     """FA AF 02 00 1E 04 01 (a write of 4 bytes at 30) and FD DF 02 00 1E 04 01 (a return of the same)
     share everything after the sync bytes: their templates must not."""
-    from rs30x_sniff.wire import byte_time, encode_read, encode_return, encode_short
+    from rs30x_sniff.protocol.wire import byte_time, encode_read, encode_return, encode_short
 
     bt = byte_time(115200)
     chunks, t = [], 0.0
@@ -119,7 +120,7 @@ def test_record_json_of_hexapod(lint):
        faults=st.booleans(), rare=st.sampled_from([0.3, 0.05]), lint=st.booleans(), mixed=st.booleans())
 def test_record_json_of_random_traffic(monkeypatch, seed, n, timed, gaps, faults, rare, lint, mixed):
     # Missing, unsolicited and extra replies, bad Sums, garbage, findings, servos of two models.
-    from rs30x_sniff.pipeline import DecodeOptions
+    from rs30x_sniff.decode.decoder import DecodeOptions
 
     monkeypatch.setattr(block_json, "_MAX_TEMPLATES", 8)  # the template cache fills and clears too
     check_records(traffic(seed, n, timed=timed, gaps=gaps, faults=faults, rare=rare), lint,

@@ -7,15 +7,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bench.traffic import hexapod_frames
-from rs30x_sniff import block_text as block_text_module
-from rs30x_sniff import blocks as blocks_module
-from rs30x_sniff.block_text import block_text, record_line
-from rs30x_sniff.blocks import Block
+from rs30x_sniff.render import block_text as block_text_module
+from rs30x_sniff.decode import blocks as blocks_module
+from rs30x_sniff.render.block_text import block_text, record_line
+from rs30x_sniff.decode.blocks import Block
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.render import text_line, verbose_lines
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.render.records import text_line, verbose_lines
 from rs30x_sniff.sim import scenarios
-from rs30x_sniff.wire import byte_time, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
 from tests.core.test_columnar import traffic
 from tests.core.test_properties import frames
 

@@ -3,16 +3,16 @@
 import subprocess
 import sys
 
-CORE = ["rs30x_sniff.wire", "rs30x_sniff.events", "rs30x_sniff.framing", "rs30x_sniff.memmap",
-        "rs30x_sniff.bus", "rs30x_sniff.pipeline", "rs30x_sniff.render", "rs30x_sniff.lint",
-        "rs30x_sniff.stats", "rs30x_sniff.sim.servo", "rs30x_sniff.sim.scenarios"]
+CORE = ["rs30x_sniff.protocol.wire", "rs30x_sniff.protocol.events", "rs30x_sniff.decode.framing", "rs30x_sniff.protocol.memmap",
+        "rs30x_sniff.decode.pairing", "rs30x_sniff.decode.decoder", "rs30x_sniff.sinks.pipeline", "rs30x_sniff.render.records", "rs30x_sniff.lint",
+        "rs30x_sniff.sinks.stats", "rs30x_sniff.sim.servo", "rs30x_sniff.sim.scenarios"]
 
 
 def test_core_imports_no_io_library():
     code = (
         "import sys\n"
         + "".join(f"import {m}\n" for m in CORE)
-        + "from rs30x_sniff.pipeline import Decoder\n"
+        + "from rs30x_sniff.decode.decoder import Decoder\n"
         "from rs30x_sniff.lint import Linter\n"
         "d = Decoder(None, Linter())\n"
         "d.feed(bytes.fromhex('FAAF01001E020184039B'), 0.0); d.close()\n"

@@ -2,9 +2,9 @@
 
 import pytest
 
-from rs30x_sniff.bus import ANSWERED, EXTRA, MISSING, PAIRED, UNSOLICITED
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.wire import byte_time, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.decode.pairing import ANSWERED, EXTRA, MISSING, PAIRED, UNSOLICITED
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
 from tests.conftest import h
 
 POLL = encode_short(1, 0x09, 0, b"", length=0, count=1)

@@ -7,9 +7,9 @@ import random
 from pathlib import Path
 
 from rs30x_sniff.cli import main
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.stats import CaptureStats
-from rs30x_sniff.wire import encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.sinks.stats import CaptureStats
+from rs30x_sniff.protocol.wire import encode_long, encode_read, encode_return, encode_short
 from tests.conftest import h
 
 ROOT = Path(__file__).resolve().parents[2]

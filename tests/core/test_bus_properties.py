@@ -3,10 +3,10 @@
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff.bus import ANSWERED, EXTRA, MISSING, PAIRED, UNKNOWN, UNSEEN, UNSOLICITED, BusTracker
-from rs30x_sniff.events import Ack, Garbage, ReturnPacket, ShortPacket
-from rs30x_sniff.framing import decode_all
-from rs30x_sniff.wire import encode_return, encode_short
+from rs30x_sniff.decode.pairing import ANSWERED, EXTRA, MISSING, PAIRED, UNKNOWN, UNSEEN, UNSOLICITED, BusTracker
+from rs30x_sniff.protocol.events import Ack, Garbage, ReturnPacket, ShortPacket
+from rs30x_sniff.decode.framing import decode_all
+from rs30x_sniff.protocol.wire import encode_return, encode_short
 
 # Every kind of input the tracker can see, in every state it can be in.
 STEPS = {

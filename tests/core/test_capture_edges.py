@@ -5,14 +5,15 @@ from __future__ import annotations
 import json
 import re
 
-from rs30x_sniff.bus import MISSING, UNKNOWN, UNSEEN, UNSOLICITED
+from rs30x_sniff.decode.pairing import MISSING, UNKNOWN, UNSEEN, UNSOLICITED
 from rs30x_sniff.cli import main
-from rs30x_sniff.events import CAPTURE_END, CAPTURE_START, TRUNCATED
-from rs30x_sniff.io.captures import read_capture, write_capture
+from rs30x_sniff.protocol.events import CAPTURE_END, CAPTURE_START, TRUNCATED
+from rs30x_sniff.sources.captures import read_capture, write_capture
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import Decoder, Sink, drive
-from rs30x_sniff.stats import CaptureStats
-from rs30x_sniff.wire import byte_time, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.decode.decoder import Decoder
+from rs30x_sniff.sinks.pipeline import Sink, drive
+from rs30x_sniff.sinks.stats import CaptureStats
+from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
 
 BT = byte_time(115200)
 READ1, RET1 = encode_read(1, 0x2A, 2), encode_return(1, 0x2A, b"\x84\x03")

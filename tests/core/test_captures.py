@@ -2,7 +2,8 @@
 
 import pytest
 
-from rs30x_sniff.io.captures import BINARY, HEX, TIMESTAMPED, CaptureError, detect_format, read_capture, write_capture
+from rs30x_sniff.sources.captures import (
+    BINARY, HEX, TIMESTAMPED, CaptureError, detect_format, read_capture, write_capture)
 
 FRAME = bytes.fromhex("FAAF0100 1E020184 039B".replace(" ", ""))
 

@@ -2,11 +2,12 @@
 
 from hypothesis import given, settings, strategies as st
 
-from rs30x_sniff.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO, Marked, SenderMap, marks, remark
-from rs30x_sniff.framing import GARBAGE_PIECE, FrameDecoder
-from rs30x_sniff.pipeline import Decoder, decode_records
-from rs30x_sniff.timebase import to_first_byte
-from rs30x_sniff.wire import encode_read
+from rs30x_sniff.protocol.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO, Marked, SenderMap, marks, remark
+from rs30x_sniff.decode.framing import GARBAGE_PIECE, FrameDecoder
+from rs30x_sniff.decode.decoder import Decoder
+from rs30x_sniff.sinks.pipeline import decode_records
+from rs30x_sniff.sources.timebase import to_first_byte
+from rs30x_sniff.protocol.wire import encode_read
 
 REQ = encode_read(1, 0x2A, 2)
 

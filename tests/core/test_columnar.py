@@ -6,12 +6,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff import blocks as blocks_module
-from rs30x_sniff.blocks import Block
+from rs30x_sniff.decode import blocks as blocks_module
+from rs30x_sniff.decode.blocks import Block
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.sim import scenarios
-from rs30x_sniff.wire import byte_time, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
 from tests.core.test_properties import frames
 
 SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -186,8 +186,8 @@ def test_value_columns_are_the_records_values():
 def test_a_failing_source_loses_nothing_already_read():
     """The columnar Pipeline holds up to 64 KiB of chunks before decoding them: a source that fails
     midway still has every chunk it gave decoded and handed to the sinks."""
-    from rs30x_sniff.pipeline import Pipeline
-    from rs30x_sniff.sinks import FindingsSink
+    from rs30x_sniff.sinks.pipeline import Pipeline
+    from rs30x_sniff.sinks.lines import FindingsSink
 
     chunks = traffic(4, 50, timed=True, gaps=False, faults=False, rare=0.0)
 
@@ -204,7 +204,7 @@ def test_a_failing_source_loses_nothing_already_read():
 
 @pytest.mark.parametrize("group_bytes", [1, 100, 1 << 16])
 def test_a_pipeline_decodes_a_file_in_groups_of_its_size(group_bytes):
-    from rs30x_sniff.pipeline import Pipeline, Sink
+    from rs30x_sniff.sinks.pipeline import Pipeline, Sink
 
     chunks = traffic(7, 300, timed=True, gaps=False, faults=False)
     sizes = []

@@ -9,9 +9,9 @@ import pytest
 
 from rs30x_sniff.cli import main
 from rs30x_sniff.filters import FilterError, parse_filter
-from rs30x_sniff.io.captures import read_capture
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.wire import encode_long, encode_return
+from rs30x_sniff.sources.captures import read_capture
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.protocol.wire import encode_long, encode_return
 from tests.conftest import CAPTURES, h
 
 SESSION = str(CAPTURES / "session-mixed.thex")

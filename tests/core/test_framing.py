@@ -2,9 +2,10 @@
 
 import pytest
 
-from rs30x_sniff.events import BAD_HEADER, CAPTURE_END, NOISE, TRUNCATED, Ack, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
-from rs30x_sniff.framing import FrameDecoder
-from rs30x_sniff.wire import byte_time, encode_return, encode_short
+from rs30x_sniff.protocol.events import (
+    BAD_HEADER, CAPTURE_END, NOISE, TRUNCATED, Ack, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket)
+from rs30x_sniff.decode.framing import FrameDecoder
+from rs30x_sniff.protocol.wire import byte_time, encode_return, encode_short
 from tests.conftest import decode_three_ways, h
 
 GOAL_90 = h("FA AF 01 00 1E 02 01 84 03 9B")

@@ -4,9 +4,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff import framing
-from rs30x_sniff.framing_kernel import scan_regular
-from rs30x_sniff.wire import encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.decode import framing
+from rs30x_sniff.decode.framing_kernel import scan_regular
+from rs30x_sniff.protocol.wire import encode_long, encode_read, encode_return, encode_short
 from tests.conftest import assert_same_events, decode_chunks, split_timed
 from tests.core.test_properties import frames
 

@@ -2,8 +2,8 @@
 
 import pytest
 
-from rs30x_sniff.io.captures import read_capture
-from rs30x_sniff.pipeline import Decoder
+from rs30x_sniff.sources.captures import read_capture
+from rs30x_sniff.decode.decoder import Decoder
 
 
 @pytest.fixture(scope="module")

@@ -9,14 +9,14 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from rs30x_sniff import health as health_module
+from rs30x_sniff.sinks import health as health_module
 from rs30x_sniff.cli import main
-from rs30x_sniff.events import LongPacket, ReturnPacket, ShortPacket
-from rs30x_sniff.health import PRESENT, WRITTEN
-from rs30x_sniff.io.mcap_sink import STATS_METADATA_NAME
-from rs30x_sniff.pipeline import decode_records
-from rs30x_sniff.stats import CaptureStats
-from rs30x_sniff.wire import encode_read, encode_return
+from rs30x_sniff.protocol.events import LongPacket, ReturnPacket, ShortPacket
+from rs30x_sniff.sinks.health import PRESENT, WRITTEN
+from rs30x_sniff.sinks.mcap.writer import STATS_METADATA_NAME
+from rs30x_sniff.sinks.pipeline import decode_records
+from rs30x_sniff.sinks.stats import CaptureStats
+from rs30x_sniff.protocol.wire import encode_read, encode_return
 
 ROOT = Path(__file__).resolve().parents[2]
 NEW_KEYS = ("health", "bus_load_peak", "what_happened")

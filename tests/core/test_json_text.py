@@ -4,10 +4,11 @@ import json
 
 import pytest
 
-from rs30x_sniff.pipeline import DecodeOptions, decode_records
-from rs30x_sniff.render import record_json, record_json_text
+from rs30x_sniff.decode.decoder import DecodeOptions
+from rs30x_sniff.sinks.pipeline import decode_records
+from rs30x_sniff.render.records import record_json, record_json_text
 from rs30x_sniff.sim.scenarios import SCENARIOS, run
-from rs30x_sniff.wire import encode_long, encode_return, encode_short
+from rs30x_sniff.protocol.wire import encode_long, encode_return, encode_short
 
 _COMPACT = json.JSONEncoder(separators=(",", ":")).encode
 

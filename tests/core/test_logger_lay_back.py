@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given, strategies as st
 
 from rs30x_sniff.cli import main
-from rs30x_sniff.timebase import to_first_byte
-from rs30x_sniff.wire import byte_time, encode_long, encode_read, encode_return
+from rs30x_sniff.sources.timebase import to_first_byte
+from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return
 
 BT = byte_time(115200)
 

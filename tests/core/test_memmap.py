@@ -2,7 +2,7 @@
 
 import pytest
 
-from rs30x_sniff.memmap import ModelError, default_registry, load_model, parse_model
+from rs30x_sniff.protocol.memmap import ModelError, default_registry, load_model, parse_model
 
 NAMES = """model_number firmware_version servo_id reverse baud_rate return_delay cw_angle_limit ccw_angle_limit
 temperature_limit torque_in_silence warm_up_time cw_compliance_margin ccw_compliance_margin cw_compliance_slope
@@ -103,7 +103,7 @@ def test_not_toml_is_a_model_error(tmp_path):
 
 def test_a_new_model_is_a_new_file(tmp_path, monkeypatch):
     import tomllib
-    from rs30x_sniff.memmap import ModelRegistry, decoders_dirs
+    from rs30x_sniff.protocol.memmap import ModelRegistry, decoders_dirs
     doc = tomllib.loads(GOOD)
     m = parse_model(doc, "mem")
     assert m.name == "X1" and m.register("a").range == (0, 10)

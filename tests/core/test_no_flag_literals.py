@@ -29,7 +29,7 @@ def _code_lines(path: Path):
 def test_no_module_but_wire_masks_flags_with_literals():
     offenders = []
     for path in sorted(ROOT.rglob("*.py")):
-        if path.name == "wire.py" and path.parent == ROOT:
+        if path == ROOT / "protocol" / "wire.py":
             continue
         for n, line in _code_lines(path):
             if MASKED.search(line) or RAW_MASKS.search(line):

@@ -12,7 +12,7 @@ from mcap.reader import make_reader
 
 from rs30x_sniff.cli import build_parser, main
 from rs30x_sniff.commands import monitor as monitor_command
-from rs30x_sniff.io.mcap_sink import DIAGNOSTICS_TOPIC, STATS_METADATA_NAME
+from rs30x_sniff.sinks.mcap.writer import DIAGNOSTICS_TOPIC, STATS_METADATA_NAME
 from rs30x_sniff.tui.feed import Feeder
 from rs30x_sniff.tui.store import Store
 
@@ -144,8 +144,8 @@ def test_simulated_scenarios_agree(capsys, tmp_path, simulated, name, baud):
 def test_a_loggers_arrival_stamped_capture_agrees_everywhere(capsys, tmp_path, simulated):
     """Stamped at arrival (as serial loggers stamp reads): every command, the monitor included, lays the
     times back to the first byte the same way, so findings and latencies agree."""
-    from rs30x_sniff.io.captures import read_capture, write_capture
-    from rs30x_sniff.wire import byte_time
+    from rs30x_sniff.sources.captures import read_capture, write_capture
+    from rs30x_sniff.protocol.wire import byte_time
 
     bt = byte_time(9600)
     chunks = [(d, t + len(d) * bt) for d, t in read_capture(str(simulated[("setup", 9600, "thex")]))]

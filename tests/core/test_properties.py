@@ -3,8 +3,8 @@
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff.events import LongPacket, ReturnPacket, ShortPacket
-from rs30x_sniff.wire import encode_long, encode_return, encode_short
+from rs30x_sniff.protocol.events import LongPacket, ReturnPacket, ShortPacket
+from rs30x_sniff.protocol.wire import encode_long, encode_return, encode_short
 from tests.conftest import assert_same_events, decode_chunks, split_timed
 
 SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])

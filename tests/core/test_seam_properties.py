@@ -20,14 +20,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff.bus import UNKNOWN, UNSEEN
-from rs30x_sniff.events import CAPTURE_END, CAPTURE_START
-from rs30x_sniff.framing import SEAM_BACK_S, SEAM_GAP_S
+from rs30x_sniff.decode.pairing import UNKNOWN, UNSEEN
+from rs30x_sniff.protocol.events import CAPTURE_END, CAPTURE_START
+from rs30x_sniff.decode.framing import SEAM_BACK_S, SEAM_GAP_S
 from rs30x_sniff.lint import LintConfig, Linter
-from rs30x_sniff.pipeline import GROUP_BYTES, DecodeOptions, Decoder, Pipeline, Sink
+from rs30x_sniff.sinks.pipeline import GROUP_BYTES, Pipeline, Sink
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.sim import SCENARIOS, run
-from rs30x_sniff.stats import CaptureStats, LatencyHistogram
-from rs30x_sniff.wire import byte_time
+from rs30x_sniff.sinks.stats import CaptureStats, LatencyHistogram
+from rs30x_sniff.protocol.wire import byte_time
 
 BAUD = 115200
 BT = byte_time(BAUD)

@@ -12,10 +12,11 @@ import pytest
 from mcap.reader import make_reader
 
 from rs30x_sniff.cli import main
-from rs30x_sniff.io.captures import read_capture
-from rs30x_sniff.io.tables import PARQUET_HINT, ParquetTable, StatesSink
-from rs30x_sniff.memmap import default_registry
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, drive
+from rs30x_sniff.sources.captures import read_capture
+from rs30x_sniff.sinks.tables import PARQUET_HINT, ParquetTable, StatesSink
+from rs30x_sniff.protocol.memmap import default_registry
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.sinks.pipeline import drive
 
 from ..conftest import CAPTURES
 
@@ -255,7 +256,7 @@ def test_every_capture_matches_its_mcap(tmp_path, capture):
 
 
 def test_register_columns_are_the_union_of_the_models():
-    from rs30x_sniff.io.tables import FLOAT, INT, STR, register_columns
+    from rs30x_sniff.sinks.tables import FLOAT, INT, STR, register_columns
 
     registry = default_registry()
     columns = dict(register_columns(registry))

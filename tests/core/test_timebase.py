@@ -8,11 +8,11 @@ from pathlib import Path
 import pytest
 
 from rs30x_sniff.cli import main
-from rs30x_sniff.framing import TIME_BACKWARDS, TIME_TOO_CLOSE, FrameDecoder
-from rs30x_sniff.io.captures import write_capture
+from rs30x_sniff.decode.framing import TIME_BACKWARDS, TIME_TOO_CLOSE, FrameDecoder
+from rs30x_sniff.sources.captures import write_capture
 from rs30x_sniff.sim import run
-from rs30x_sniff.timebase import ARRIVAL, FIRST, judge, to_first_byte
-from rs30x_sniff.wire import byte_time, encode_read, encode_return
+from rs30x_sniff.sources.timebase import ARRIVAL, FIRST, judge, to_first_byte
+from rs30x_sniff.protocol.wire import byte_time, encode_read, encode_return
 
 BT = byte_time(115200)
 RETURN_DELAY = 100e-6  # the simulator's servos: return_delay 0 = 100 us (table 4.6 No. 7)
@@ -132,7 +132,7 @@ def test_start_time_anchors_a_log_to_the_wall_clock(capsys, tmp_path):
 def test_the_live_tap_stamps_wall_clock_time():
     import time
 
-    from rs30x_sniff.io.serial_tap import SerialTap
+    from rs30x_sniff.sources.serial_tap import SerialTap
 
     tap = SerialTap("loop://", 115200)
     tap.open()

@@ -6,12 +6,12 @@ from pathlib import Path
 
 import pytest
 
-from rs30x_sniff.autobaud import rate_fit
-from rs30x_sniff.io.captures import CaptureError, read_capture
+from rs30x_sniff.decode.autobaud import rate_fit
+from rs30x_sniff.sources.captures import CaptureError, read_capture
 from rs30x_sniff.sim import run
-from rs30x_sniff.timeunit import (ASSUMED, EPOCH_MAX, GIVEN, SIZE, SPACING, detect_unit, epoch_unit, given,
-                                  problem, resolution, seconds)
-from rs30x_sniff.wire import BAUD_RATES, encode_read
+from rs30x_sniff.sources.timeunit import (
+    ASSUMED, EPOCH_MAX, GIVEN, SIZE, SPACING, detect_unit, epoch_unit, given, problem, resolution, seconds)
+from rs30x_sniff.protocol.wire import BAUD_RATES, encode_read
 
 from .gait_capture import gait
 

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff.memmap import Layout, default_registry, parse_model
-from rs30x_sniff.value_columns import raw_columns, value_columns, values_rows
+from rs30x_sniff.protocol.memmap import Layout, default_registry, parse_model
+from rs30x_sniff.decode.value_columns import raw_columns, value_columns, values_rows
 
 MODELS = sorted(default_registry().models)
 DTYPES = {np.dtype(np.int64), np.dtype(np.float64), np.dtype(object)}

@@ -1,8 +1,8 @@
 """A long packet's servo models are settled when the tracker builds its record, and the linter reads them there."""
 
 from rs30x_sniff.lint import LintConfig, Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.wire import encode_long, encode_read, encode_return
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.protocol.wire import encode_long, encode_read, encode_return
 from tests.conftest import h
 
 

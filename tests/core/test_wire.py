@@ -1,6 +1,6 @@
 """The checksum and encoders against the manual's worked examples."""
 
-from rs30x_sniff import wire
+from rs30x_sniff.protocol import wire
 from tests.conftest import h
 
 

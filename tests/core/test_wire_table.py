@@ -2,8 +2,8 @@
 
 import pytest
 
-from rs30x_sniff import wire
-from rs30x_sniff.wire import Expect
+from rs30x_sniff.protocol import wire
+from rs30x_sniff.protocol.wire import Expect
 
 
 @pytest.mark.parametrize(("mode", "expect"), [

@@ -11,8 +11,8 @@ import tty
 
 from mcap.reader import make_reader
 
-from rs30x_sniff.framing import decode_all
-from rs30x_sniff.io.mcap_source import read_mcap_raw
+from rs30x_sniff.decode.framing import decode_all
+from rs30x_sniff.sources.mcap_reader import read_mcap_raw
 from rs30x_sniff.sim import run
 from rs30x_sniff.sim.port import play
 

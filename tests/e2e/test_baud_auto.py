@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from rs30x_sniff.autobaud import scan
-from rs30x_sniff.io.serial_tap import scan_port
+from rs30x_sniff.decode.autobaud import scan
+from rs30x_sniff.sources.serial_tap import scan_port
 from rs30x_sniff.sim import run
 from rs30x_sniff.sim.port import play
 from rs30x_sniff.sim.wire import SimWire

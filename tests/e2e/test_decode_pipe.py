@@ -6,7 +6,7 @@ import sys
 import time
 
 from rs30x_sniff.commands.common import is_whole_file
-from rs30x_sniff.wire import encode_read, encode_return
+from rs30x_sniff.protocol.wire import encode_read, encode_return
 
 
 def test_a_line_per_frame_as_the_pipe_delivers_it():

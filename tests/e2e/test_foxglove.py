@@ -201,10 +201,11 @@ def test_the_server_publishes_what_the_mcap_file_holds():
     """Same topics, bodies and log times as McapSink on the same input: one encoding for both."""
     from mcap.reader import make_reader
 
-    from rs30x_sniff.io.foxglove_sink import FoxgloveSink
-    from rs30x_sniff.io.mcap_sink import McapSink
+    from rs30x_sniff.sinks.mcap.foxglove import FoxgloveSink
+    from rs30x_sniff.sinks.mcap.writer import McapSink
     from rs30x_sniff.lint import Linter
-    from rs30x_sniff.pipeline import Decoder, drive
+    from rs30x_sniff.decode.decoder import Decoder
+    from rs30x_sniff.sinks.pipeline import drive
     from rs30x_sniff.sim import run
 
     chunks = list(run("overheat", baud=115200, seed=1, duration=6.0))
@@ -341,10 +342,11 @@ def test_a_client_that_subscribes_late_gets_the_files_bodies():
     mid-stream then gets exactly the messages the MCAP file gets from that point, whole servo states
     included (the registers that changed while nobody watched are in them). One process, an MCAP sink
     and the server side by side, as in `record --foxglove`: neither sees the other's messages."""
-    from rs30x_sniff.io.foxglove_sink import FIXED_CHANNELS, FoxgloveSink
-    from rs30x_sniff.io.mcap_sink import McapSink
+    from rs30x_sniff.sinks.mcap.foxglove import FIXED_CHANNELS, FoxgloveSink
+    from rs30x_sniff.sinks.mcap.writer import McapSink
     from rs30x_sniff.lint import Linter
-    from rs30x_sniff.pipeline import Decoder, Pipeline
+    from rs30x_sniff.decode.decoder import Decoder
+    from rs30x_sniff.sinks.pipeline import Pipeline
     from rs30x_sniff.sim import run
 
     chunks = list(run("overheat", baud=115200, seed=1, duration=6.0))
@@ -453,8 +455,9 @@ def test_the_layout_shows_what_we_publish():
     plotted field is a key the hexapod's state messages carry (per servo, 1 to 18)."""
     from pathlib import Path
 
-    from rs30x_sniff.io.mcap_sink import DIAGNOSTICS_TOPIC, PACKETS_TOPIC, McapSink
-    from rs30x_sniff.pipeline import Decoder, drive
+    from rs30x_sniff.sinks.mcap.writer import DIAGNOSTICS_TOPIC, PACKETS_TOPIC, McapSink
+    from rs30x_sniff.decode.decoder import Decoder
+    from rs30x_sniff.sinks.pipeline import drive
     from rs30x_sniff.sim import run
 
     layout = json.loads((Path(__file__).resolve().parents[2] / "docs" / "foxglove-layout.json").read_text())

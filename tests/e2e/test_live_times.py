@@ -6,7 +6,7 @@ import os
 import time
 from pathlib import Path
 
-from rs30x_sniff.io.serial_tap import LiveSource
+from rs30x_sniff.sources.serial_tap import LiveSource
 from tests.e2e.helpers import Pty
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "live-capture.md"

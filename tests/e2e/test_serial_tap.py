@@ -9,9 +9,9 @@ import time
 
 import pytest
 
-from rs30x_sniff.io.captures import CaptureError
-from rs30x_sniff.io.serial_tap import DURATION, LOST, LiveSource, SerialTap, is_port
-from rs30x_sniff.wire import byte_time
+from rs30x_sniff.sources.captures import CaptureError
+from rs30x_sniff.sources.serial_tap import DURATION, LOST, LiveSource, SerialTap, is_port
+from rs30x_sniff.protocol.wire import byte_time
 from tests.e2e.helpers import Pty
 
 

@@ -17,7 +17,7 @@ from mcap.reader import make_reader
 
 from rs30x_sniff.cli import main
 from rs30x_sniff.commands.common import settings_for
-from rs30x_sniff.io.captures import write_capture
+from rs30x_sniff.sources.captures import write_capture
 from rs30x_sniff.sim import run
 from rs30x_sniff.sim.scenarios import SCENARIOS
 

@@ -1,4 +1,4 @@
-"""Atheris target: rs30x_sniff.pipeline.Decoder fed arbitrary chunks and times; properties in targets.check_decoder."""
+"""Atheris target: rs30x_sniff.decode.decoder.Decoder fed arbitrary chunks and times; properties in targets.check_decoder."""
 
 import sys
 from pathlib import Path
@@ -9,8 +9,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 # Everything the target runs is imported here, inside the hook, so that it is instrumented for coverage.
 with atheris.instrument_imports(include=["rs30x_sniff", "targets"]):
-    import rs30x_sniff.io.mcap_source  # noqa: F401
-    import rs30x_sniff.pipeline  # noqa: F401
+    import rs30x_sniff.sources.mcap_reader
+    import rs30x_sniff.sinks.pipeline  # noqa: F401
     import targets
 
 if __name__ == "__main__":

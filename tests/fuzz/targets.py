@@ -17,8 +17,8 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))  # run as a script: the package from this checkout
 
-from rs30x_sniff.io.captures import (BINARY, HEX, MCAP, TIMESTAMPED, CaptureError, detect_format,  # noqa: E402
-                                     input_formats, read_capture)
+from rs30x_sniff.sources.captures import (
+    BINARY, HEX, MCAP, TIMESTAMPED, CaptureError, detect_format, input_formats, read_capture)
 
 CAPTURES = ROOT / "captures"
 _DIR = Path(tempfile.mkdtemp(prefix="rs30x-fuzz-"))
@@ -96,7 +96,7 @@ def _check_sniffed(data: bytes) -> None:
     path = _file(data, "x")
     try:
         fmt = detect_format(path)
-        assert fmt in input_formats()  # ours, or another tool's log (rs30x_sniff.io.foreign)
+        assert fmt in input_formats()  # ours, or another tool's log (rs30x_sniff.sources.foreign)
         if fmt != MCAP:
             for _ in read_capture(path):
                 pass
@@ -118,7 +118,7 @@ def check_timestamped(data: bytes) -> None:
 
 def check_mcap(data: bytes) -> None:
     """MCAP: a CaptureError, or raw chunks whose stream offsets follow on (the reader checks them)."""
-    from rs30x_sniff.io.mcap_source import McapRawReader
+    from rs30x_sniff.sources.mcap_reader import McapRawReader
 
     path = _file(data, "x.mcap")
     reader = McapRawReader(path, warn=None)
@@ -181,7 +181,7 @@ def encode_chunks(chunks: list[tuple[bytes, float | None]], timed: bool) -> byte
 
 def check_decoder(data: bytes) -> None:
     """Decoder: no exception, and every byte fed comes out in exactly one record's raw bytes."""
-    from rs30x_sniff.pipeline import DecodeOptions, Decoder
+    from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 
     dec = Decoder(DecodeOptions())
     fed = 0
@@ -225,8 +225,8 @@ def _mcap_bytes(chunks: list[tuple[bytes, float | None]]) -> bytes:
     """A small MCAP as `convert` writes it (raw, packets, state, findings), with short chunks."""
     import io
 
-    from rs30x_sniff.io.mcap_sink import McapSink
-    from rs30x_sniff.pipeline import DecodeOptions, Decoder
+    from rs30x_sniff.sinks.mcap.writer import McapSink
+    from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 
     buf = io.BytesIO()
     timed = any(t is not None for _, t in chunks)

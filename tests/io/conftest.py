@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from rs30x_sniff.io.mcap_sink import McapSink
+from rs30x_sniff.sinks.mcap.writer import McapSink
 
 ROOT = Path(__file__).resolve().parents[2]
 CAPTURES = ROOT / "captures"

@@ -18,8 +18,8 @@ import sys
 from datetime import datetime, timedelta
 from typing import Iterable, TextIO
 
-from rs30x_sniff.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO
-from rs30x_sniff.wire import byte_time
+from rs30x_sniff.protocol.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO
+from rs30x_sniff.protocol.wire import byte_time
 
 FRAME_BITS = 9.5  # Logic 2's frame: start bit to the middle of the stop bit
 _ERRORS = {"framing": FRAMING_ERROR, "parity": PARITY_ERROR, FRAMING_ERROR: FRAMING_ERROR, PARITY_ERROR: PARITY_ERROR}
@@ -129,7 +129,7 @@ def write_logic1(out: TextIO, rows: list[tuple[float, int, str]], *, radix: str 
 
 
 def main(argv: list[str] | None = None) -> int:
-    from rs30x_sniff.io.captures import read_capture
+    from rs30x_sniff.sources.captures import read_capture
 
     p = argparse.ArgumentParser(prog="python -m tests.io.saleae_writer", description=__doc__.split("\n")[0])
     p.add_argument("input", help="a capture (timestamped hex from `rs30x-sniff simulate`)")

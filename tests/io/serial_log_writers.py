@@ -2,7 +2,7 @@
 
 Each writer follows its tool's own printing code (pyserial's protocol_spy.py, socat's xiotransfer,
 interceptty's dumpbuff, jpnevulator's read mode as it prints, slsnif's outputData) and is written
-apart from the readers in rs30x_sniff.io.serial_logs, so a round trip checks one against the other.
+apart from the readers in rs30x_sniff.sources.serial_logs, so a round trip checks one against the other.
 
 Run as a program it makes the samples in captures/foreign (see serial-logs.md there):
 ``python -m tests.io.serial_log_writers DIR [spy socat jpnevulator interceptty slsnif]``.
@@ -21,9 +21,9 @@ import tty
 from datetime import datetime, timedelta
 from pathlib import Path
 
-from rs30x_sniff.chunks import HOST, SERVO
+from rs30x_sniff.protocol.chunks import HOST, SERVO
 from rs30x_sniff.sim import SimBus, run
-from rs30x_sniff.wire import byte_time
+from rs30x_sniff.protocol.wire import byte_time
 
 Sent = tuple[bytes, float, str]  # (bytes, time of their first byte, "host" or "servo")
 
@@ -364,12 +364,13 @@ def make_samples(out_dir: Path, which: list[str]) -> None:
 
 
 def _lint(path: Path) -> list[str]:
-    from rs30x_sniff.io.inputs import read_input
+    from rs30x_sniff.sources.inputs import read_input
     from rs30x_sniff.lint import Linter
-    from rs30x_sniff.pipeline import Decoder, drive
+    from rs30x_sniff.decode.decoder import Decoder
+    from rs30x_sniff.sinks.pipeline import drive
 
     from rs30x_sniff.lint import LintConfig
-    from rs30x_sniff.pipeline import DecodeOptions
+    from rs30x_sniff.decode.decoder import DecodeOptions
 
     chunks = read_input(str(path), baud=SAMPLE_BAUD, warn=None, options={"baud": SAMPLE_BAUD})
     dec = drive(chunks, Decoder(DecodeOptions(baud=SAMPLE_BAUD), Linter(LintConfig(baud=SAMPLE_BAUD))))

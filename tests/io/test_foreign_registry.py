@@ -3,7 +3,7 @@
 from pathlib import Path
 
 from rs30x_sniff.cli import main
-from rs30x_sniff.io import foreign
+from rs30x_sniff.sources import foreign
 
 CAPTURES = Path(__file__).resolve().parents[2] / "captures"
 

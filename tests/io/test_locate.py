@@ -5,7 +5,7 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff.io.captures import BINARY, HEX, TIMESTAMPED, read_capture, write_capture
+from rs30x_sniff.sources.captures import BINARY, HEX, TIMESTAMPED, read_capture, write_capture
 
 from .conftest import CAPTURES, FRAME, frames, make_mcap
 

@@ -7,8 +7,8 @@ import os
 import pytest
 from mcap.reader import make_reader
 
-from rs30x_sniff.io.captures import CaptureError, CaptureWarning, read_capture
-from rs30x_sniff.io.mcap_source import McapRawReader
+from rs30x_sniff.sources.captures import CaptureError, CaptureWarning, read_capture
+from rs30x_sniff.sources.mcap_reader import McapRawReader
 
 from .conftest import make_mcap
 

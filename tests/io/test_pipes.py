@@ -10,8 +10,8 @@ import threading
 
 import pytest
 
-from rs30x_sniff.io.captures import (BINARY, HEX, MCAP, TIMESTAMPED, CaptureError, detect_format, read_capture,
-                                     write_capture)
+from rs30x_sniff.sources.captures import (
+    BINARY, HEX, MCAP, TIMESTAMPED, CaptureError, detect_format, read_capture, write_capture)
 
 from .conftest import CAPTURES, ROOT, frames, make_mcap
 
@@ -108,7 +108,7 @@ def _in_child(code: str, stdin: bytes, timeout: float = 30) -> subprocess.Comple
     return subprocess.run([sys.executable, "-c", code], input=stdin, capture_output=True, timeout=timeout, cwd=ROOT)
 
 
-READ_STDIN = ("import sys; from rs30x_sniff.io.captures import read_capture\n"
+READ_STDIN = ("import sys; from rs30x_sniff.sources.captures import read_capture\n"
               "r = read_capture('-')\n"
               "chunks = list(r)\n"
               "print(r.format, b''.join(d for d, _ in chunks).hex(), [t for _, t in chunks if t is not None][:3])\n")
@@ -142,7 +142,7 @@ def test_a_fifo_is_opened_once(tmp_path, samples):
     # A second open of a FIFO would wait for a second writer forever: a timeout says it happened.
     fifo = tmp_path / "f"
     os.mkfifo(fifo)
-    code = ("import sys; from rs30x_sniff.io.captures import detect_format, read_capture\n"
+    code = ("import sys; from rs30x_sniff.sources.captures import detect_format, read_capture\n"
             f"p = {str(fifo)!r}\n"
             "fmt = detect_format(p)\n"
             "print(fmt, sum(len(d) for d, _ in read_capture(p)))\n")

@@ -7,11 +7,11 @@ import pickle
 
 import pytest
 
-from rs30x_sniff.chunks import Marked
-from rs30x_sniff.io import read_ahead as read_ahead_module
-from rs30x_sniff.io.captures import CaptureError, write_capture
-from rs30x_sniff.io.inputs import read_input
-from rs30x_sniff.io.read_ahead import ReadAhead, receive, send_all
+from rs30x_sniff.protocol.chunks import Marked
+from rs30x_sniff.sources import read_ahead as read_ahead_module
+from rs30x_sniff.sources.captures import CaptureError, write_capture
+from rs30x_sniff.sources.inputs import read_input
+from rs30x_sniff.sources.read_ahead import ReadAhead, receive, send_all
 
 from .conftest import CAPTURES, frames, make_mcap
 from .test_mcap_damage import _chunk_offsets, _flip
@@ -113,7 +113,7 @@ def test_every_kind_of_batch(monkeypatch):
         yield from chunks
         raise CaptureError(f"{path}:9: broken", line=9, column=2)
 
-    monkeypatch.setattr("rs30x_sniff.io.inputs.read_input", fake_read_input)
+    monkeypatch.setattr("rs30x_sniff.sources.inputs.read_input", fake_read_input)
     monkeypatch.setattr(read_ahead_module, "BATCH_BYTES", 64)
     out = io.BytesIO()
     send_all(out, {"path": "x.thex", "fmt": None, "baud": BAUD, "time_ref": None, "options": None})

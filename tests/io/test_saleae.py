@@ -11,14 +11,14 @@ from datetime import datetime, timedelta, timezone
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from rs30x_sniff.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO, Marked, marks
+from rs30x_sniff.protocol.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO, Marked, marks
 from rs30x_sniff.cli import main
-from rs30x_sniff.io import foreign
-from rs30x_sniff.io.captures import CaptureError, detect_format, read_capture
-from rs30x_sniff.io.saleae import LOGIC1, LOGIC2, probe, sender_of_name, sniff_logic1, sniff_logic2
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
+from rs30x_sniff.sources import foreign
+from rs30x_sniff.sources.captures import CaptureError, detect_format, read_capture
+from rs30x_sniff.sources.saleae import LOGIC1, LOGIC2, probe, sender_of_name, sniff_logic1, sniff_logic2
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.sim import scenarios
-from rs30x_sniff.wire import byte_time
+from rs30x_sniff.protocol.wire import byte_time
 
 from .conftest import CAPTURES
 from .saleae_writer import byte_rows, write_logic1, write_logic2

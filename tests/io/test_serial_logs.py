@@ -10,14 +10,15 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from rs30x_sniff.chunks import HOST, SERVO, marks
+from rs30x_sniff.protocol.chunks import HOST, SERVO, marks
 from rs30x_sniff.cli import main
-from rs30x_sniff.io import foreign
-from rs30x_sniff.io.captures import CaptureError, detect_format, read_capture
-from rs30x_sniff.io.inputs import read_input
+from rs30x_sniff.sources import foreign
+from rs30x_sniff.sources.captures import CaptureError, detect_format, read_capture
+from rs30x_sniff.sources.inputs import read_input
 from rs30x_sniff.lint import LintConfig, Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, Sink, drive
-from rs30x_sniff.wire import byte_time
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.sinks.pipeline import Sink, drive
+from rs30x_sniff.protocol.wire import byte_time
 
 from . import serial_log_writers as w
 from .conftest import CAPTURES
@@ -140,7 +141,7 @@ def test_a_pipe_head_cut_at_a_raw_byte_is_still_recognised(name):
 @given(chunks=st.lists(st.tuples(st.binary(min_size=1, max_size=24), st.floats(0, 1e6)), min_size=1, max_size=40),
        fmt=st.sampled_from(["hex", "timestamped"]))
 def test_our_own_text_captures_are_never_a_serial_log(tmp_path, chunks, fmt):
-    from rs30x_sniff.io.captures import write_capture
+    from rs30x_sniff.sources.captures import write_capture
 
     path = tmp_path / "own.txt"
     write_capture(path, sorted(chunks, key=lambda c: c[1]), fmt)
@@ -372,7 +373,7 @@ def test_cli_commands(tmp_path, capsys, name, forced):
     out = tmp_path / f"{name}.mcap"
     assert main(["convert", path, *fmt, "-o", str(out)]) == 0
     capsys.readouterr()
-    from rs30x_sniff.io.mcap_source import McapRawReader
+    from rs30x_sniff.sources.mcap_reader import McapRawReader
 
     assert b"".join(r[0] for r in McapRawReader(str(out))) == b"".join(d for d, _, _ in w.simulated())
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from rs30x_sniff.io.serial_tap import LiveSource, SerialTap
-from rs30x_sniff.wire import byte_time
+from rs30x_sniff.sources.serial_tap import LiveSource, SerialTap
+from rs30x_sniff.protocol.wire import byte_time
 
 BAUD = 115200
 BT = byte_time(BAUD)

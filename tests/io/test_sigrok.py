@@ -14,14 +14,14 @@ from hypothesis import strategies as st
 
 np = pytest.importorskip("numpy", reason="logic captures need numpy")
 
-from rs30x_sniff.chunks import FRAMING_ERROR, Marked  # noqa: E402
+from rs30x_sniff.protocol.chunks import FRAMING_ERROR, Marked  # noqa: E402
 from rs30x_sniff.cli import main  # noqa: E402
-from rs30x_sniff.framing import FrameDecoder  # noqa: E402
-from rs30x_sniff.io.captures import CaptureError, detect_format, read_capture, write_capture  # noqa: E402
-from rs30x_sniff.io.inputs import read_input  # noqa: E402
-from rs30x_sniff.io.uart import encode  # noqa: E402
+from rs30x_sniff.decode.framing import FrameDecoder  # noqa: E402
+from rs30x_sniff.sources.captures import CaptureError, detect_format, read_capture, write_capture  # noqa: E402
+from rs30x_sniff.sources.inputs import read_input  # noqa: E402
+from rs30x_sniff.sources.uart import encode  # noqa: E402
 from rs30x_sniff.sim import run  # noqa: E402
-from rs30x_sniff.wire import BAUD_RATES, byte_time  # noqa: E402
+from rs30x_sniff.protocol.wire import BAUD_RATES, byte_time  # noqa: E402
 from tests.conftest import CAPTURES  # noqa: E402
 
 SIGROK_CLI = shutil.which("sigrok-cli")
@@ -368,7 +368,7 @@ def test_a_zip_without_extension_is_sniffed(tmp_path):
 
 
 def test_samplerate_spellings():
-    from rs30x_sniff.io.sigrok import parse_samplerate
+    from rs30x_sniff.sources.sigrok import parse_samplerate
 
     assert parse_samplerate("1 MHz") == 1e6 and parse_samplerate("500 kHz") == 5e5
     assert parse_samplerate("4000000") == 4e6 and parse_samplerate("1.5 MHz") == 1.5e6
@@ -395,7 +395,7 @@ def test_annotation_forms(tmp_path):
 
 
 def test_text_that_only_looks_like_annotations_is_not_sniffed():
-    from rs30x_sniff.io.sigrok import sniff_annotations
+    from rs30x_sniff.sources.sigrok import sniff_annotations
 
     assert sniff_annotations("\n".join(GOOD).encode())
     assert not sniff_annotations(b"FA AF 01 00\n")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rs30x_sniff.io.captures import BINARY, HEX, TIMESTAMPED, CaptureError, detect_format, read_capture
+from rs30x_sniff.sources.captures import BINARY, HEX, TIMESTAMPED, CaptureError, detect_format, read_capture
 
 from .conftest import FRAME
 

@@ -1,4 +1,4 @@
-"""The 8N1 decoder over logic samples (rs30x_sniff.io.uart): bytes, start times, framing errors, the rate."""
+"""The 8N1 decoder over logic samples (rs30x_sniff.sources.uart): bytes, start times, framing errors, the rate."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ from hypothesis import strategies as st
 
 np = pytest.importorskip("numpy", reason="logic captures need numpy")
 
-from rs30x_sniff.chunks import FRAMING_ERROR, Marked  # noqa: E402
-from rs30x_sniff.io.uart import UartDecoder, chunks, decode, encode, estimate_baud, pulse_bit  # noqa: E402
-from rs30x_sniff.pipeline import Decoder, DecodeOptions  # noqa: E402
+from rs30x_sniff.protocol.chunks import FRAMING_ERROR, Marked  # noqa: E402
+from rs30x_sniff.sources.uart import UartDecoder, chunks, decode, encode, estimate_baud, pulse_bit  # noqa: E402
+from rs30x_sniff.decode.decoder import Decoder, DecodeOptions  # noqa: E402
 from rs30x_sniff.sim import run  # noqa: E402
-from rs30x_sniff.wire import BAUD_RATES, byte_time  # noqa: E402
+from rs30x_sniff.protocol.wire import BAUD_RATES, byte_time  # noqa: E402
 
 SR = 1_000_000
 

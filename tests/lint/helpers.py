@@ -7,7 +7,7 @@ from collections import Counter
 from pathlib import Path
 
 from rs30x_sniff.lint import LintConfig, Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 
 ROOT = Path(__file__).resolve().parents[2]
 CAPTURES = ROOT / "captures"

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from rs30x_sniff.lint import RULES
 from rs30x_sniff.lint.registry import frame
-from rs30x_sniff.wire import encode_command, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.protocol.wire import encode_command, encode_long, encode_read, encode_return, encode_short
 from rs30x_sniff.sim.wire import retime
 
 OUT = Path(__file__).resolve().parents[2] / "captures" / "lint"

@@ -12,7 +12,7 @@ import math
 import random
 from pathlib import Path
 
-from rs30x_sniff.wire import byte_time, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "captures" / "session-mixed.thex"

@@ -7,8 +7,8 @@ import pickle
 import pytest
 
 from rs30x_sniff.lint import RULES, ConfigError, Finding, LintConfig, Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.wire import encode_command, encode_short
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.protocol.wire import encode_command, encode_short
 
 
 def test_registry_shape():

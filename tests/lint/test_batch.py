@@ -9,10 +9,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff import blocks as blocks_module
+from rs30x_sniff.decode import blocks as blocks_module
 from rs30x_sniff.lint.batch import KNOWN
 from rs30x_sniff.lint.registry import RULES, frame
-from rs30x_sniff.wire import RETURN_HEADER, byte_time, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.protocol.wire import RETURN_HEADER, byte_time, encode_long, encode_read, encode_return, encode_short
 from tests.core.test_columnar import columnar_path, record_key, record_path
 
 BT = byte_time(115200)

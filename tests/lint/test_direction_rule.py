@@ -6,11 +6,12 @@ import io
 
 import pytest
 
-from rs30x_sniff.chunks import HOST, SERVO, Marked
-from rs30x_sniff.io import foreign
+from rs30x_sniff.protocol.chunks import HOST, SERVO, Marked
+from rs30x_sniff.sources import foreign
 from rs30x_sniff.lint import RULES, LintConfig, Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, drive
-from rs30x_sniff.wire import ACK, encode_read, encode_return, encode_short
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.sinks.pipeline import drive
+from rs30x_sniff.protocol.wire import ACK, encode_read, encode_return, encode_short
 
 from ..io import serial_log_writers as w
 
@@ -81,7 +82,7 @@ def test_without_senders_the_rule_leaves_the_dispatch():
 
 
 def test_a_linter_without_a_decoder_is_fine():
-    from rs30x_sniff.pipeline import decode_records
+    from rs30x_sniff.sinks.pipeline import decode_records
 
     linter = Linter()
     for rec in decode_records([(READ + RET, None)]):

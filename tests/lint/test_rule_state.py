@@ -11,8 +11,8 @@ import rs30x_sniff.lint as lint_pkg
 from rs30x_sniff.lint import RULES, LintConfig, Linter
 from rs30x_sniff.lint.registry import WHEN, rule
 from rs30x_sniff.lint.state import Shadow
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.wire import FLAG_REBOOT, encode_command, encode_short
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.protocol.wire import FLAG_REBOOT, encode_command, encode_short
 
 RULE_NAMED = re.compile(r"_?[fpmbsq]\d{3}", re.I)
 

@@ -6,9 +6,10 @@ import io
 
 import pytest
 
-from rs30x_sniff.io import foreign
+from rs30x_sniff.sources import foreign
 from rs30x_sniff.lint import RULES, LintConfig, Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, drive
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.sinks.pipeline import drive
 
 from .helpers import CAPTURES, found, lint_chunks, lint_text, parse
 
@@ -92,7 +93,7 @@ def test_timing_rules_skipped_without_timestamps():
 
 
 def test_findings_attach_to_their_records():
-    from rs30x_sniff.pipeline import DecodeOptions, Decoder
+    from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
     from rs30x_sniff.lint import Linter
     chunks, _ = parse((CAPTURES / "lint" / "M001-write-read-only.hex").read_text())
     dec = Decoder(DecodeOptions(), Linter())

@@ -3,16 +3,9 @@
 from __future__ import annotations
 
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
-from rs30x_sniff.wire import (
-    FLAG_REBOOT,
-    FLAG_WRITE_FLASH,
-    encode_command,
-    encode_long,
-    encode_read,
-    encode_return,
-    encode_short,
-)
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.protocol.wire import (
+    FLAG_REBOOT, FLAG_WRITE_FLASH, encode_command, encode_long, encode_read, encode_return, encode_short)
 
 BAUD_7_TO_1 = encode_short(1, 0, 0x06, b"\x07")   # baud_rate 115200 (table 4.7)
 ID_1_TO_2 = encode_short(1, 0, 0x04, b"\x02")     # servo_id (table 4.6 No. 4)

@@ -7,12 +7,13 @@ import json
 
 import pytest
 
-from rs30x_sniff.chunks import FRAMING_ERROR, PARITY_ERROR, SERVO, Marked
+from rs30x_sniff.protocol.chunks import FRAMING_ERROR, PARITY_ERROR, SERVO, Marked
 from rs30x_sniff.cli import main
-from rs30x_sniff.io import foreign
+from rs30x_sniff.sources import foreign
 from rs30x_sniff.lint import RULES, LintConfig, Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, drive
-from rs30x_sniff.wire import encode_short
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.sinks.pipeline import drive
+from rs30x_sniff.protocol.wire import encode_short
 
 from .helpers import CAPTURES
 

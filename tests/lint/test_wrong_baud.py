@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rs30x_sniff.lint import LintConfig, Linter
-from rs30x_sniff.pipeline import Decoder, DecodeOptions
+from rs30x_sniff.decode.decoder import Decoder, DecodeOptions
 from rs30x_sniff.sim import SCENARIOS, run
 from rs30x_sniff.sim.wire import retime
 
@@ -55,7 +55,7 @@ def test_115200_read_at_57600_is_said_while_feeding_timed_chunks():
 
 def test_a_valid_frame_ends_the_stretch_and_a_new_one_is_said_again():
     bad = b"".join(d for d, _ in retime(run("hexapod", baud=115200, duration=1.6), 115200, 57600))
-    from rs30x_sniff.wire import encode_short
+    from rs30x_sniff.protocol.wire import encode_short
     good = encode_short(1, 0, 0x1E, b"\x84\x03")
     found, _ = _lint([(bad + good + bad, None)], 57600)
     assert len(found) == 2

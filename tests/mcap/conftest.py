@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from rs30x_sniff.io.captures import read_capture
-from rs30x_sniff.io.mcap_sink import McapSink
-from rs30x_sniff.pipeline import drive
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
+from rs30x_sniff.sources.captures import read_capture
+from rs30x_sniff.sinks.mcap.writer import McapSink
+from rs30x_sniff.sinks.pipeline import drive
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 
 ROOT = Path(__file__).resolve().parents[2]
 CAPTURES = sorted((ROOT / "captures").glob("*.hex"))

@@ -6,9 +6,9 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from rs30x_sniff.chunks import Marked, marks
+from rs30x_sniff.protocol.chunks import Marked, marks
 from rs30x_sniff.cli import main
-from rs30x_sniff.io.captures import read_capture
+from rs30x_sniff.sources.captures import read_capture
 
 FOREIGN = Path(__file__).resolve().parents[2] / "captures" / "foreign"
 

@@ -15,11 +15,11 @@ from mcap.records import Channel, DataEnd, Footer, Header, Message, Metadata, Sc
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, IndexType, Writer
 
-from rs30x_sniff.block_json import NonFiniteError, block_json_lines, record_json_line
-from rs30x_sniff.blocks import Block
+from rs30x_sniff.render.block_json import NonFiniteError, block_json_lines, record_json_line
+from rs30x_sniff.decode.blocks import Block
 from rs30x_sniff.cli import main
-from rs30x_sniff.io.mcap_source import McapRawReader
-from rs30x_sniff.pipeline import Decoder
+from rs30x_sniff.sources.mcap_reader import McapRawReader
+from rs30x_sniff.decode.decoder import Decoder
 from rs30x_sniff.schemas import schema_bytes
 
 from .conftest import ROOT, hexapod_frames

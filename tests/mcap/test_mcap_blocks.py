@@ -12,10 +12,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.reader import make_reader
 
-from rs30x_sniff import blocks
-from rs30x_sniff.io.mcap_sink import McapSink
+from rs30x_sniff.decode import blocks
+from rs30x_sniff.sinks.mcap.writer import McapSink
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, drive
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
+from rs30x_sniff.sinks.pipeline import drive
 from rs30x_sniff.sim import scenarios
 from tests.core.test_columnar import traffic
 

@@ -9,11 +9,11 @@ import jsonschema
 import pytest
 from mcap.reader import make_reader
 
-from rs30x_sniff.io.mcap_sink import McapSink, transaction_json
+from rs30x_sniff.sinks.mcap.writer import McapSink, transaction_json
 from rs30x_sniff.lint import Finding
-from rs30x_sniff.pipeline import Decoder
+from rs30x_sniff.decode.decoder import Decoder
 from rs30x_sniff.schemas import SCHEMA_FILES, schema
-from rs30x_sniff.wire import encode_return, encode_short
+from rs30x_sniff.protocol.wire import encode_return, encode_short
 
 from .conftest import chunks_of, hexapod_frames, to_mcap
 

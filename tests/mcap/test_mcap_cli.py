@@ -9,7 +9,7 @@ from mcap.reader import make_reader
 
 from rs30x_sniff.cli import main
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.schemas import schema
 
 from .conftest import ROOT, chunks_of, hexapod_frames

@@ -13,9 +13,9 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from rs30x_sniff.io.captures import CaptureError, read_capture
-from rs30x_sniff.io.mcap_sink import McapSink
-from rs30x_sniff.io.mcap_source import McapRawReader
+from rs30x_sniff.sources.captures import CaptureError, read_capture
+from rs30x_sniff.sinks.mcap.writer import McapSink
+from rs30x_sniff.sources.mcap_reader import McapRawReader
 
 from .conftest import ROOT, hexapod_frames, to_mcap
 
@@ -193,7 +193,7 @@ def test_a_killed_writer_loses_at_most_about_a_second(tmp_path):
     out = tmp_path / "killed.mcap"
     script = textwrap.dedent(f"""
         import sys, time
-        from rs30x_sniff.io.mcap_sink import McapSink
+        from rs30x_sniff.sinks.mcap.writer import McapSink
         sink = McapSink({str(out)!r}, source="port", baud=115200, time_base="capture")
         t = 0.0
         while True:

@@ -9,10 +9,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rs30x_sniff.cli import main
-from rs30x_sniff.io.captures import read_capture
-from rs30x_sniff.pipeline import DecodeOptions, decode_records
-from rs30x_sniff.render import record_json
-from rs30x_sniff.wire import byte_time, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.sources.captures import read_capture
+from rs30x_sniff.decode.decoder import DecodeOptions
+from rs30x_sniff.sinks.pipeline import decode_records
+from rs30x_sniff.render.records import record_json
+from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
 
 from .conftest import chunks_of, to_mcap
 

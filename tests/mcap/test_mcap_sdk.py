@@ -11,8 +11,8 @@ from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 
 from rs30x_sniff import __version__
-from rs30x_sniff.io.mcap_sink import McapSink
-from rs30x_sniff.io.mcap_source import McapRawReader
+from rs30x_sniff.sinks.mcap.writer import McapSink
+from rs30x_sniff.sources.mcap_reader import McapRawReader
 
 from .conftest import hexapod_frames, to_mcap
 

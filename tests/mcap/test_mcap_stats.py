@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from rs30x_sniff.pipeline import DecodeOptions, decode_records
-from rs30x_sniff.stats import CaptureStats, LatencyHistogram
-from rs30x_sniff.wire import byte_time, encode_return, encode_short
+from rs30x_sniff.decode.decoder import DecodeOptions
+from rs30x_sniff.sinks.pipeline import decode_records
+from rs30x_sniff.sinks.stats import CaptureStats, LatencyHistogram
+from rs30x_sniff.protocol.wire import byte_time, encode_return, encode_short
 
 
 def test_latency_percentiles_use_nearest_rank():

@@ -7,10 +7,10 @@ from functools import lru_cache
 
 import pytest
 
-from rs30x_sniff.pipeline import Decoder, DecodeOptions
+from rs30x_sniff.decode.decoder import Decoder, DecodeOptions
 from rs30x_sniff.sim import SCENARIOS, Servo, SimBus, run
 from rs30x_sniff.sim.bus import Transmission, _merge
-from rs30x_sniff.wire import byte_time, encode_short
+from rs30x_sniff.protocol.wire import byte_time, encode_short
 
 # Short runs keep the suite fast; long enough for every fault to show several times.
 DURATIONS = {"hexapod": 3.0, "setup": None, "overheat": 8.0}

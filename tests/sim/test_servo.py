@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from rs30x_sniff.framing import decode_all
+from rs30x_sniff.decode.framing import decode_all
 from rs30x_sniff.sim import Servo, SimBus
 from rs30x_sniff.sim.servo import BOOT_TIME, FLASH_WRITE_TIME, Physics
-from rs30x_sniff.wire import checksum, encode_command, encode_long, encode_read, encode_short
+from rs30x_sniff.protocol.wire import checksum, encode_command, encode_long, encode_read, encode_short
 from tests.conftest import h
 
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from rs30x_sniff.framing import decode_all
+from rs30x_sniff.decode.framing import decode_all
 from rs30x_sniff.sim import run
 from rs30x_sniff.sim.wire import DROP, ZERO, SimWire, retime
-from rs30x_sniff.wire import encode_short
+from rs30x_sniff.protocol.wire import encode_short
 
 
 @pytest.mark.parametrize("baud", [9600, 57600, 115200, 230400])

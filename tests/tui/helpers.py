@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from rs30x_sniff.io.captures import read_capture
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
+from rs30x_sniff.sources.captures import read_capture
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 
 ROOT = Path(__file__).resolve().parents[2]
 MANUAL = str(ROOT / "captures" / "manual-examples.hex")

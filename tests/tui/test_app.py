@@ -7,7 +7,7 @@ import threading
 import pytest
 
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions
+from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.tui.app import make_app
 from rs30x_sniff.tui.detail import DetailPane, FieldTree
 from rs30x_sniff.tui.header import StatusHeader
@@ -15,7 +15,7 @@ from rs30x_sniff.tui.help import HelpScreen
 from rs30x_sniff.tui.panes import FindingsPane, ServosPane
 from rs30x_sniff.tui.sources import FileSource
 from rs30x_sniff.tui.timeline import Timeline
-from rs30x_sniff.wire import encode_return, encode_short
+from rs30x_sniff.protocol.wire import encode_return, encode_short
 
 from .helpers import MANUAL, SIZE, FrozenClock, GatedSource, wait_done
 
@@ -234,7 +234,7 @@ async def test_p_cycles_the_plotted_register():
 
 
 async def test_r_records_to_mcap_and_stops(tmp_path):
-    from rs30x_sniff.io.mcap_source import read_mcap_raw
+    from rs30x_sniff.sources.mcap_reader import read_mcap_raw
 
     gate = threading.Event()
     chunks = [(encode_short(1, 0, 30, bytes((i, 0))), i * 0.01) for i in range(30)]
@@ -418,7 +418,7 @@ async def test_a_large_capture_opens_with_a_bounded_history(tmp_path):
     import sys
     from pathlib import Path
 
-    from rs30x_sniff.io.captures import write_capture
+    from rs30x_sniff.sources.captures import write_capture
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
     from bench.traffic import hexapod_frames
 
@@ -452,7 +452,7 @@ async def test_batches_arriving_under_the_help_screen_are_not_lost():
 
 
 async def test_the_mouse_wheel_scrolls_back_and_leaves_follow_mode(tmp_path):
-    from rs30x_sniff.io.captures import write_capture
+    from rs30x_sniff.sources.captures import write_capture
 
     p = tmp_path / "many.thex"
     write_capture(p, [(encode_short(1, 0, 30, bytes((i % 256, 0))), i * 0.01) for i in range(300)], "timestamped")

@@ -7,11 +7,11 @@ import time
 
 import pytest
 
-from rs30x_sniff.io.captures import CaptureError, read_capture, write_capture
-from rs30x_sniff.pipeline import DecodeOptions
+from rs30x_sniff.sources.captures import CaptureError, read_capture, write_capture
+from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.tui.feed import Feeder, default_linter
 from rs30x_sniff.tui.sources import ChunkSource, FileSource, ReplaySource, SimulatorSource, paced
-from rs30x_sniff.wire import encode_short
+from rs30x_sniff.protocol.wire import encode_short
 
 from .helpers import GatedSource, MANUAL
 
@@ -63,7 +63,7 @@ def test_a_bad_file_fails_before_the_screen_starts(tmp_path):
 
 
 def test_recording_writes_an_mcap_of_what_follows(tmp_path):
-    from rs30x_sniff.io.mcap_source import read_mcap_raw
+    from rs30x_sniff.sources.mcap_reader import read_mcap_raw
 
     chunks = [(encode_short(1, 0, 30, bytes((i, 0))), i * 0.01) for i in range(50)]
     go = threading.Event()
@@ -86,7 +86,7 @@ def test_recording_writes_an_mcap_of_what_follows(tmp_path):
 
 
 def test_stop_recording_finishes_the_file(tmp_path):
-    from rs30x_sniff.io.mcap_source import read_mcap_raw
+    from rs30x_sniff.sources.mcap_reader import read_mcap_raw
 
     release = threading.Event()
 
@@ -228,7 +228,7 @@ def read_ahead_all(monkeypatch):
 
 
 def test_a_big_file_is_read_by_a_child_process_with_the_same_result(read_ahead_all, tmp_path):
-    from rs30x_sniff.io.read_ahead import ReadAhead
+    from rs30x_sniff.sources.read_ahead import ReadAhead
 
     src = FileSource(MANUAL)
     assert isinstance(src._it, ReadAhead) and not isinstance(ReplaySource(MANUAL)._it, ReadAhead)
@@ -277,7 +277,7 @@ def test_a_stopped_load_stops_the_child(read_ahead_all, tmp_path):
 
 
 def test_no_process_to_be_had_reads_the_file_here(read_ahead_all, monkeypatch):
-    from rs30x_sniff.io import read_ahead
+    from rs30x_sniff.sources import read_ahead
 
     def no_process(*args, **kwargs):
         raise OSError(11, "Resource temporarily unavailable")

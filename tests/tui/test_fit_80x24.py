@@ -8,7 +8,7 @@ import re
 import pytest
 
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions
+from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.tui.app import make_app
 from rs30x_sniff.tui.header import SessionInfo, status_text
 from rs30x_sniff.tui.panes import range_label

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions
+from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.tui.app import make_app
 from rs30x_sniff.tui.sources import FileSource
 

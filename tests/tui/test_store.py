@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from rs30x_sniff.stats import CaptureStats
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
+from rs30x_sniff.sinks.stats import CaptureStats
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.tui.filter import parse_filter
 from rs30x_sniff.tui.store import Store, register_value, servo_snapshot
-from rs30x_sniff.wire import encode_return, encode_short
+from rs30x_sniff.protocol.wire import encode_return, encode_short
 
 from .helpers import FakeFinding, manual_records, records_of
 

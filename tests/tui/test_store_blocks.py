@@ -7,11 +7,12 @@ from pathlib import Path
 
 import pytest
 
-from rs30x_sniff.blocks import Block
+from rs30x_sniff.decode.blocks import Block
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder, Sink, Step, drive
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder, Step
+from rs30x_sniff.sinks.pipeline import Sink, drive
 from rs30x_sniff.sim import scenarios
-from rs30x_sniff.stats import CaptureStats
+from rs30x_sniff.sinks.stats import CaptureStats
 from rs30x_sniff.tui.feed import split_block
 from rs30x_sniff.tui.filter import parse_filter
 from rs30x_sniff.tui.store import PLOT_POINTS, PLOT_REGISTERS, Store
@@ -295,11 +296,11 @@ def test_adding_a_block_takes_no_python_work_per_row():
 @pytest.mark.parametrize("rows", [1, 37, 500])
 def test_capture_stats_flush_health_buffers_as_the_record_path(monkeypatch, rows):
     """The health recorder's buffers flushed every few rows: inside Blocks, across them, on numpy."""
-    import rs30x_sniff.health
-    import rs30x_sniff.stats
+    import rs30x_sniff.sinks.health
+    import rs30x_sniff.sinks.stats
 
-    monkeypatch.setattr(rs30x_sniff.health, "_FLUSH_ROWS", rows)
-    monkeypatch.setattr(rs30x_sniff.stats, "_FLUSH_ROWS", rows)
+    monkeypatch.setattr(rs30x_sniff.sinks.health, "_FLUSH_ROWS", rows)
+    monkeypatch.setattr(rs30x_sniff.sinks.stats, "_FLUSH_ROWS", rows)
     for name, opts in (("bench", DecodeOptions()), ("overheat", DecodeOptions()),
                        ("bench", DecodeOptions(models={4: "RS304MD"}))):
         chunks = capture(name)
@@ -313,7 +314,7 @@ def test_capture_stats_flush_health_buffers_as_the_record_path(monkeypatch, rows
 
 # ---- the feeder ---------------------------------------------------------------------------------------
 def test_the_feeder_loads_a_file_as_blocks(tmp_path):
-    from rs30x_sniff.io.captures import write_capture
+    from rs30x_sniff.sources.captures import write_capture
     from rs30x_sniff.tui.feed import Feeder, default_linter
     from rs30x_sniff.tui.sources import FileSource
 
@@ -337,7 +338,7 @@ def test_the_feeder_loads_a_file_as_blocks(tmp_path):
 
 
 def read_capture_of(path):
-    from rs30x_sniff.io.inputs import read_input
+    from rs30x_sniff.sources.inputs import read_input
 
     return read_input(str(path), baud=115200, warn=None)
 
@@ -357,7 +358,7 @@ def test_a_live_source_stays_record_by_record():
 def test_recording_while_a_file_loads_gets_records(tmp_path):
     """A sink that takes Records (the `r` recording) sees every row as one, and a Block reaches the
     screen only once it has built them (no row is two objects)."""
-    from rs30x_sniff.io.captures import write_capture
+    from rs30x_sniff.sources.captures import write_capture
     from rs30x_sniff.tui.feed import Feeder
     from rs30x_sniff.tui.sources import FileSource
 

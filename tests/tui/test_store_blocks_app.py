@@ -5,11 +5,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from rs30x_sniff.blocks import Block
-from rs30x_sniff.io.captures import write_capture
-from rs30x_sniff.io.inputs import read_input
+from rs30x_sniff.decode.blocks import Block
+from rs30x_sniff.sources.captures import write_capture
+from rs30x_sniff.sources.inputs import read_input
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.pipeline import DecodeOptions, Decoder
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.tui.app import make_app
 from rs30x_sniff.tui.filter import parse_filter
 from rs30x_sniff.tui.sources import FileSource

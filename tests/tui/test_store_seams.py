@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from rs30x_sniff.pipeline import Decoder, Sink, drive
-from rs30x_sniff.stats import RecentLoad
+from rs30x_sniff.decode.decoder import Decoder
+from rs30x_sniff.sinks.pipeline import Sink, drive
+from rs30x_sniff.sinks.stats import RecentLoad
 from rs30x_sniff.tui.store import Store
-from rs30x_sniff.wire import byte_time, encode_read, encode_return
+from rs30x_sniff.protocol.wire import byte_time, encode_read, encode_return
 
 BT = byte_time(115200)
 READ, RET = encode_read(1, 0x2A, 2), encode_return(1, 0x2A, b"\x84\x03")

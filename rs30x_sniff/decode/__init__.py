@@ -1,0 +1,1 @@
+"""Decoding: framing (state machine, numpy kernel, runs), pairing (tracker, Blocks), the Decoder."""

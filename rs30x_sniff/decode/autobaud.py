@@ -1,0 +1,407 @@
+"""Which baud rate is the bus at: estimates from timestamps, a scan of table 4.7, and a watch for a rate that stops working."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Iterator
+
+from .framing import FrameDecoder
+from ..sinks.pipeline import Sink
+from .decoder import Step
+from ..protocol.wire import BAUD_RATES, byte_time
+
+# Table 4.7's rates, most likely first: the factory default 115200 (chapter 4, No. 6), then the
+# rates hosts commonly pick, then the rest. A scan stops at the first rate that decodes cleanly.
+SCAN_ORDER: tuple[int, ...] = (115200, 57600, 230400, 9600, 38400, 19200, 153600, 76800, 28800, 14400)
+SCAN_DWELL = 0.3  # seconds read at each rate: several frames even at 9600 on a busy bus
+
+_VALID_KINDS = frozenset(("short", "long", "return", "ack", "nack"))
+
+
+def is_valid(rec: Any) -> bool:
+    """Whether a record (or event) is a checksum-valid frame, or an ACK/NACK byte (which only follows one)."""
+    ev = getattr(rec, "event", rec)
+    return ev.kind in _VALID_KINDS and ev.checksum_ok
+
+
+# ---- 2. the rate from timestamps ----------------------------------------------------------------
+@dataclass(frozen=True)
+class BaudEstimate:
+    """A line rate read off timestamps: ``baud`` (None: the timestamps do not say), ``score`` in [0, 1]."""
+
+    baud: int | None
+    score: float
+    evidence: str
+    per_byte: float | None = None  # seconds per byte where chunks follow each other back to back
+    samples: int = 0
+
+    def __bool__(self) -> bool:
+        return self.baud is not None
+
+
+NO_ESTIMATE = BaudEstimate(None, 0.0, "no timestamps")
+
+# A back-to-back spacing within this factor of a rate's byte time names that rate. Neighbours in
+# table 4.7 are at least 4/3 apart, so 10 % never fits two rates.
+MATCH_TOLERANCE = 0.10
+# Spacings within this factor of the byte time count as back to back (a cluster, not chance).
+CLUSTER_TOLERANCE = 0.05
+PERCENTILE = 0.05     # of bytes: a low percentile, so one odd timestamp does not decide
+MIN_SAMPLES = 8       # spacings needed before saying anything
+MIN_CLUSTER = 0.10    # share of bytes that must sit back to back at the estimated rate
+FULL_CLUSTER_BYTES = 256  # back-to-back bytes for full confidence
+
+
+def _neighbours(chunks: Iterable[tuple[bytes, float | None]]) -> Iterator[tuple[float, int, int]]:
+    """``(seconds between, bytes of the first, bytes of the second)`` of each two timed chunks in a row
+    whose times increase (a clock that went back, or equal stamps, say nothing of the rate)."""
+    prev: tuple[int, float] | None = None
+    for data, t in chunks:
+        if not data:
+            continue
+        if t is None:
+            prev = None
+            continue
+        if prev is not None and t > prev[1]:
+            yield t - prev[1], prev[0], len(data)
+        prev = (len(data), t)
+
+
+def _spacings(chunks: Iterable[tuple[bytes, float | None]]) -> list[tuple[float, int]]:
+    return [(gap / n, n) for gap, n, _ in _neighbours(chunks)]
+
+
+def estimate_from_spacings(samples: Iterable[tuple[float, int]], rates: Iterable[int] = BAUD_RATES) -> BaudEstimate:
+    """:func:`estimate_baud` on (seconds per byte, bytes) spacings already taken."""
+    samples = sorted(samples)
+    if len(samples) < MIN_SAMPLES:
+        return BaudEstimate(None, 0.0, f"{len(samples)} timestamp spacing(s): too few to tell the rate",
+                            samples=len(samples))
+    total = sum(w for _, w in samples)
+    # Weighted by bytes: a long packet followed at once by the next frame is the best evidence.
+    goal, acc, per_byte = PERCENTILE * total, 0, samples[-1][0]
+    for s, w in samples:
+        acc += w
+        if acc >= goal:
+            per_byte = s
+            break
+    best = min(rates, key=lambda r: abs(math.log(per_byte / byte_time(r))))
+    bt = byte_time(best)
+    off = per_byte / bt - 1
+    cluster = sum(w for s, w in samples if abs(s / bt - 1) <= CLUSTER_TOLERANCE)
+    share = cluster / total
+    what = (f"{len(samples)} spacings; {PERCENTILE:.0%} of bytes come {per_byte * 1e6:.1f} us apart or closer "
+            f"(a byte at {best} bit/s takes {bt * 1e6:.1f} us); {share:.0%} of bytes back to back")
+    if abs(off) > MATCH_TOLERANCE or share < MIN_CLUSTER:
+        return BaudEstimate(None, 0.0, what + ": no rate of table 4.7 fits", per_byte, len(samples))
+    score = min(1.0, cluster / FULL_CLUSTER_BYTES) * (1 - abs(off) / MATCH_TOLERANCE)
+    return BaudEstimate(best, round(score, 3), what, per_byte, len(samples))
+
+
+def estimate_baud(chunks: Iterable[tuple[bytes, float | None]], rates: Iterable[int] = BAUD_RATES) -> BaudEstimate:
+    """The line rate where chunks follow each other back to back (``t`` = the chunk's first byte).
+
+    The spacing from one chunk's start to the next, per byte of the first, is at least the byte time
+    (10 bits, 8N1) and equals it where the line never went idle. A low percentile of those spacings
+    is matched to the nearest rate of table 4.7; None when nothing is within 10 % or too few bytes
+    sit back to back (sparse timestamps: a logger stamping every second, chunks far apart).
+    """
+    return estimate_from_spacings(_spacings(chunks), rates)
+
+
+def contradicts(estimate: BaudEstimate | None, baud: int, min_score: float = 0.2) -> bool:
+    """Whether a confident estimate names another rate than ``baud`` (the one the capture is decoded at)."""
+    return bool(estimate) and estimate.baud != baud and estimate.score >= min_score
+
+
+class BaudFromTimes(Sink):
+    """The streaming :func:`estimate_baud`: a pipeline Sink; read :attr:`estimate` at any time.
+
+    Keeps the last ``keep`` spacings, so memory stays bounded on a live port.
+    """
+
+    def __init__(self, rates: Iterable[int] = BAUD_RATES, keep: int = 4096) -> None:
+        self.rates = tuple(rates)
+        self._samples: deque[tuple[float, int]] = deque(maxlen=keep)
+        self._prev: tuple[int, float] | None = None
+        self._cached: BaudEstimate | None = None
+
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
+        if not data:
+            return
+        if t is None:
+            self._prev = None
+            return
+        p = self._prev
+        if p is not None and t > p[1]:
+            self._samples.append(((t - p[1]) / p[0], p[0]))
+            self._cached = None
+        self._prev = (len(data), t)
+
+    @property
+    def estimate(self) -> BaudEstimate:
+        if self._cached is None:
+            self._cached = estimate_from_spacings(self._samples, self.rates) if self._samples else NO_ESTIMATE
+        return self._cached
+
+
+# ---- 3. rates the timestamps rule out ------------------------------------------------------------
+# Bytes cannot overlap on the wire: at a rate too slow, chunks would start before the previous one
+# ended. Jitter aside (OVERLAP_TOLERANCE of the chunk's line time), a right rate has next to no such
+# pairs; a rate with more than OVERLAP_SHARE of them is contradicted by the timestamps.
+OVERLAP_TOLERANCE = 0.10
+OVERLAP_SHARE = 0.10
+
+
+@dataclass(frozen=True)
+class RateFit:
+    """Which rates a capture's timestamps allow: ``spans`` holds, for each pair of timed neighbours,
+    the seconds from one's time to the next's and the byte count of the shorter of the two.
+
+    Whatever the times mark (a chunk's first byte or its arrival), the later chunk cannot begin
+    within the line time of the shorter one, so a rate is tested without knowing the time reference.
+    """
+
+    spans: tuple[tuple[float, int], ...] = ()
+
+    def overlaps(self, baud: int) -> int:
+        """Pairs that would overlap at ``baud``."""
+        bt = byte_time(baud) * (1 - OVERLAP_TOLERANCE)
+        return sum(1 for d, n in self.spans if d < n * bt)
+
+    def rules_out(self, baud: int) -> bool:
+        """Whether the timestamps contradict ``baud`` (never on fewer than MIN_SAMPLES pairs)."""
+        return len(self.spans) >= MIN_SAMPLES and self.overlaps(baud) > OVERLAP_SHARE * len(self.spans)
+
+    def slowest(self, rates: Iterable[int] = BAUD_RATES) -> int | None:
+        """The slowest of ``rates`` the timestamps allow (on a busy bus, the rate: close neighbours pin
+        the byte time from above), or None when they rule out all of them or are too few to tell."""
+        if len(self.spans) < MIN_SAMPLES:
+            return None
+        return next((r for r in sorted(rates) if not self.rules_out(r)), None)
+
+    def evidence(self, baud: int) -> str:
+        return f"at {baud} bit/s, {self.overlaps(baud)} of {len(self.spans)} chunks would start before the previous one ended"
+
+
+def rate_fit(chunks: Iterable[tuple[bytes, float | None]]) -> RateFit:
+    """The :class:`RateFit` of timed chunks (``t`` in seconds). Neighbours whose times do not increase
+    (a clock that went back, or equal stamps) are left out: they say nothing of the rate."""
+    return RateFit(tuple((gap, min(n, m)) for gap, n, m in _neighbours(chunks)))
+
+
+# ---- 1. stretches without a valid frame (F007, BaudWatch) ---------------------------------------
+STRETCH_BYTES = 64      # garbage bytes with no valid frame: a healthy bus has a frame every few dozen
+STRETCH_TIME = 0.5      # ... or this long (timed captures), with at least STRETCH_TIME_BYTES of garbage
+STRETCH_TIME_BYTES = 16
+
+
+class NoFrameStretch:
+    """Counts garbage since the last valid frame; :meth:`garbage` says True once per stretch, when it
+    first holds ``min_bytes`` bytes (or ``min_time`` seconds and ``min_time_bytes`` bytes)."""
+
+    def __init__(self, min_bytes: int = STRETCH_BYTES, min_time: float = STRETCH_TIME,
+                 min_time_bytes: int = STRETCH_TIME_BYTES) -> None:
+        self.min_bytes = min_bytes
+        self.min_time = min_time
+        self.min_time_bytes = min_time_bytes
+        self.reset()
+
+    def reset(self) -> None:
+        """A valid frame: the stretch is over."""
+        self.bytes = 0
+        self.t0: float | None = None
+        self.t1: float | None = None
+        self.fired = False
+
+    @property
+    def span(self) -> float | None:
+        return None if self.t0 is None or self.t1 is None else self.t1 - self.t0
+
+    def garbage(self, n: int, t0: float | None = None, t1: float | None = None) -> bool:
+        self.bytes += n
+        if t0 is not None and self.t0 is None:
+            self.t0 = t0
+        if t1 is not None:
+            self.t1 = t1
+        if self.fired:
+            return False
+        span = self.span
+        if self.bytes >= self.min_bytes or (span is not None and span >= self.min_time
+                                            and self.bytes >= self.min_time_bytes):
+            self.fired = True
+            return True
+        return False
+
+
+def wrong_baud_message(nbytes: int, span: float | None, baud: int, estimate: BaudEstimate | None = None) -> str:
+    """F007's text: what was seen, and which rates to try."""
+    where = f"no valid frame in {nbytes} bytes" + (f" ({span:.2f} s)" if span is not None else "")
+    rates = ", ".join(str(r) for r in BAUD_RATES if r != baud)
+    if estimate is None:
+        return (f"{where} read at {baud} bit/s: is the bus at another rate? The bytes alone cannot tell which; "
+                f"try --baud auto on a port, or the other rates of table 4.7 ({rates})")
+    if estimate.baud is not None and estimate.baud != baud:
+        return (f"{where} read at {baud} bit/s: the timestamps put bytes {estimate.per_byte * 1e6:.1f} us apart, "
+                f"a byte time of {estimate.baud} bit/s: try --baud {estimate.baud}")
+    if estimate.baud == baud:
+        # A receiver at the wrong rate still delivers its bytes at its own pace, so its timestamps
+        # show the rate it was set to, not the line's.
+        return (f"{where} read at {baud} bit/s: the bytes arrived at the reader's own pace, which says nothing "
+                f"of the bus's rate; try --baud auto on a port, or the other rates of table 4.7 ({rates})")
+    return (f"{where} read at {baud} bit/s: is the bus at another rate? The timestamps do not tell which; "
+            f"try --baud auto on a port, or the other rates of table 4.7 ({rates})")
+
+
+# ---- 4. scanning a port ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RateScore:
+    """What one rate of a scan gave: bytes read, checksum-valid frames and their bytes."""
+
+    baud: int
+    seconds: float
+    bytes: int
+    frames: int
+    frame_bytes: int
+
+    @property
+    def frames_per_s(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else 0.0
+
+    @property
+    def valid_share(self) -> float:
+        """Share of the bytes read that are in valid frames."""
+        return self.frame_bytes / self.bytes if self.bytes else 0.0
+
+    def as_json(self) -> dict[str, Any]:
+        return {"baud": self.baud, "seconds": self.seconds, "bytes": self.bytes, "frames": self.frames,
+                "frames_per_s": round(self.frames_per_s, 2), "valid_share": round(self.valid_share, 3)}
+
+
+@dataclass(frozen=True)
+class ScanResult:
+    """The rate a scan chose (None: no rate gave valid frames), its frames per second, every rate's score."""
+
+    baud: int | None
+    score: float
+    table: list[RateScore] = field(default_factory=list)
+    seconds: float = 0.0  # time spent reading (simulated or real)
+    wall: float = 0.0     # wall-clock time the scan took
+
+    def __bool__(self) -> bool:
+        return self.baud is not None
+
+    def describe(self) -> str:
+        rows = "; ".join(f"{s.baud}: {s.frames} frames in {s.bytes} bytes" for s in self.table)
+        head = f"--baud auto: {self.baud} bit/s ({self.score:.1f} frames/s)" if self.baud else \
+            "--baud auto: no rate of table 4.7 gave a valid frame (is the bus quiet?)"
+        return f"{head} [{rows}]"
+
+
+def score_bytes(data: bytes, baud: int, seconds: float) -> RateScore:
+    """Decode ``data`` read at ``baud`` and count its checksum-valid frames."""
+    dec = FrameDecoder(baud, gap_bytes=None)
+    events = dec.feed(data) + dec.close()
+    frames = [e for e in events if is_valid(e)]
+    return RateScore(baud, seconds, len(data), len(frames), sum(len(e.raw) for e in frames))
+
+
+ACCEPT_SHARE = 0.5  # a rate whose bytes are mostly valid frames ends the scan at once
+MIN_FRAMES = 2      # fewer valid frames than this at the best rate: no answer
+
+
+def scan(read_for: Callable[[int, float], bytes], rates: Iterable[int] = SCAN_ORDER, dwell: float = SCAN_DWELL,
+         *, accept_share: float = ACCEPT_SHARE, min_frames: int = MIN_FRAMES,
+         clock: Callable[[], float] = time.monotonic) -> ScanResult:
+    """Try each rate with ``read_for(baud, seconds) -> bytes`` and pick the one with most valid frames per second.
+
+    ``read_for`` only listens (a port reopened at each rate, or a simulated wire): a scan never
+    writes to the bus. It stops early at a rate whose bytes are at least ``accept_share`` valid
+    frames (with ``min_frames`` of them): at a wrong rate nearly nothing decodes.
+    """
+    start = clock()
+    table: list[RateScore] = []
+    for baud in rates:
+        s = score_bytes(read_for(baud, dwell), baud, dwell)
+        table.append(s)
+        if s.frames >= min_frames and s.valid_share >= accept_share:
+            break
+    best = max(table, key=lambda s: (s.frames_per_s, s.valid_share), default=None)
+    seconds = sum(s.seconds for s in table)
+    if best is None or best.frames < min_frames:
+        return ScanResult(None, 0.0, table, seconds, clock() - start)
+    return ScanResult(best.baud, best.frames_per_s, table, seconds, clock() - start)
+
+
+class BaudWatch(Sink):
+    """Watches a live pipeline at ``baud``: :attr:`rescan_due` turns True when the rate stops giving
+    valid frames (a baud change written to the servos, flashed and rebooted, is common during setup).
+
+    Fed by the drive loop as a Sink: ``chunk`` counts the bytes read, ``batch`` the valid frames.
+    A rescan is due when ``garbage_bytes`` of garbage came without a valid frame, or when
+    ``min_bytes`` bytes arrived over ``min_time`` seconds without one (so it also works while the
+    decoder still holds the garbage back). Call :meth:`reset` after switching rates.
+    """
+
+    def __init__(self, baud: int, *, offset: int = 0, garbage_bytes: int = STRETCH_BYTES, min_bytes: int = 256,
+                 min_time: float = STRETCH_TIME) -> None:
+        self.garbage_bytes = garbage_bytes
+        self.min_bytes = min_bytes
+        self.min_time = min_time
+        self.reset(baud, offset)
+
+    def reset(self, baud: int | None = None, offset: int = 0) -> None:
+        """Start watching afresh (after a rescan: the new rate, and the new decoder's offset, 0)."""
+        if baud is not None:
+            self.baud = baud
+        self.fed = offset        # decoder stream offset of the next byte (``offset``: bytes it had before this watch)
+        self.valid_end = offset  # stream offset where the last valid frame ended
+        self.valid_t: float | None = None
+        self.first_t: float | None = None
+        self.now: float | None = None
+        self.frames = 0
+        self._stretch = NoFrameStretch(self.garbage_bytes)
+        self.rescan_due = False
+        self.reason = ""
+
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
+        if not data:
+            return
+        self.fed += len(data)
+        if t is not None:
+            if self.first_t is None:
+                self.first_t = t
+            self.now = t
+        self._check()
+
+    def batch(self, step: Step) -> None:
+        for rec in step:
+            ev = rec.event
+            if is_valid(ev):
+                self.frames += 1
+                self.valid_end = ev[0] + len(ev[1])
+                self.valid_t = ev[3] if ev[3] is not None else self.now
+                self._stretch.reset()
+            elif ev.kind == "garbage":
+                if self._stretch.garbage(len(ev[1]), ev[2], ev[3]):
+                    self._due(f"{self._stretch.bytes} bytes of garbage without a valid frame")
+        self._check()
+
+    def _check(self) -> None:
+        if self.rescan_due:
+            return
+        since = self.fed - self.valid_end
+        if since < self.min_bytes:
+            return
+        ref = self.valid_t if self.valid_t is not None else self.first_t
+        if self.now is not None and ref is not None and self.now - ref < self.min_time:
+            return
+        self._due(f"{since} bytes without a valid frame")
+
+    def _due(self, why: str) -> None:
+        self.rescan_due = True
+        before = f" (after {self.frames} valid frames)" if self.frames else ""
+        self.reason = f"{why} at {self.baud} bit/s{before}: the bus may have changed rate; rescan"

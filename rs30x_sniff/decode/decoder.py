@@ -1,0 +1,203 @@
+"""The Decoder: frames, pairs and (optionally) lints chunks into steps of records; sans-IO."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Iterator
+
+from .blocks import Block, feed_run
+from .pairing import DEFAULT_REPLY_TIMEOUT, BusTracker, Record
+from ..protocol.chunks import Marked, SenderMap
+from .frame_runs import FrameRun
+from .framing import DEFAULT_GAP_BYTES, FrameDecoder
+from ..protocol.memmap import ModelRegistry, default_registry
+from ..protocol.wire import DEFAULT_BAUD
+
+
+@dataclass
+class DecodeOptions:
+    """Everything that changes how bytes are decoded (built by :class:`rs30x_sniff.settings.Settings`)."""
+
+    baud: int = DEFAULT_BAUD
+    default_model: str | None = None
+    models: dict[int, str] = field(default_factory=dict)  # per-ID model names
+    gap_bytes: float | None = DEFAULT_GAP_BYTES
+    reply_timeout: float = DEFAULT_REPLY_TIMEOUT
+    registry: ModelRegistry | None = None
+
+
+
+class Step(list):
+    """The records one :meth:`Decoder.feed` (or :meth:`Decoder.close`) decided, in wire order.
+
+    ``findings`` holds every lint finding new since the previous call (those on these records, and at
+    the close those only the end of input reveals); ``late`` is that last kind alone: findings about
+    records handed out earlier. A columnar decoder's step may also hold Blocks (rs30x_sniff.decode.blocks):
+    many records as columns; :meth:`expanded` has them as Records.
+    """
+
+    __slots__ = ("findings", "late", "blocks", "seams")
+
+    def __init__(self, records: Iterable[Record] = (), findings: list | None = None, late: list | None = None) -> None:
+        super().__init__(records)
+        self.findings = findings if findings is not None else []
+        self.late = late if late is not None else []
+        self.blocks = False  # True when some items are Blocks
+        # Seams of the capture's clock (rs30x_sniff.decode.framing.Seam) that fall among these records: each
+        # record at or past a seam's offset belongs to the new time segment.
+        self.seams: tuple = ()
+
+    @property
+    def count(self) -> int:
+        """How many records the step holds (a Block counts its rows)."""
+        if not self.blocks:
+            return len(self)
+        return sum(len(x) if type(x) is Block else 1 for x in self)
+
+    def expanded(self) -> Step:
+        """This step with each Block's rows as Records (itself when it holds no Block)."""
+        if not self.blocks:
+            return self
+        out = Step((), self.findings, self.late)
+        out.seams = self.seams
+        for x in self:
+            if type(x) is Block:
+                out += x.records()
+            else:
+                out.append(x)
+        return out
+
+
+class Decoder:
+    """Frame decoder, bus tracker and (optionally) linter in one object: feed chunks, get records.
+
+    Still sans-IO. A linter, if given, sees every record before it is returned, so the record's
+    ``findings`` already hold what the linter could tell at that point.
+    """
+
+    def __init__(self, options: DecodeOptions | None = None, linter: Any = None, columnar: bool = False) -> None:
+        o = self.options = options or DecodeOptions()
+        # columnar: clean stretches of traffic come out as Blocks (rs30x_sniff.decode.blocks) instead of a
+        # Record each; whoever reads the steps must take Blocks (Step.expanded gives Records).
+        self.columnar = columnar
+        self.frames = FrameDecoder(o.baud, gap_bytes=o.gap_bytes, runs=columnar)
+        self.bus = BusTracker(o.registry or default_registry(), o.models, o.reply_timeout, o.default_model)
+        self.linter = linter
+        # Who sent which bytes, where the capture says so (a serial logger's TX/RX): the linter checks
+        # the decoder's own reading of each packet against it.
+        self.senders = SenderMap()
+        if linter is not None:
+            linter.senders = self.senders
+        self.bytes_in = 0
+        self.late_findings: list = []  # after close(): findings only the end of input revealed
+        self._seen = 0  # findings of linter.findings already handed out
+        self._seams = 0  # seams of frames.seams already handed out
+
+    def _new_findings(self) -> list:
+        found = self.linter.findings
+        if len(found) == self._seen:
+            return []
+        new = found[self._seen:]
+        self._seen = len(found)
+        return new
+
+    def feed(self, data: bytes, t: float | None = None, sender: str | None = None,
+             error: str | None = None) -> Step:
+        """Decode one chunk (its first byte at capture time ``t``); the records it completes.
+
+        ``sender`` is who the capture says sent these bytes, ``error`` a UART fault it flagged on them
+        (rs30x_sniff.protocol.chunks): flagged bytes become garbage with that reason.
+        """
+        if sender is not None or self.senders:
+            self.senders.note(self.bytes_in, sender)
+        self.bytes_in += len(data)
+        events = self.frames.feed(data, t) if error is None else self.frames.feed_fault(data, t, error)
+        return self._decided(events)
+
+    def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> Step:
+        """Decode several plain chunks (nothing said of their sender or errors) at once: the same
+        records as feeding them one by one, in one step (the columnar path's way in)."""
+        if self.senders:
+            self.senders.note(self.bytes_in, None)
+        self.bytes_in += sum(map(len, [c[0] for c in chunks]))
+        return self._decided(self.frames.feed_many(chunks))
+
+    def _track(self, events: list, out: Step) -> Step:
+        """Pair ``events`` (and in columnar mode, FrameRuns) into ``out``."""
+        if not self.columnar:
+            return self.bus.feed_many(events, out)
+        bus = self.bus
+        track = bus._feed
+        for ev in events:
+            if type(ev) is FrameRun:
+                out.blocks |= feed_run(bus, ev, out)  # True only when it made a Block
+            else:
+                track(ev, out)
+        return out
+
+    def _lint(self, out: Step) -> None:
+        """Every item of ``out`` to the linter, in order: a Record by feed, a Block by feed_block."""
+        linter = self.linter
+        lint = linter.feed
+        for rec in out:
+            if type(rec) is Block:
+                linter.feed_block(rec)
+            else:
+                lint(rec)
+
+    def _decided(self, events: list) -> Step:
+        if len(self.frames.seams) > self._seams:
+            return self._across_seams(events)
+        out = self._track(events, Step())
+        if self.linter is not None and out:
+            self._lint(out)
+            out.findings = self._new_findings()
+        return out
+
+    def _across_seams(self, events: list) -> Step:
+        """:meth:`_decided` for events among which the clock has a seam: each time segment is paired
+        and linted on its own, as if one capture ended at the seam and another began."""
+        seams = self.frames.seams[self._seams:]
+        self._seams = len(self.frames.seams)
+        out = Step()
+        out.seams = tuple(seams)
+        k = 0
+        for seam in seams:
+            j = k
+            while j < len(events) and _offset_of(events[j]) < seam.offset:
+                j += 1
+            piece = self._track(events[k:j], Step())
+            piece += self.bus.seam(seam.t_end)
+            self._take_piece(out, piece)
+            if self.linter is not None:
+                self.linter.seam(seam)
+            k = j
+        self._take_piece(out, self._track(events[k:], Step()))
+        if self.linter is not None:
+            out.findings = self._new_findings()
+        return out
+
+    def _take_piece(self, out: Step, piece: Step) -> None:
+        if self.linter is not None and piece:
+            self._lint(piece)
+        out += piece
+        out.blocks |= piece.blocks
+
+    def close(self) -> Step:
+        """End of input: the records still pending, and the findings only the end reveals (``late``)."""
+        out = self._decided(self.frames.close())  # linted, its findings taken
+        tail = Step(self.bus.close(self.frames.end_time))
+        if self.linter is not None:
+            self._lint(tail)
+        out += tail
+        if self.linter is not None:
+            self.linter.time_faults = self.frames.time_faults  # the capture's clock, for F005/F006
+            self.linter.end_t = self.frames.end_time
+            out.late = self.late_findings = self.linter.close()
+            out.findings = out.findings + self._new_findings()
+        return out
+
+
+def _offset_of(item: Any) -> int:
+    """Stream offset of an event's first byte, or a FrameRun's."""
+    return item.base if type(item) is FrameRun else item[0]

@@ -1,1 +1,0 @@
-"""Adapters at the edges: capture files, serial ports, MCAP."""

@@ -1,0 +1,1 @@
+"""The lint rules, one module per family (each registers its rules when imported)."""

@@ -1,0 +1,350 @@
+"""Sequence rules (Q): commands that are fine alone but wrong in the order or state they come in."""
+
+from __future__ import annotations
+
+from ...protocol.wire import (
+    BROADCAST_ID, FLAG_REBOOT as _REBOOT, FLAG_WRITE_FLASH as _FLASH, RETURN_TEMPERATURE_LIMIT, encode_command,
+    encode_long, encode_return, encode_short)
+from ..registry import example, rule
+
+# A flash write or reboot still due when a timed capture ends this soon after the write that needs it
+# is no finding: the capture may have stopped before it came (the seams of a capture are not faults).
+ENDED_SOON = 1.0
+
+
+def _deg(raw: int) -> str:
+    return f"{raw / 10:.1f}deg"
+
+
+def _carry(memory, lint, rec, moves) -> None:
+    """The "moved" check of a rule whose memory is a dict or set keyed by servo ID: what it remembers of
+    a servo follows it to the new ID (table 4.6 No. 4: the new ID holds at once)."""
+    if isinstance(memory, dict):
+        taken = [(new, memory.pop(old)) for old, new in moves if old in memory]  # all out first: swaps
+        memory.update(taken)
+    else:
+        taken = [new for old, new in moves if old in memory]
+        memory.difference_update([old for old, _ in moves])
+        memory.update(taken)
+
+
+@rule("Q001", "baud-change-not-applied", "warning", "baud_rate written without a following flash write and reboot.", f"""
+## What it does
+Flags a write of baud_rate (table 4.6, No. 6) to a servo that is not followed, before the end of the
+capture, by a flash write and then a reboot of that servo (or of ID 255). Said at the end of input (or
+of a time segment, F010), unless a timed capture ended less than a second after the write: the steps
+may have come after it stopped.
+The servo is followed across a change of its ID (the flash and reboot may go to the new ID), and a
+write of the rate it already has (written or read back before) needs neither.
+
+## Why it matters
+The manual says the servo keeps running at its old rate until the new value is flashed and the servo
+rebooted. A host that switches its own port to the new rate right after the write loses the servo.
+
+## Example
+{example(encode_short(1, 0, 0x06, bytes((4,))), encode_command(1, _FLASH), note="the baud rate is flashed but the servo never rebooted:")}
+""", kinds=("target", "command", "moved", "seam", "close"), fields=("baud_rate",), state=dict)
+def baud_change_not_applied(pending, lint, rec, plan, targets):
+    # pending: servo (by its current ID) -> [the baud_rate write, the step it waits for ("flash" | "reboot"),
+    # the rate code, the ID it was written to]
+    j = plan.index["baud_rate"]
+    for sid, raws, sh in targets:
+        if raws[j] == sh.baud:
+            continue  # the rate it has already (the shadow is updated after the target checks): no change
+        pending[sid] = [rec, "flash", raws[j], sid]
+
+
+baud_change_not_applied.on("moved")(_carry)
+
+
+@baud_change_not_applied.on("command")
+def _baud_change_flashed_or_rebooted(pending, lint, rec, ev):
+    sid = ev.id
+    for key in (list(pending) if sid == BROADCAST_ID else [sid, BROADCAST_ID]):
+        entry = pending.get(key)
+        if entry is None:
+            continue
+        if ev.flag & _FLASH and entry[1] == "flash":
+            entry[1] = "reboot"
+        if ev.flag & _REBOOT and entry[1] == "reboot":
+            del pending[key]
+
+
+def _left_pending(lint, rec, end_t) -> bool:
+    """Whether a step still due at the end of input (or of a time segment, ending at ``end_t``) is
+    missing rather than cut off: the capture ran on for ENDED_SOON after the write that needed it."""
+    t1 = rec.event[3]
+    return not (lint.timed and end_t is not None and t1 is not None and end_t - t1 < ENDED_SOON)
+
+
+@baud_change_not_applied.on("close")
+def _baud_change_left_pending(pending, lint, seam=None):
+    end_t = lint.end_t if seam is None else seam.t_end
+    for sid, (rec, stage, code, to) in pending.items():
+        if not _left_pending(lint, rec, end_t):
+            continue
+        rate = f"code {code}"
+        who = f"ID {to}" if to == sid else f"ID {to} (now ID {sid})"
+        why = "no flash write followed" if stage == "flash" else "it was flashed but the servo was never rebooted"
+        lint.emit("Q001", rec, f"baud_rate {rate} written to {who} but {why}: it keeps its old rate", sid=to)
+    if seam is not None:
+        pending.clear()  # told or let go: nothing waits across a seam
+
+
+baud_change_not_applied.on("seam")(_baud_change_left_pending)  # a seam ends the steps' wait as the end does
+
+
+@rule("Q002", "id-change-not-persisted", "warning", "servo_id changed but never written to flash.", f"""
+## What it does
+Flags a write of servo_id that changes a servo's ID when no flash write to the new ID (or to ID 255)
+follows before the end of the capture. Said at the end of input (or of a time segment, F010), unless a
+timed capture ended less than a second after the write. A servo renumbered twice (1 to 2,
+then 2 to 3) needs one flash write, to its last ID.
+
+## Why it matters
+The servo answers to its new ID at once, so everything looks fine, but the ID reverts at the next
+power-up (table 4.6, No. 4). A flash write sent to the old ID after the change reaches nobody.
+
+## Example
+{example(encode_short(1, 0, 0x04, bytes((5,))), encode_command(1, _FLASH), note="ID 1 becomes 5, then the flash write goes to the old ID 1:")}
+""", kinds=("target", "command", "seam", "close"), fields=("servo_id",), state=dict)
+def id_change_not_persisted(pending, lint, rec, plan, targets):
+    # pending: new servo ID -> (the write that set it, the ID the servo had when last flashed, as far as known)
+    j = plan.index["servo_id"]
+    changes = [(sid, raws[j]) for sid, raws, _ in targets if raws[j] != sid]
+    if not changes:
+        return
+    earlier = [pending.pop(sid, None) for sid, _ in changes]  # all out first: a long packet may swap IDs
+    for (sid, new), before in zip(changes, earlier):
+        origin = sid if before is None else before[1]
+        if new != origin:
+            pending[new] = (rec, origin)
+
+
+@id_change_not_persisted.on("command")
+def _id_change_flashed(pending, lint, rec, ev):
+    if ev.flag & _FLASH:
+        if ev.id == BROADCAST_ID:
+            pending.clear()
+        else:
+            pending.pop(ev.id, None)
+
+
+@id_change_not_persisted.on("close")
+def _id_change_left_pending(pending, lint, seam=None):
+    end_t = lint.end_t if seam is None else seam.t_end
+    for new, (rec, old) in pending.items():
+        if not _left_pending(lint, rec, end_t):
+            continue
+        lint.emit("Q002", rec, f"ID {old} changed to {new} but no flash write to ID {new} followed: "
+                               f"it reverts at the next power-up", sid=old)
+    if seam is not None:
+        pending.clear()
+
+
+id_change_not_persisted.on("seam")(_id_change_left_pending)
+
+
+@rule("Q003", "reboot-too-soon-after-flash", "warning", "A reboot before the flash write had time to finish.", f"""
+## What it does
+Flags a reboot sent to a servo less than `flash-write-time` (default 0.1 s) after a flash write to it
+ended, unless the flash write asked for an ACK and got it first. Needs timestamps.
+
+## Why it matters
+The manual asks to send the reboot only after the flash write has finished, and warns never to cut
+power during one: a reboot in the middle can leave the stored settings half written.
+
+## Example
+{example((0.0, encode_command(1, _FLASH)), (0.002, encode_command(1, _REBOOT)), note="a reboot 1.3 ms after the flash write:")}
+""", kinds=("command", "moved", "seam"), needs_time=True, state=dict)
+def reboot_too_soon_after_flash(flashed, lint, rec, ev):
+    # flashed: servo -> (time its last flash write is done, the time that write ended, its offset)
+    flag, sid = ev.flag, ev.id
+    if flag & _FLASH and not flag & _REBOOT:
+        reply = rec.reply
+        if reply is not None and reply.kind == "ack" and reply.event[3] is not None:
+            ready = reply.event[3]
+        elif ev[3] is not None:
+            ready = ev[3] + lint.config.flash_write_time
+        else:
+            return
+        flashed[sid] = (ready, ev[3], rec.offset)
+    elif flag & _REBOOT and not flag & _FLASH and ev[2] is not None:
+        for key in (sid, BROADCAST_ID):
+            entry = flashed.get(key)
+            if entry is not None and ev[2] < entry[0]:
+                dt = ev[2] - (entry[1] or 0)
+                when = f"{dt * 1e3:.1f} ms after" if dt > 0 else "right after"  # never a held clock's 0 or less
+                lint.emit("Q003", rec, f"reboot {when} the flash write @{entry[2]}; "
+                                       f"allow {lint.config.flash_write_time * 1e3:.0f} ms (or wait for its ACK)")
+                break
+        flashed.pop(sid, None)
+
+
+reboot_too_soon_after_flash.on("moved")(_carry)
+
+
+@reboot_too_soon_after_flash.on("seam")
+def _flash_times_end_at_seam(flashed, lint, seam):
+    flashed.clear()  # a flash write's time says nothing of a reboot on the other side of a seam
+
+
+@rule("Q004", "goal-while-torque-off", "warning", "A goal position sent to a servo whose torque is off.", f"""
+## What it does
+Flags a goal_position write to a servo whose torque_enable the linter last saw as 0 (written or read,
+or reset by a reboot). Said once per servo until its torque state changes.
+
+## Why it matters
+A servo with torque off does not move, and when torque is switched on it takes its present position
+as the goal (table 4.9, No. 36): the commanded goal is lost. The usual cause is a forgotten torque-on
+step after power-up or a reboot.
+
+## Example
+{example(encode_short(1, 0, 0x24, bytes((0,))), encode_short(1, 0, 0x1E, bytes.fromhex("8403")))}
+""", kinds=("target", "command", "moved"), fields=("goal_position", "torque_enable"), state=set)
+def goal_while_torque_off(said, lint, rec, plan, targets):
+    # said: servos Q004 spoke for in their current torque-off spell; a torque_enable write or a reboot
+    # ends the spell.
+    idx = plan.index
+    g = idx.get("goal_position")
+    j = idx.get("torque_enable")
+    for sid, raws, sh in targets:
+        if g is not None and sh.torque == 0 and sid not in said and sid != BROADCAST_ID:
+            if j is not None and raws[j] != 0:
+                continue  # torque comes on in this very packet: Q005
+            said.add(sid)
+            lint.emit("Q004", rec, f"goal_position {_deg(raws[g])} to ID {sid}, whose torque is off", sid=sid)
+        if j is not None:
+            said.discard(sid)
+
+
+@goal_while_torque_off.on("command")
+def _torque_off_spell_rebooted(said, lint, rec, ev):
+    if ev.flag & _REBOOT:
+        if ev.id == BROADCAST_ID:
+            said.clear()
+        else:
+            said.discard(ev.id)
+
+
+goal_while_torque_off.on("moved")(_carry)
+
+
+@rule("Q005", "torque-on-with-goal", "warning", "Torque on and a goal position in one packet.", f"""
+## What it does
+Flags a packet that writes goal_position and switches torque_enable to 1 at once (addresses 30-36 in
+one write), for a servo whose torque was not already known to be on.
+
+## Why it matters
+The manual says the servo then turns its torque on but does not move: switching torque on copies the
+present position into the goal, overwriting the goal sent in the same packet.
+
+## Example
+{example(encode_short(1, 0, 0x1E, bytes.fromhex("8403 0000 00 64 01")))}
+""", kinds=("target",), fields=("torque_enable",))
+def torque_on_with_goal(lint, rec, plan, targets):
+    idx = plan.index
+    if "goal_position" not in idx:
+        return
+    for sid, raws, sh in targets:
+        if raws[idx["torque_enable"]] == 1 and sh.torque != 1:
+            lint.emit("Q005", rec, f"torque on and goal_position {_deg(raws[idx['goal_position']])} in one packet "
+                                   f"to ID {sid}: the servo will not move", sid=sid)
+
+
+@rule("Q006", "goal-beyond-angle-limit", "warning", "A goal position beyond the servo's angle limits.", f"""
+## What it does
+Flags a goal_position beyond the cw_angle_limit or ccw_angle_limit the linter last saw written to or
+read from that servo (table 4.6, No. 8-11). Skipped for a servo set to reverse, whose limits mirror.
+
+## Why it matters
+The servo stops at the limit (as the manual says), so the joint ends short of where the host thinks
+it is; gait and kinematics computed from the commanded angle go wrong.
+
+## Example
+{example(encode_short(1, 0, 0x08, (1000).to_bytes(2, "little")), encode_short(1, 0, 0x1E, (1200).to_bytes(2, "little")),
+         note="cw_angle_limit 100.0 deg, then a goal of 120.0 deg:")}
+""", kinds=("target",), fields=("goal_position",))
+def goal_beyond_angle_limit(lint, rec, plan, targets):
+    j = plan.index["goal_position"]
+    for sid, raws, sh in targets:
+        if sh.reverse == 1:
+            continue
+        g = raws[j]
+        if sh.cw is not None and g > sh.cw:
+            lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its cw_angle_limit {_deg(sh.cw)}", sid=sid)
+        elif sh.ccw is not None and g < sh.ccw:
+            lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its ccw_angle_limit {_deg(sh.ccw)}",
+                      sid=sid)
+
+
+@rule("Q007", "goal-time-too-fast", "warning", "A move faster than the model's top speed.", f"""
+## What it does
+Flags a goal_position with a goal_time (same packet, or the last one written) that asks for more speed
+than the model has: 60 deg in 0.11 s for the RS303MR, 0.16 s for the RS304MD (no load, 7.4 V). The
+distance is from the last goal sent or position reported; goal_time 0 (as fast as possible) is fine.
+
+## Why it matters
+The servo moves at its top speed instead and arrives late (the manual says so for goal_time); a gait
+that relies on the timing drifts, and the servos run hot pushing at their limit.
+
+## Example
+{example(encode_short(1, 0, 0x1E, bytes.fromhex("0000 6400")), encode_short(1, 0, 0x1E, bytes.fromhex("8403 0A00")),
+         note="90 deg in 0.1 s on an RS303MR (it needs 0.165 s):")}
+""", kinds=("target",), fields=("goal_position",))
+def goal_time_too_fast(lint, rec, plan, targets):
+    idx = plan.index
+    j = idx.get("goal_time")
+    g = idx["goal_position"]
+    ts = plan.model.top_speed_s_per_60deg
+    for sid, raws, sh in targets:
+        pos = sh.pos
+        if pos is None:
+            continue
+        gt = raws[j] if j is not None else sh.goal_time
+        if not gt:
+            continue
+        dist = abs(raws[g] - pos)
+        if dist * ts <= 6 * gt:  # (dist/10 deg) / (gt/100 s) <= 60 deg / ts: within the top speed
+            continue
+        lint.emit("Q007", rec, f"{dist / 10:.1f} deg in {gt * 10} ms on ID {sid} asks {dist * 10 / gt:.0f} deg/s; "
+                               f"{plan.model.name} tops out at {60 / ts:.0f} deg/s", sid=sid)
+
+
+@rule("Q008", "too-many-servos", "warning", "More than 24 servo IDs on one TTL bus.", f"""
+## What it does
+Flags the packet that brings the number of distinct servo IDs seen on the bus (requests, long-packet
+VIDs, returns; not 255) above `max-servos` (default 24, chapter 3 "Systems"). Said once.
+
+## Why it matters
+The manual limits a TTL command-type bus to 24 servos and warns that more may malfunction: the line's
+load and the time each poll cycle takes both grow with every servo.
+
+## Example
+{example(encode_long(0x23, [(i, bytes((100,))) for i in range(1, 26)]), note="max_torque to 25 servos in one long packet:")}
+""", kinds=("short", "long", "return"), when="crowded", state=list)
+def too_many_servos(said, lint, rec, ev):
+    # said: empty until Q008 has spoken (it speaks once)
+    if not said and len(lint.ids) > lint.config.max_servos:
+        said.append(rec)
+        lint.emit("Q008", rec, f"{len(lint.ids)} servo IDs on the bus; a TTL bus carries at most {lint.config.max_servos}")
+
+
+@rule("Q009", "torque-on-after-temperature-limit", "error", "Torque on for a servo locked by its temperature limit.", f"""
+## What it does
+Flags torque_enable set to 1 for a servo whose return reported the temperature limit (S001) with no
+reboot of it since.
+
+## Why it matters
+The manual says a servo that reached its temperature limit refuses torque on until it is rebooted or
+power-cycled: the command does nothing and the joint stays limp, while the host assumes it holds.
+
+## Example
+{example(encode_return(1, 0x2A, bytes.fromhex("8403"), flags=RETURN_TEMPERATURE_LIMIT), encode_short(1, 0, 0x24, bytes((1,))))}
+""", kinds=("target",), fields=("torque_enable",))
+def torque_on_after_temperature_limit(lint, rec, plan, targets):
+    j = plan.index["torque_enable"]
+    for sid, raws, sh in targets:
+        if sh.temp_limit and raws[j] == 1:
+            lint.emit("Q009", rec, f"torque on for ID {sid}, which tripped its temperature limit and was not "
+                                   f"rebooted since", sid=sid)

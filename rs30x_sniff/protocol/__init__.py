@@ -1,0 +1,1 @@
+"""The protocol: wire constants and the packet layout, events, memory maps, chunks."""

@@ -1,0 +1,609 @@
+"""Memory maps as data: load decoders/*.toml and turn memory bytes into named, scaled fields."""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import tomllib
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from .wire import MAX_READ_ADDRESS
+
+ACCESS = ("read", "read-write", "reserved")
+AREAS = ("invariable-rom", "variable-rom", "ram")
+MODES = ("command", "pwm", "both")
+_REGISTER_KEYS = {"name", "address", "size", "signed", "scale", "offset", "unit", "access", "area",
+                  "default", "range", "mode", "enum", "table", "format", "description"}
+_MODEL_KEYS = {"name", "model_number", "top_speed_s_per_60deg", "readable_to"}
+DEFAULT_MODEL = "RS303MR"
+
+
+class ModelError(ValueError):
+    """A memory-map file is wrong; the message names the file and the key."""
+
+
+@dataclass(frozen=True, slots=True)
+class Register:
+    """One register of the memory map: where it is and how its raw value becomes a quantity."""
+
+    name: str | None           # None for reserved and undocumented bytes
+    address: int
+    size: int = 1
+    signed: bool = False
+    scale: float = 1
+    offset: float = 0
+    unit: str | None = None
+    access: str = "read"
+    area: str = "ram"
+    default: int | None = None
+    range: tuple[int, int] | None = None
+    mode: str = "both"
+    enum: dict[int, str] | None = None
+    table: dict[int, float] | None = None
+    format: str | None = None
+    description: str = ""
+
+    @property
+    def reserved(self) -> bool:
+        return self.access == "reserved"
+
+    @property
+    def writable(self) -> bool:
+        return self.access == "read-write"
+
+    @property
+    def label(self) -> str:
+        """The name, or ``reserved_N`` / ``addr_N`` for unnamed bytes."""
+        if self.name:
+            return self.name
+        return f"reserved_{self.address}" if self.reserved else f"addr_{self.address}"
+
+    @property
+    def divisor(self) -> int | None:
+        """``round(1 / scale)`` when the scale is an exact decimal step (0.1, 0.01): values are then
+        ``raw / divisor`` (900 / 10, not 900 * 0.1); None for any other scale, 1 included."""
+        scale = self.scale
+        if scale < 1 and abs(1 / scale - round(1 / scale)) < 1e-9:
+            return round(1 / scale)
+        return None
+
+    def raw_int(self, raw: bytes) -> int:
+        return int.from_bytes(raw, "little", signed=self.signed and len(raw) == self.size)
+
+    def convert(self, raw_value: int) -> Any:
+        """Engineering value of a raw register value (a label for enums, None for an unknown code)."""
+        if self.enum is not None:
+            return self.enum.get(raw_value, raw_value)
+        if self.table is not None:
+            return self.table.get(raw_value)
+        scale = self.scale
+        if scale == 1:
+            value = raw_value
+        elif (divisor := self.divisor) is not None:
+            value = raw_value / divisor
+        else:
+            value = raw_value * scale
+        return value + self.offset if self.offset else value
+
+    def value_in(self, address: int, data: bytes | bytearray) -> Any:
+        """Engineering value of this register in ``data`` that starts at memory ``address``;
+        None unless ``data`` holds all of the register."""
+        start = self.address - address
+        if start < 0 or start + self.size > len(data):
+            return None
+        return self.convert(int.from_bytes(data[start:start + self.size], "little", signed=self.signed))
+
+    def to_raw(self, value: float) -> int:
+        """Inverse of :meth:`convert` for scaled numbers (used by encoders and the simulator)."""
+        if self.table is not None:
+            for k, v in self.table.items():
+                if v == value:
+                    return k
+            raise ValueError(f"{self.label}: no code for {value}")
+        if self.enum is not None:
+            for k, v in self.enum.items():
+                if v == value:
+                    return k
+            return int(value)
+        return round((value - self.offset) / self.scale)
+
+    def encode(self, value: float) -> bytes:
+        return self.to_raw(value).to_bytes(self.size, "little", signed=self.signed)
+
+
+@dataclass(slots=True)
+class Field:
+    """A decoded piece of a packet: one register (or part of one) of one servo."""
+
+    id: int | None
+    address: int
+    register: Register
+    raw: bytes
+    raw_value: int
+    value: Any
+    partial: str | None = None  # "low" / "high" when a packet carries one byte of a 2-byte register
+
+    @property
+    def name(self) -> str | None:
+        return self.register.name
+
+    @property
+    def label(self) -> str:
+        return self.register.label
+
+    @property
+    def unit(self) -> str | None:
+        return None if self.partial else self.register.unit
+
+
+@dataclass(slots=True)
+class Model:
+    """A servo model's memory map, loaded from one ``decoders/*.toml`` file."""
+
+    name: str
+    model_number: int
+    top_speed_s_per_60deg: float
+    readable_to: int
+    registers: tuple[Register, ...]
+    source: str = ""
+    _by_address: dict[int, Register] = field(default_factory=dict, repr=False)
+    _by_name: dict[str, Register] = field(default_factory=dict, repr=False)
+    _layouts: dict[tuple, Layout] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        for reg in self.registers:
+            for a in range(reg.address, reg.address + reg.size):
+                self._by_address[a] = reg
+            if reg.name:
+                self._by_name[reg.name] = reg
+
+    def register_at(self, address: int) -> Register:
+        """The register covering ``address``; an unnamed one past the documented map."""
+        reg = self._by_address.get(address)
+        if reg is None:
+            reg = self._by_address[address] = Register(None, address, access="read", area="undocumented",
+                                                       mode="both")
+        return reg
+
+    def register(self, name: str) -> Register:
+        try:
+            return self._by_name[name]
+        except KeyError:
+            raise KeyError(f"{self.name} has no register {name!r}") from None
+
+    @property
+    def names(self) -> list[str]:
+        return list(self._by_name)
+
+    def layout(self, address: int, length: int) -> Layout:
+        """How ``length`` bytes at ``address`` split into fields, with a compiled decoder; cached."""
+        key = (address, length)
+        lay = self._layouts.get(key)
+        if lay is None:
+            lay = self._layouts[key] = Layout(self, address, length)
+        return lay
+
+    def long_layout(self, address: int, length: int, count: int) -> Layout:
+        """The layout of a whole long packet's data (``count`` records of VID + ``length - 1`` bytes)."""
+        key = (address, length, count, "long")
+        lay = self._layouts.get(key)
+        if lay is None:
+            lay = self._layouts[key] = Layout(self, address, length - 1, count)
+        return lay
+
+    def decode(self, address: int, data: bytes, servo_id: int | None = None) -> list[Field]:
+        """Named, scaled fields of ``data`` written to or read from ``address``."""
+        lay = self.layout(address, len(data))
+        return lay.fields(data, lay.values(data), servo_id)
+
+    def names_in(self, address: int, length: int) -> list[str]:
+        """Register labels a read of ``length`` bytes at ``address`` covers."""
+        key = (address, length, "names")
+        names = self._layouts.get(key)
+        if names is None:
+            names = self._layouts[key] = tuple(reg.label for _, _, reg, _ in self.layout(address, length).parts)
+        return list(names)
+
+
+class Layout:
+    """The fields of one (address, length) of a model, and a decoder compiled for them.
+
+    ``values(data)`` turns the bytes into engineering values with one ``struct.unpack`` and one
+    generated expression, which is what lets annotation keep up with a saturated bus; ``fields``
+    builds the Field objects from those values only when somebody looks at them. ``unpack_raw(data)``
+    gives the raw integers instead (one per part, VIDs included), for checks on raw values.
+    With ``records`` > 0 it is a long packet's data: that many repeats of VID + ``length`` bytes.
+    """
+
+    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_json", "_named", "_columns")
+
+    def __init__(self, model: Model, address: int, length: int, records: int = 0) -> None:
+        parts = []
+        a, end = address, address + length
+        while a < end:
+            reg = model.register_at(a)
+            if a == reg.address and a + reg.size <= end:
+                parts.append((a - address, reg.size, reg, None))
+                a += reg.size
+            else:
+                parts.append((a - address, 1, reg, "low" if a == reg.address else "high"))
+                a += 1
+        self.parts = tuple(parts)
+        self.size = length
+        self.records = records
+        codes, exprs, env = [], [], {}
+        k = 0
+        for rep in range(max(records, 1)):
+            if records:
+                codes.append("B")  # the VID
+                k += 1
+            for j, (_, size, reg, partial) in enumerate(parts):
+                if partial or size == 1:
+                    codes.append("b" if reg.signed and not partial else "B")
+                else:
+                    codes.append("h" if reg.signed else "H")
+                exprs.append(_conversion(reg, partial, f"r[{k}]", env, j))
+                k += 1
+        self._json: tuple[tuple[str, ...], ...] | None = None  # fields_json's templates (spaced, compact)
+        self._named: tuple[tuple[int, str], ...] | None = None  # named_values' (part, name) pairs
+        self._columns: Any = None  # value_columns' plan (made on first use there)
+        unpack = self.unpack_raw = struct.Struct("<" + "".join(codes)).unpack
+        if all(e == f"r[{i}]" for i, e in enumerate(exprs)):
+            self.values = unpack
+        else:
+            env["unpack"] = unpack
+            src = f"lambda data: (lambda r: ({', '.join(exprs)},))(unpack(data))"
+            self.values = eval(src, env)  # noqa: S307 - generated from the validated memory map
+
+    def fields(self, data: bytes, values: tuple, servo_id: int | None = None) -> list[Field]:
+        """Field objects for ``data`` and its already decoded ``values``."""
+        out = []
+        parts = self.parts
+        if not self.records:
+            for (start, size, reg, partial), v in zip(parts, values):
+                raw = data[start:start + size]
+                rv = raw[0] if partial else int.from_bytes(raw, "little", signed=reg.signed)
+                out.append(Field(servo_id, reg.address if not partial else reg.address + (partial == "high"),
+                                 reg, raw, rv, v, partial))
+            return out
+        stride = self.size + 1
+        n = len(parts)
+        for rec in range(self.records):
+            base = rec * stride
+            vid = data[base]
+            for j, (start, size, reg, partial) in enumerate(parts):
+                raw = data[base + 1 + start:base + 1 + start + size]
+                rv = raw[0] if partial else int.from_bytes(raw, "little", signed=reg.signed)
+                out.append(Field(vid, reg.address if not partial else reg.address + (partial == "high"),
+                                 reg, raw, rv, values[rec * n + j], partial))
+        return out
+
+
+    def _compile_json(self, compact: bool) -> tuple[tuple[str, ...], Any]:
+        """fields_json's templates: one per part, and for the whole layout one ``%`` format with a
+        generated function filling it in (the hex of the data sliced per field, and each value's text
+        looked up by its raw value: _value_text)."""
+        tmpl = tuple(_field_template(reg, partial, compact) for _, _, reg, partial in self.parts)
+        args = []
+        env: dict[str, Any] = {}
+        for j, (_, _, reg, partial) in enumerate(self.parts):
+            env[f"V{j}"] = _value_text(reg, partial)
+        if not self.records:
+            for j, (start, size, reg, partial) in enumerate(self.parts):
+                args += ["s", f"h[{2 * start}:{2 * (start + size)}]", f"V{j}[r[{j}]]"]
+            fmt = ("," if compact else ", ").join(tmpl)
+        else:
+            stride, n = self.size + 1, len(self.parts)
+            for rec in range(self.records):
+                base = rec * stride + 1
+                for j, (start, size, reg, partial) in enumerate(self.parts):
+                    # unpack_raw gives each record's VID, then its parts
+                    args += [f"str(d[{base - 1}])", f"h[{2 * (base + start)}:{2 * (base + start + size)}]",
+                             f"V{j}[r[{rec * (n + 1) + 1 + j}]]"]
+            fmt = ("," if compact else ", ").join(tmpl * self.records)
+        if not args:
+            return tmpl, lambda d, h, r, s: ""
+        env["F"] = fmt
+        src = f"lambda d, h, r, s: F % ({', '.join(args)},)"
+        return tmpl, eval(src, env)  # noqa: S307 - generated from the validated memory map
+
+    def named_values(self, data: bytes, values: tuple, servo_id: int | None = None) -> list[tuple[Any, str, Any]]:
+        """``(servo id, register name, value)`` of every whole, named register in ``data``: what the
+        fields say, without building them (the servo-state channel and table read this per packet)."""
+        named = self._named
+        if named is None:
+            named = self._named = tuple((j, reg.name) for j, (_, _, reg, partial) in enumerate(self.parts)
+                                        if reg.name is not None and not partial)
+        if not self.records:
+            return [(servo_id, name, values[j]) for j, name in named]
+        stride, n = self.size + 1, len(self.parts)
+        out: list[tuple[Any, str, Any]] = []
+        for rec in range(self.records):
+            vid, base = data[rec * stride], rec * n
+            out += [(vid, name, values[base + j]) for j, name in named]
+        return out
+
+    def fields_json(self, data: bytes, values: tuple, servo_id: int | None = None,
+                    only: set[int] | None = None, compact: bool = False) -> str:
+        """The JSON text of :meth:`fields` (without the brackets), exactly as ``json.dumps`` writes the
+        objects of ``rs30x_sniff.render.records.field_json``: the same keys, order, spacing and rounding.
+
+        One ``%`` template per part, made once per layout, so ``decode --format jsonl`` builds no Field
+        objects or dicts; ``only`` keeps the fields of those servo IDs alone.
+        """
+        cache = self._json
+        if cache is None:
+            cache = self._json = (self._compile_json(False), self._compile_json(True))
+        tmpl, whole = cache[compact]
+        if only is None:
+            return whole(data, data.hex(), self.unpack_raw(data), "null" if servo_id is None else str(servo_id))
+        sep = "," if compact else ", "
+        parts = self.parts
+        out = []
+        if not self.records:
+            if only is not None and servo_id not in only:
+                return ""
+            sid = "null" if servo_id is None else str(servo_id)
+            for (start, size, _, _), t, v in zip(parts, tmpl, values):
+                out.append(t % (sid, data[start:start + size].hex(), _json_scalar(v)))
+            return sep.join(out)
+        stride = self.size + 1
+        n = len(parts)
+        for rec in range(self.records):
+            base = rec * stride
+            vid = data[base]
+            if only is not None and vid not in only:
+                continue
+            sid = str(vid)
+            base += 1
+            for j, ((start, size, _, _), t) in enumerate(zip(parts, tmpl)):
+                out.append(t % (sid, data[base + start:base + start + size].hex(), _json_scalar(values[rec * n + j])))
+        return sep.join(out)
+
+
+class _ByRaw(dict):
+    """Something made from a part's raw value by ``make`` on first sight and kept (the first ``limit``
+    of them, when given: a 2-byte register has 65,536 raw values). ``register`` is kept alive: the
+    caches of these go by its id."""
+
+    __slots__ = ("make", "register", "limit")
+
+    def __init__(self, make: Any, register: Register, limit: int | None = None) -> None:
+        super().__init__()
+        self.make = make
+        self.register = register
+        self.limit = limit
+
+    def __missing__(self, raw: int) -> Any:
+        made = self.make(raw)
+        if self.limit is None or len(self) < self.limit:
+            self[raw] = made
+        return made
+
+
+def _converter(reg: Register, partial: str | None, wrap: str = "{}", env: dict | None = None) -> Any:
+    """``lambda x:`` the part's engineering value of raw value ``x`` (_conversion, the expression
+    Layout.values computes), put in ``wrap`` at ``{}``; ``env``: names ``wrap`` uses."""
+    env = {} if env is None else env
+    return eval(f"lambda x: {wrap.format(_conversion(reg, partial, 'x', env, 0))}", env)  # noqa: S307 - from the validated map
+
+
+_VALUE_TEXT: dict[tuple[int, str | None], _ByRaw] = {}
+
+
+def _value_text(reg: Register, partial: str | None) -> _ByRaw:
+    """The JSON text of a part's engineering value, by raw value: the register's conversion
+    (_conversion) and then the JSON of its kind (_JSON_OF), as fields_json wrote them per value."""
+    key = (id(reg), partial)
+    table = _VALUE_TEXT.get(key)
+    if table is None or table.register is not reg:
+        table = _VALUE_TEXT[key] = _ByRaw(
+            _converter(reg, partial, _JSON_OF[_value_kind(reg, partial)], {"J": _json_scalar}), reg)
+    return table
+
+
+def _value_kind(reg: Register, partial: str | None) -> str:
+    """What type a part's engineering value always has: "int", "float", or "any" (enums, tables)."""
+    if partial or reg.name is None:
+        return "int"
+    if reg.enum is not None or reg.table is not None:
+        return "any"
+    if reg.scale == 1 and isinstance(reg.scale, int) and isinstance(reg.offset, int):
+        return "int"
+    return "float" if isinstance(reg.offset, float) or reg.scale != 1 else "any"
+
+
+_JSON_OF = {"int": "str({})", "float": "repr(round({}, 6))", "any": "J({})"}
+
+
+def _field_template(reg: Register, partial: str | None, compact: bool) -> str:
+    """``%`` template of one field's JSON object (``compact``: no spaces after , and :); id, raw and
+    value are filled in per packet."""
+    address = reg.address if not partial else reg.address + (partial == "high")
+    unit = None if partial else reg.unit
+    c, k = (",", ":") if compact else (", ", ": ")
+
+    def lit(x: Any) -> str:
+        return json.dumps(x).replace("%", "%%")
+
+    tail = f'{c}"partial"{k}{lit(partial)}' if partial else ""
+    return (f'{{"id"{k}%s{c}"address"{k}{address}{c}"name"{k}{lit(reg.name)}{c}"raw"{k}"%s"{c}'
+            f'"value"{k}%s{c}"unit"{k}{lit(unit)}{tail}}}')
+
+
+_INF = float("inf")
+
+
+def _json_scalar(v: Any) -> str:
+    """``json.dumps`` of a field value after ``render.json_value`` (floats rounded to 6 places)."""
+    t = type(v)
+    if t is float:
+        if v != v or v == _INF or v == -_INF:
+            return json.dumps(v)
+        return repr(round(v, 6))
+    if t is int:
+        return repr(v)
+    return json.dumps(round(v, 6) if isinstance(v, float) else v)
+
+
+def _conversion(reg: Register, partial: str | None, ref: str, env: dict, j: int) -> str:
+    """A Python expression turning the raw value ``ref`` into the register's engineering value."""
+    if partial or reg.name is None:
+        return ref
+    if reg.enum is not None:
+        env[f"E{j}"] = reg.enum
+        return f"E{j}.get({ref}, {ref})"
+    if reg.table is not None:
+        env[f"T{j}"] = reg.table
+        return f"T{j}.get({ref})"
+    scale, offset = reg.scale, reg.offset
+    if scale == 1:
+        expr = ref
+    elif (divisor := reg.divisor) is not None:
+        expr = f"{ref} / {divisor}"
+    else:
+        expr = f"{ref} * {scale!r}"
+    return f"({offset!r} + {expr})" if offset else expr
+
+
+# ---- loading ------------------------------------------------------------------------------------
+def _fail(source: str, where: str, msg: str) -> ModelError:
+    return ModelError(f"{source}: {where}: {msg}")
+
+
+def _int_keys(source: str, where: str, table: dict) -> dict[int, Any]:
+    try:
+        return {int(k, 0): v for k, v in table.items()}
+    except ValueError:
+        raise _fail(source, where, "keys must be integers") from None
+
+
+def parse_model(doc: dict[str, Any], source: str = "<memory map>") -> Model:
+    """Build a Model from a parsed TOML document, checking every key."""
+    unknown = set(doc) - {"model", "register"}
+    if unknown:
+        raise _fail(source, sorted(unknown)[0], "unknown key")
+    head = doc.get("model")
+    if not isinstance(head, dict):
+        raise _fail(source, "model", "missing [model] table")
+    for k in head:
+        if k not in _MODEL_KEYS:
+            raise _fail(source, f"model.{k}", "unknown key")
+    for k in ("name", "model_number", "top_speed_s_per_60deg"):
+        if k not in head:
+            raise _fail(source, f"model.{k}", "missing")
+    regs: list[Register] = []
+    owner: dict[int, str] = {}
+    for n, r in enumerate(doc.get("register", [])):
+        label = r.get("name") or (f"address {r['address']}" if "address" in r else "?")
+        where = f"register[{n}] ({label})"
+        for k in r:
+            if k not in _REGISTER_KEYS:
+                raise _fail(source, f"{where}.{k}", "unknown key")
+        if "address" not in r:
+            raise _fail(source, f"{where}.address", "missing")
+        address, size = r["address"], r.get("size", 1)
+        if not isinstance(address, int) or not 0 <= address <= 255:
+            raise _fail(source, f"{where}.address", "must be an integer 0-255")
+        if size not in (1, 2):
+            raise _fail(source, f"{where}.size", "must be 1 or 2")
+        access = r.get("access", "read")
+        if access not in ACCESS:
+            raise _fail(source, f"{where}.access", f"must be one of {', '.join(ACCESS)}")
+        if access != "reserved" and not r.get("name"):
+            raise _fail(source, f"{where}.name", "missing (only reserved registers may be unnamed)")
+        if r.get("area", "ram") not in AREAS:
+            raise _fail(source, f"{where}.area", f"must be one of {', '.join(AREAS)}")
+        if r.get("mode", "both") not in MODES:
+            raise _fail(source, f"{where}.mode", f"must be one of {', '.join(MODES)}")
+        signed = bool(r.get("signed", False))
+        lo_ok = -(1 << (8 * size - 1)) if signed else 0
+        hi_ok = (1 << (8 * size - 1)) - 1 if signed else (1 << 8 * size) - 1
+        rng = r.get("range")
+        if rng is not None:
+            if (not isinstance(rng, list) or len(rng) != 2 or not all(isinstance(x, int) for x in rng)
+                    or rng[0] > rng[1] or rng[0] < lo_ok or rng[1] > hi_ok):
+                raise _fail(source, f"{where}.range", f"must be [min, max] with {lo_ok} <= min <= max <= {hi_ok}")
+            rng = (rng[0], rng[1])
+        default = r.get("default")
+        if default is not None and not (isinstance(default, int) and lo_ok <= default <= hi_ok):
+            raise _fail(source, f"{where}.default", f"must be an integer {lo_ok}-{hi_ok}")
+        scale = r.get("scale", 1)
+        if not isinstance(scale, (int, float)) or scale <= 0:
+            raise _fail(source, f"{where}.scale", "must be a positive number")
+        for a in range(address, address + size):
+            if a in owner:
+                raise _fail(source, f"{where}.address", f"overlaps {owner[a]} at address {a}")
+            owner[a] = label
+        enum = _int_keys(source, f"{where}.enum", r["enum"]) if "enum" in r else None
+        table = _int_keys(source, f"{where}.table", r["table"]) if "table" in r else None
+        regs.append(Register(
+            r.get("name"), address, size, signed, scale, r.get("offset", 0), r.get("unit"), access,
+            r.get("area", "ram"), default, rng, r.get("mode", "both"), enum, table, r.get("format"),
+            r.get("description", ""),
+        ))
+    regs.sort(key=lambda reg: reg.address)
+    return Model(head["name"], head["model_number"], float(head["top_speed_s_per_60deg"]),
+                 head.get("readable_to", MAX_READ_ADDRESS), tuple(regs), source)
+
+
+def load_model(path: str | Path) -> Model:
+    """Load one memory-map file; a mistake raises ModelError naming the file and the key."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise ModelError(f"{path}: cannot read: {e.strerror}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ModelError(f"{path}: not valid TOML: {e}") from None
+    return parse_model(doc, str(path))
+
+
+def decoders_dirs() -> list[Path]:
+    """Where memory maps live: $RS30X_DECODERS, the installed copy, then the source tree's decoders/."""
+    dirs = []
+    env = os.environ.get("RS30X_DECODERS")
+    if env:
+        dirs += [Path(p) for p in env.split(os.pathsep) if p]
+    package = Path(__file__).resolve().parent.parent  # rs30x_sniff/ (this module is in rs30x_sniff/protocol/)
+    dirs += [package / "decoders", package.parent / "decoders"]
+    return [d for d in dirs if d.is_dir()]
+
+
+class ModelRegistry:
+    """Every known model, by name and by model number."""
+
+    def __init__(self, models: list[Model]) -> None:
+        if not models:
+            raise ModelError("no memory maps found (looked for decoders/*.toml)")
+        self.models = {m.name.upper(): m for m in models}
+        self.by_number = {m.model_number: m for m in models}
+
+    def get(self, name: str) -> Model:
+        try:
+            return self.models[name.upper()]
+        except KeyError:
+            raise ModelError(f"unknown model {name!r} (known: {', '.join(self.models)})") from None
+
+    @property
+    def default(self) -> Model:
+        return self.models.get(DEFAULT_MODEL) or next(iter(self.models.values()))
+
+    @classmethod
+    def from_dirs(cls, dirs: list[Path]) -> ModelRegistry:
+        seen: dict[str, Model] = {}
+        for d in dirs:
+            for p in sorted(d.glob("*.toml")):
+                m = load_model(p)
+                seen.setdefault(m.name.upper(), m)
+        return cls(list(seen.values()))
+
+
+@lru_cache(maxsize=1)
+def default_registry() -> ModelRegistry:
+    """The registry of the decoders found by :func:`decoders_dirs` (loaded once)."""
+    return ModelRegistry.from_dirs(decoders_dirs())

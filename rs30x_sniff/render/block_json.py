@@ -1,0 +1,214 @@
+"""JSON lines (decode --format jsonl, MCAP packet bodies) from per-shape templates: a Block's rows, and
+single Records.
+
+Byte-identical to ``render.record_json_text`` of each row's Record, without building the Records: rows
+of one shape (header bytes, data length, model, long packet's VIDs) differ only in their offsets,
+times, raw bytes, pairing and field values, so each shape's line is made once from a sample record,
+with a ``%s`` where those go, and every row fills its template. A single Record's shape also says
+which of those are there at all (its pairing, its times), which in a Block's rows is always the same.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
+from ..decode.frame_runs import LONG
+from .records import _COMPACT, _NO_FIELDS, _SPACED, record_json, record_json_text
+
+# What varies between rows of one shape (besides the fields).
+_SLOTS = ("offset", "t", "t_end", "raw", "reply_to", "reply", "latency_s")
+_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any, Any]] = {}  # key -> (format, slots, layout, model)
+_MAX_TEMPLATES = 4096
+
+
+class NonFiniteError(ValueError):
+    """A time or latency that is NaN or infinite reached the JSON writer: JSON has no text for it.
+
+    Sources refuse such times as input errors (with where they are); this is the guard behind them,
+    so a line is never written with ``NaN`` or ``Infinity`` (or Python's ``inf``) in it.
+    """
+
+
+def _not_finite(offset: int, what: str, value: float) -> NonFiniteError:
+    return NonFiniteError(f"the packet at byte {offset}: {what} {value!r} is not a finite number (JSON has none)")
+
+
+def block_json_lines(blk: Any, only: set[int] | None = None, compact: bool = False, rows: Any = None) -> str:
+    """The JSON line of each row (or of ``rows``, ascending indexes) of ``blk``, newline-terminated."""
+    return "".join(block_json_rows(blk, only, compact, rows, "\n"))
+
+
+def block_json_rows(blk: Any, only: set[int] | None = None, compact: bool = False, rows: Any = None,
+                    end: str = "") -> list[str]:
+    """The JSON text of each row (or of ``rows``), each followed by ``end``."""
+    recs = blk._records
+    if isinstance(recs, list) or blk.vid_models is not None:
+        # Rows checked one by one (they may carry findings), or servos of mixed models: the records.
+        recs = blk.records()
+        chosen = recs if rows is None else [recs[k] for k in rows]
+        return [record_json_line(r, only, compact) + end for r in chosen]
+    return _lines(blk, only, compact, rows, end)
+
+
+def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) -> list[str]:
+    run = blk.run
+    blob, lo = run.blob, blk.lo
+    starts = run.starts[lo:blk.hi].tolist()
+    ends = run.ends[lo:blk.hi].tolist()
+    base = run.base
+    kinds = blk.cols["kind"].tolist()
+    timed = blk.t0 is not None
+    if timed:
+        for what, col in (("t", blk.t0), ("t_end", blk.t1)):
+            bad = ~np.isfinite(col)
+            if bad.any():  # one check a Block, not one a row
+                k = int(np.argmax(bad))
+                raise _not_finite(base + starts[k], what, float(col[k]))
+        t0, t1 = blk.t0.tolist(), blk.t1.tolist()
+        lat = blk.latencies().tolist()
+    models, default = blk.models, blk.default
+    only_key = None if only is None else frozenset(only)
+    out = []
+    get = _TEMPLATES.get
+    for k in (range(len(starts)) if rows is None else rows):
+        s, e = starts[k], ends[k]
+        raw = blob[s:e]
+        kind = kinds[k]
+        if kind == LONG:
+            model = default
+            key = (raw[:7], e - s, id(model), raw[7:-1:raw[5] or 1], timed, compact, only_key)
+        else:
+            model = models[raw[2]]
+            key = (raw[:7], e - s, id(model), b"", timed, compact, only_key)
+        tpl = get(key)
+        if tpl is None or tpl[3] is not model:  # (an id is reused once its model is gone)
+            tpl = _template(blk, k, key, only, compact)
+        fmt, slots, layout, _ = tpl
+        vals = []
+        for name in slots:
+            if name == "offset":
+                vals.append(str(base + s))
+            elif name == "t":
+                vals.append(repr(t0[k]))
+            elif name == "t_end":
+                vals.append(repr(t1[k]))
+            elif name == "raw":
+                vals.append(raw.hex())
+            elif name == "reply_to":
+                vals.append(str(base + starts[k - 1]))
+            elif name == "reply":
+                vals.append(str(base + starts[k + 1]))
+            elif name == "latency_s":
+                x = lat[k]
+                if x - x != 0.0:  # NaN or infinite (a difference of finite times never is)
+                    raise _not_finite(base + s, "latency_s", x)
+                vals.append(repr(x))
+            else:  # fields
+                if layout is None:
+                    vals.append("")
+                else:
+                    data = raw[7:-1]
+                    # fields_json reads the values only to pick fields by ID (``only``)
+                    vals.append(layout.fields_json(data, () if only is None else layout.values(data),
+                                                   0 if kind == LONG else raw[2], only, compact))
+        out.append(fmt % tuple(vals) + end)
+    return out
+
+
+def json_template(obj: dict[str, Any], slots: tuple[str, ...], encode: Any, strings: tuple[str, ...] = (),
+                  literals: tuple[tuple[str, str, str], ...] = ()) -> tuple[str, tuple[str, ...]]:
+    """``encode(obj)`` as a ``%`` format: a ``%s`` where each key of ``slots`` that is not None goes (in
+    quotes for those in ``strings``), and where each ``(name, text, replacement)`` of ``literals`` is,
+    with the slots' names in the order they appear. Each slot is stood in for by its name between NULs,
+    which JSON escapes and no real value holds."""
+    obj = dict(obj)
+    marks = list(literals)
+    for name in slots:
+        if obj.get(name) is not None:
+            obj[name] = f"\x00{name}\x00"
+            marks.append((name, encode(obj[name]), '"%s"' if name in strings else "%s"))
+    text = encode(obj).replace("%", "%%")
+    found = sorted((text.find(mark), name, mark, put) for name, mark, put in marks)
+    for _, _, mark, put in found:
+        text = text.replace(mark, put, 1)
+    return text, tuple(name for _, name, _, _ in found)
+
+
+def _line_template(rec: Any, only: set[int] | None, compact: bool) -> tuple[str, tuple[str, ...]]:
+    """record_json_text of ``rec`` as a ``%`` format: a %s for each of _SLOTS it has, and for the fields."""
+    empty = _NO_FIELDS[compact]
+    return json_template(record_json(rec, only, fields=False), _SLOTS, _COMPACT if compact else _SPACED,
+                         strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
+
+
+def _template(blk: Any, k: int, key: tuple, only: set[int] | None, compact: bool) -> tuple:
+    """The line of row ``k``'s shape with a %s for each part that varies, and the layout of its fields."""
+    rec = blk.record(k)
+    text, slots = _line_template(rec, only, compact)
+    # The Block's servos share a model here (block_json_rows), so this is one Layout (or None).
+    tpl = (text, slots, rec._layout()[0], rec.model)
+    if len(_TEMPLATES) >= _MAX_TEMPLATES:
+        _TEMPLATES.clear()
+    _TEMPLATES[key] = tpl
+    return tpl
+
+
+
+_RECORD_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any]] = {}  # key -> (format, slots, model)
+
+
+def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = False) -> str:
+    """``record_json_text(rec, only, compact)``, from its shape's template where it has one: the record
+    path's JSON (a live port's MCAP packets, jsonl from a pipe) without a dict per record.
+
+    A record with findings (its diagnostics), no header (ACK, NACK, garbage) or times that are not
+    plain floats (whose text ``repr`` might not give as JSON does) is written by record_json_text
+    itself. The fields are filled in by Record.fields_json, so the template holds no layout."""
+    ev = rec.event
+    t0, t1, latency = ev.t_start, ev.t_end, rec.latency
+    # x - x is 0.0 for every finite number, NaN for NaN and the infinities: three checks on the hot path.
+    if ((t0 is not None and t0 - t0 != 0.0) or (t1 is not None and t1 - t1 != 0.0)
+            or (latency is not None and latency - latency != 0.0)):
+        what, x = next((w, v) for w, v in (("t", t0), ("t_end", t1), ("latency_s", latency))
+                       if v is not None and not math.isfinite(v))
+        raise _not_finite(ev.offset, what, x)
+    t = type(ev)
+    if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket):
+        return record_json_text(rec, only, compact)
+    if ((t0 is not None and type(t0) is not float) or (t1 is not None and type(t1) is not float)
+            or (latency is not None and type(latency) is not float)):
+        return record_json_text(rec, only, compact)
+    raw = ev[1]
+    request, reply = rec.request, rec.reply
+    key = (raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"", ev.checksum_ok,
+           id(rec.model), t0 is None, t1 is None, latency is None, request is None, reply is None,
+           rec.status, compact, None if only is None else frozenset(only))
+    tpl = _RECORD_TEMPLATES.get(key)
+    if tpl is None or tpl[2] is not rec.model:  # (an id reused by a new model)
+        tpl = (*_line_template(rec, only, compact), rec.model)
+        if len(_RECORD_TEMPLATES) >= _MAX_TEMPLATES:
+            _RECORD_TEMPLATES.clear()
+        _RECORD_TEMPLATES[key] = tpl
+    vals = []
+    for name in tpl[1]:
+        if name == "offset":
+            vals.append(str(ev[0]))
+        elif name == "t":
+            vals.append(repr(t0))
+        elif name == "t_end":
+            vals.append(repr(t1))
+        elif name == "raw":
+            vals.append(raw.hex())
+        elif name == "reply_to":
+            vals.append(str(request.offset))
+        elif name == "reply":
+            vals.append(str(reply.offset))
+        elif name == "latency_s":
+            vals.append(repr(latency))
+        else:  # fields
+            vals.append(rec.fields_json(only, compact))
+    return tpl[0] % tuple(vals)

@@ -1,0 +1,352 @@
+"""decode's text lines from per-shape templates: a Block's rows without Records, a Record's without Fields."""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from typing import Any, Callable, Iterable
+
+from ..decode.blocks import Block, _pair
+from ..decode.pairing import Record
+from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
+from ..decode.frame_runs import RETURN
+from ..protocol.memmap import Field, Register, _ByRaw, _converter
+from .records import _shown, bad_sum, direction, field_text, kind_word, text_line, verbose_lines
+from ..protocol.wire import COMMAND_ADDRESS
+
+__all__ = ["block_text", "record_line"]
+
+# Compiled shapes and field texts are kept across Blocks (a capture has a handful of shapes); the bound
+# keeps a stream of odd headers from piling them up: the oldest goes first, and is made again if met.
+MAX_SHAPES = 4096
+MAX_TEXTS = 8192  # field texts kept per register (and separator)
+_RETURN_SYNC = 0xFD  # a return's first byte (FD DF); FA AF requests have ID 0 for a long packet
+
+
+class _Shape:
+    """How to write the rows of one shape: ``raw(data)`` gives the raw integers of the packet's data
+    (Layout.unpack_raw), ``fn(t, offset, raw, latency, request offset)`` the whole line. ``fn`` is None
+    when the template could not be trusted: those rows go through Records."""
+
+    __slots__ = ("models", "raw", "fn")
+
+    def __init__(self, models: tuple, raw: Callable | None, fn: Callable | None) -> None:
+        self.models, self.raw, self.fn = models, raw, fn
+
+
+_SHAPES: OrderedDict[tuple, _Shape] = OrderedDict()
+
+
+def _field_text(reg: Register, partial: str | None, sep: str) -> Callable[[int], str]:
+    """raw value -> the text a field of this value adds to a line (``sep`` + ``label=value``, or "" when
+    render._shown hides it), by render's own field_text from a Field of that value.
+
+    The value is what Layout.values computes (the same generated expression, memmap._converter), and
+    format_value reads nothing of a Field but its register, partial, raw value and value: so the text
+    is the one the record path writes."""
+    convert = _converter(reg, partial)
+    address = reg.address if not partial else reg.address + (partial == "high")
+
+    def text(x: int) -> str:
+        f = Field(None, address, reg, b"", x, convert(x), partial)
+        return sep + field_text(f) if _shown(f) else ""
+
+    return text
+
+
+_TEXTS: OrderedDict[tuple, _ByRaw] = OrderedDict()
+
+
+def _texts(reg: Register, partial: str | None, sep: str) -> _ByRaw:
+    """A field's texts by raw value (_field_text), made on first use; noise in a 2-byte field could
+    fill 65536 of them: the first MAX_TEXTS are kept."""
+    key = (id(reg), partial, sep)
+    memo = _TEXTS.get(key)
+    if memo is None or memo.register is not reg:  # an id reused by a new register: make it again
+        memo = _TEXTS[key] = _ByRaw(_field_text(reg, partial, sep), reg, MAX_TEXTS)
+        if len(_TEXTS) > MAX_SHAPES:
+            _TEXTS.popitem(last=False)
+    return memo
+
+
+def _join_shown(prefix: str, items: tuple) -> str:
+    """A long packet's group of one VID: ``prefix`` and the shown items, or nothing if none is shown."""
+    shown = ",".join([x for x in items if x])
+    return prefix + shown if shown else ""
+
+
+def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
+               rows: Iterable[int] | None = None) -> str:
+    """What decode's TextSink writes for the rows of ``blk`` (``rows``: those row indexes alone, in
+    ascending order): ``text_line(rec, only)`` and a newline per record, with ``verbose`` its field tree.
+
+    Byte for byte the same text as rendering ``blk.records()``. While the Block's records have not all
+    been built (then the linter found its rows quiet: no findings), each row is written from a
+    template compiled once per shape of packet and filled from the run's bytes and columns, with no
+    Record or Field made; a row already built as a Record (the tracker and the linter keep one or two,
+    which may yet be given findings) is written from that Record.
+    """
+    recs = blk._records
+    if verbose or isinstance(recs, list):
+        # A full list: the linter went through the rows one by one, and they may carry findings. The
+        # field tree (verbose) has no template either: both are written from the Records.
+        return _records_text(blk, only, verbose, rows)
+    run = blk.run
+    lo, n = blk.lo, len(blk)
+    blob, base = run.blob, run.base
+    starts = run.starts[lo:blk.hi].tolist()
+    ends = run.ends[lo:blk.hi].tolist()
+    timed = run.t0 is not None
+    if timed:
+        ts = blk.t0.tolist()
+        lats = blk.latencies().tolist()
+    else:
+        ts = lats = [None] * n
+    made = recs or {}
+    only_key = None if only is None else frozenset(only)
+    local: dict[tuple, _Shape] = {}  # this Block's shapes by their bytes (the models are the Block's)
+    out = []
+    append = out.append
+    for k in (range(n) if rows is None else rows):
+        if made:
+            rec = made.get(k)
+            if rec is not None:
+                append(record_line(rec, only))
+                continue
+        s = starts[k]
+        e = ends[k]
+        h = blob[s:s + 7]  # sync, ID, flag, address, length, count: with the frame's size, the shape
+        if h[2] or h[0] == _RETURN_SYNC:
+            key = (h, e - s)
+        else:  # a long packet: its VIDs too (every record starts with one)
+            key = (h, e - s, blob[s + 7:e - 1:h[5]] if h[5] else b"")
+        shape = local.get(key)
+        if shape is None:
+            shape = local[key] = _shape(blk, k, key, only, only_key, timed)
+        fn = shape.fn
+        if fn is None:
+            append(text_line(blk.record(k), only) + "\n")
+            continue
+        raw = shape.raw
+        # The row before a return is its request (a Block pairs nothing else); for other rows the
+        # request offset is not used.
+        append(fn(ts[k], base + s, raw(blob[s + 7:e - 1]) if raw is not None else None, lats[k],
+                  base + starts[k - 1]))
+    return "".join(out)
+
+
+_RECORD_SHAPES: OrderedDict[tuple, _Shape] = OrderedDict()
+
+
+def record_line(rec: Record, only: set[int] | None = None) -> str:
+    """``text_line(rec, only)`` and a newline, from its shape's template where it has one: the record
+    path's lines (a live port, a pipe) without building the record's Field objects.
+
+    A shape here is a Block's (header bytes, size, model) and what a Block's rows share but single
+    records do not: the pairing (status, request, latency) and whether the record has times. A
+    record with findings, a bad Sum or no header (ACK, NACK, garbage) is written by text_line itself."""
+    ev = rec.event
+    t = type(ev)
+    if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket) or not ev.checksum_ok:
+        return text_line(rec, only) + "\n"
+    lay, data = rec._layout()
+    # A long packet to servos of mixed models has a layout per servo: the shape is theirs together.
+    layouts = (lay,) if type(lay) is not list else tuple([sub for sub, _, _ in lay])
+    raw = ev[1]
+    request = rec.request
+    latency = rec.latency
+    key = (raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"", id(rec.model),
+           tuple(map(id, layouts)), ev.t_start is not None, rec.status, request is not None, latency is not None,
+           None if only is None else frozenset(only))
+    shape = _RECORD_SHAPES.get(key)
+    if shape is None or not all(a is b for a, b in zip(shape.models, (rec.model, *layouts))):
+        shape = _record_shape(rec, key, only, layouts)
+    fn = shape.fn
+    if fn is None:
+        return text_line(rec, only) + "\n"
+    unpack = shape.raw
+    return fn(ev.t_start, ev.offset, unpack(data) if unpack is not None else None, latency,
+              request.offset if request is not None else None)
+
+
+def _record_shape(rec: Record, key: tuple, only: set[int] | None, layouts: tuple) -> _Shape:
+    """A single record's compiled shape, checked once against text_line as a Block's are."""
+    raw, fn = _compile(rec, only, rec.event.t_start is not None)
+    if fn is not None:
+        ev = rec.event
+        request = rec.request
+        got = fn(ev.t_start, ev.offset, raw(ev[1][7:-1]) if raw is not None else None, rec.latency,
+                 request.offset if request is not None else None)
+        if got != text_line(rec, only) + "\n":
+            fn = None
+    # The model and layouts are kept so an id reused by new ones is not taken for them.
+    shape = _RECORD_SHAPES[key] = _Shape((rec.model, *layouts), raw, fn)
+    if len(_RECORD_SHAPES) > MAX_SHAPES:
+        _RECORD_SHAPES.popitem(last=False)
+    return shape
+
+
+def _records_text(blk: Block, only: set[int] | None, verbose: bool, rows: Iterable[int] | None) -> str:
+    """TextSink.line of each record (its sink is not imported here: sinks may come to use this module)."""
+    recs = blk.records()
+    if rows is not None:
+        recs = [recs[k] for k in rows]
+    if verbose:
+        return "".join(text_line(r, only) + "\n" + "\n".join(verbose_lines(r)) + "\n" for r in recs)
+    return "".join([record_line(r, only) for r in recs])
+
+
+# ---- compiling a shape --------------------------------------------------------------------------
+def _sample(blk: Block, k: int) -> Record:
+    """Row ``k`` as a Record built as Block.records builds it (paired), but kept out of the Block."""
+    run, kinds = blk.run, blk.cols["kind"]
+
+    def build(j: int) -> Record:
+        return blk._record(run.event(blk.lo + j), int(kinds[j]), j)
+
+    rec = build(k)
+    if int(kinds[k]) == RETURN and k > 0 and blk.answered[k - 1]:
+        _pair(build(k - 1), rec)
+    elif k + 1 < len(blk) and blk.answered[k]:
+        _pair(rec, build(k + 1))
+    return rec
+
+
+def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: frozenset | None,
+           timed: bool) -> _Shape:
+    """The compiled shape of row ``k`` (from the cache when its models are the same objects)."""
+    h = key[0]
+    is_long = len(key) == 3
+    if is_long:
+        vm = blk.vid_models
+        vid_models = None if vm is None or not h[5] else tuple([vm[v] for v in key[2]])
+        models = (blk.default,) + (vid_models or ())
+        gkey = (timed, key, id(blk.default), vid_models and tuple(map(id, vid_models)), only_key)
+    else:
+        models = (blk.models[h[2]],)
+        gkey = (timed, key, id(models[0]))
+    shape = _SHAPES.get(gkey)
+    if shape is not None and len(shape.models) == len(models) and all(
+            a is b for a, b in zip(shape.models, models)):
+        return shape
+    sample = _sample(blk, k)
+    raw, fn = _compile(sample, only, timed)
+    if fn is not None:
+        # The template against the record path on its first row: what depends on the data comes from
+        # render's own functions (_field_text), the rest is checked here once; a mismatch (a case this
+        # module does not know) sends the shape's rows through Records instead.
+        ev = sample.event
+        data = ev[1][7:-1]
+        got = fn(ev.t_start, ev.offset, raw(data) if raw is not None else None, sample.latency,
+                 sample.request.offset if sample.request is not None else None)
+        if got != text_line(sample, only) + "\n":
+            fn = None
+    shape = _SHAPES[gkey] = _Shape(models, raw, fn)
+    if len(_SHAPES) > MAX_SHAPES:
+        _SHAPES.popitem(last=False)
+    return shape
+
+
+def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable | None, Callable | None]:
+    """(raw, fn) of the record's shape: a line as one generated f-string (one BUILD_STRING)."""
+    ev = rec.event
+    kind = ev.kind
+    if kind not in ("short", "long", "return") or rec.findings:
+        return None, None
+    pieces: list[tuple[str, str]] = []  # ("lit", text) or ("exp", f-string replacement field)
+    env: dict[str, Any] = {"G": _join_shown}
+    names: dict[int, str] = {}
+
+    def memo(reg: Register, partial: str | None, sep: str) -> str:
+        m = _texts(reg, partial, sep)
+        name = names.get(id(m))
+        if name is None:
+            name = names[id(m)] = f"M{len(names)}"
+            env[name] = m
+        return name
+
+    pieces.append(("exp", "t:12.6f") if timed else ("lit", f"{'-':>12}"))
+    pieces += [("lit", " @"), ("exp", "o:<8"), ("lit", f" {direction(rec):<5} ")]
+    pieces.append(("lit", kind_word(rec) + ("(BAD-SUM)" if bad_sum(rec) else "")))
+    if kind != "long":
+        pieces.append(("lit", f" id={ev.id}"))
+    raw: Callable | None = None
+    lay, data = rec._layout()
+    if kind != "long":
+        if lay is not None:
+            raw = lay.unpack_raw
+            for j, (_, _, reg, partial) in enumerate(lay.parts):
+                pieces.append(("exp", f"{memo(reg, partial, ' ')}[r[{j}]]"))
+    elif lay is not None:
+        # Items per VID: (raw index, register, partial), in field order.
+        items: list[tuple[int, int, Register, str | None]] = []
+        if isinstance(lay, list):
+            at = 0
+            for sub, _, vid in lay:
+                items += [(vid, at + j, reg, partial) for j, (_, _, reg, partial) in enumerate(sub.parts)]
+                at += len(sub.parts)
+            raw = _mixed_raw(ev, [sub for sub, _, _ in lay])
+        else:
+            raw = lay.unpack_raw
+            stride = len(lay.parts) + 1  # unpack_raw has each record's VID before its parts
+            for i in range(lay.records):
+                vid = data[i * (lay.size + 1)]
+                items += [(vid, i * stride + 1 + j, reg, partial) for j, (_, _, reg, partial) in enumerate(lay.parts)]
+        by_vid: dict[int, list[tuple[int, Register, str | None]]] = {}
+        for vid, at, reg, partial in items:
+            if only is None or vid in only:
+                by_vid.setdefault(vid, []).append((at, reg, partial))
+        vids = [r[0] for r in ev.records]
+        for g, (vid, group) in enumerate(by_vid.items()):
+            hidden = [reg.name is None for _, reg, _ in group]
+            if not any(hidden):
+                pieces.append(("lit", f" {vid}:"))
+                for j, (at, reg, partial) in enumerate(group):
+                    pieces.append(("exp", f"{memo(reg, partial, ',' if j else '')}[r[{at}]]"))
+            elif vids.count(vid) > 1:
+                # A VID met twice, with items that may hide: where its group stands depends on the data.
+                return None, None
+            else:
+                env[f"P{g}"] = f" {vid}:"
+                args = ", ".join(f"{memo(reg, partial, '')}[r[{at}]]" for at, reg, partial in group)
+                pieces.append(("exp", f"G(P{g}, ({args},))"))
+    if kind == "short":
+        names_read = rec.read_names
+        if names_read and ev.read_range:
+            a, n = ev.read_range
+            pieces.append(("lit", f" read[{a}+{n}]" if len(names_read) > 3 else f" read[{','.join(names_read)}]"))
+        if ev.commands and not ev.data and (ev.address, ev.length, ev.count) != (COMMAND_ADDRESS, 0, 0):
+            pieces.append(("lit", f" addr={ev.address} len={ev.length} count={ev.count}"))
+    if kind == "return" and ev.flags:
+        pieces.append(("lit", " flags=" + ",".join(ev.flag_names or (f"0x{ev.flags:02X}",))))
+    if rec.is_reply:
+        if rec.request is not None:
+            pieces += [("lit", " reply_to=@"), ("exp", "q")]
+        if rec.latency is not None:
+            pieces += [("lit", " latency="), ("exp", "l * 1e3:.3f"), ("lit", "ms")]
+        if rec.status and rec.status != "paired":
+            pieces.append(("lit", " " + rec.status.upper()))
+    elif rec.status == "missing":
+        pieces.append(("lit", " NO-REPLY"))
+    elif rec.status == "unknown":
+        pieces.append(("lit", " CAPTURE-ENDED"))
+    pieces.append(("lit", "\n"))
+    # Adjacent literals, plain and f-strings, are one string at compile time; the text goes in through
+    # repr, so nothing in a label or unit can be read as code.
+    src = " ".join(repr(text) if what == "lit" else "f'{" + text + "}'" for what, text in pieces)
+    fn = eval(f"lambda t, o, r, l, q: ({src})", env)  # noqa: S307 - generated from the validated map
+    return raw, fn
+
+
+def _mixed_raw(ev: Any, subs: list) -> Callable:
+    """unpack_raw of a long packet to servos of different models: each record's layout on its bytes."""
+    length = ev.length
+    size = len(ev[1]) - 8
+    spans = [(sub.unpack_raw, i * length + 1, min(i * length + length, size)) for i, sub in enumerate(subs)]
+
+    def raw(data: bytes) -> tuple:
+        out: tuple = ()
+        for unpack, a, b in spans:
+            out += unpack(data[a:b])
+        return out
+
+    return raw

@@ -1,0 +1,238 @@
+"""Turn records into text lines (for people) and JSON objects (for pipes); shared by CLI, MCAP and TUI."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from ..decode.pairing import Record
+from ..protocol.events import Garbage, LongPacket, ReturnPacket, ShortPacket
+from ..protocol.memmap import Field, Register
+from ..protocol.wire import COMMAND_ADDRESS, FLAG_RESERVED, request_flag_names as _short_flag_names
+
+_KIND_WORD = {"ack": "ACK", "nack": "NACK", "long": "LONG", "return": "RETURN", "garbage": "GARBAGE"}
+_OP_WORD = {"write": "WRITE", "read": "READ", "write+read": "WRITE+READ", "write+ack": "WRITE+ACK",
+            "ping": "PING", "empty": "NOP", "flash": "FLASH", "reboot": "REBOOT", "initialize": "INIT"}
+
+
+def direction(rec: Record) -> str:
+    """Who put the bytes on the wire: the host (requests), a servo (replies), or unknown (garbage)."""
+    if rec.is_request:
+        return "host"
+    if rec.is_reply:
+        return "servo"
+    return "?"
+
+
+def kind_word(rec: Record) -> str:
+    """WRITE, READ, LONG, RETURN, ACK, ... as shown in text output and the TUI."""
+    ev = rec.event
+    if type(ev) is ShortPacket:
+        op = ev.op
+        return _OP_WORD.get(op) or op.upper().replace("INITIALIZE", "INIT")
+    return _KIND_WORD.get(ev.kind, ev.kind.upper())
+
+
+def _decimals(reg: Register) -> int:
+    s = reg.scale
+    if s >= 1 or reg.enum or reg.table:
+        return 0
+    return max(0, len(f"{s:.10f}".rstrip("0").split(".")[1]))
+
+
+def format_value(f: Field, with_unit: bool = True) -> str:
+    """A field's value as text: 90.0deg, 5.00s, on, 115200bit/s, 0x3030."""
+    reg = f.register
+    v = f.value
+    if f.partial:
+        return f"0x{f.raw_value:02X}({f.partial})"
+    if reg.name is None:
+        return f"0x{f.raw_value:02X}"
+    if reg.format == "hex":
+        return f"0x{f.raw_value:0{2 * reg.size}X}"
+    if v is None:
+        return f"?{f.raw_value}"
+    if isinstance(v, str):
+        return v
+    d = _decimals(reg)
+    text = f"{v:.{d}f}" if d else (f"{v:g}" if isinstance(v, float) else str(v))
+    unit = reg.unit if with_unit else None
+    return text + unit if unit else text
+
+
+def _shown(f: Field) -> bool:
+    # Reserved and undocumented bytes are noise in a one-line summary unless they carry something.
+    return f.register.name is not None or f.raw_value != 0
+
+
+def field_text(f: Field) -> str:
+    return f"{f.label}={format_value(f)}"
+
+
+def bad_sum(rec: Record) -> bool:
+    """A packet whose Sum does not match (garbage has no Sum to match)."""
+    return not rec.event.checksum_ok and type(rec.event) is not Garbage
+
+
+def summary(rec: Record, *, bare: bool = False, keep: bool = True, only: set[int] | None = None) -> str:
+    """A one-line description of the record without time, offset or direction.
+
+    ``bare`` leaves out what a table shows in columns of its own (the kind word, the ID, the
+    latency); ``keep=False`` decodes the fields without keeping them on the record; ``only`` keeps
+    a long packet's fields for those servo IDs alone (``decode --id``).
+    """
+    ev = rec.event
+    t = type(ev)
+    fields = rec.fields if keep else rec.peek_fields()
+    parts = []
+    if not bare:
+        parts.append(kind_word(rec) + ("(BAD-SUM)" if bad_sum(rec) else ""))
+    if t is Garbage:
+        shown = ev.raw[:16].hex(" ").upper() + (" ..." if len(ev.raw) > 16 else "")
+        return " ".join(parts + [f"{len(ev.raw)}B {ev.reason}: {shown}"])
+    if bare:
+        pass
+    elif t is ShortPacket or t is ReturnPacket:
+        parts.append(f"id={ev.id}")
+    elif rec.is_reply and rec.id is not None:  # ACK/NACK: the ID of the request they answer
+        parts.append(f"id={rec.id}")
+    if t is LongPacket:
+        by_id: dict[int, list[str]] = {}
+        for f in fields:
+            if not _shown(f) or (only is not None and f.id not in only):
+                continue
+            by_id.setdefault(f.id, []).append(field_text(f))
+        parts += [f"{vid}:{','.join(items)}" for vid, items in by_id.items()]
+    else:
+        parts += [field_text(f) for f in fields if _shown(f)]
+    if t is ShortPacket:
+        names = rec.read_names
+        if names and ev.read_range:
+            a, n = ev.read_range
+            parts.append(f"read[{a}+{n}]" if len(names) > 3 else f"read[{','.join(names)}]")
+        if ev.commands and not ev.data and (ev.address, ev.length, ev.count) != (COMMAND_ADDRESS, 0, 0):
+            parts.append(f"addr={ev.address} len={ev.length} count={ev.count}")
+    if t is ReturnPacket and ev.flags:
+        parts.append("flags=" + ",".join(ev.flag_names or (f"0x{ev.flags:02X}",)))
+    if rec.is_reply:
+        if rec.request is not None:
+            parts.append(f"reply_to=@{rec.request.offset}")
+        if rec.latency is not None and not bare:
+            parts.append(f"latency={rec.latency * 1e3:.3f}ms")
+        if rec.status and rec.status != "paired":
+            parts.append(rec.status.upper())
+    elif rec.status == "missing":
+        parts.append("NO-REPLY")
+    elif rec.status == "unknown":
+        parts.append("CAPTURE-ENDED")  # its reply was still due when the capture (or a time segment) ended
+    return " ".join(parts)
+
+
+def text_line(rec: Record, only: set[int] | None = None) -> str:
+    """One greppable line: time, offset, direction, then the summary and any findings."""
+    t = rec.event.t_start
+    ts = f"{t:12.6f}" if t is not None else f"{'-':>12}"
+    line = f"{ts} @{rec.offset:<8} {direction(rec):<5} {summary(rec, only=only)}"
+    if rec.findings:
+        line += "  [" + ", ".join(f"{d.code} {d.name}" for d in rec.findings) + "]"
+    return line
+
+
+def verbose_lines(rec: Record) -> list[str]:
+    """The field tree: header fields, then each field's address, raw bytes, value and unit."""
+    ev = rec.event
+    out = [f"    raw: {ev.raw.hex(' ').upper()}"]
+    if isinstance(ev, (ShortPacket, ReturnPacket, LongPacket)):
+        flag = ev.flags if isinstance(ev, ReturnPacket) else ev.flag
+        out.append(f"    header: id={getattr(ev, 'id', 0)} flag=0x{flag:02X} address={ev.address} "
+                   f"length={ev.length} count={ev.count} sum=0x{ev.raw[-1]:02X}"
+                   f"{'' if ev.checksum_ok else ' (checksum mismatch)'}")
+    for f in rec.fields:
+        unit = f.unit or ""
+        who = f"[{f.id}] " if isinstance(ev, LongPacket) else ""
+        out.append(f"    {who}{f.label:<22} @{f.address:<3} {f.raw.hex(' ').upper():<6} = "
+                   f"{format_value(f, with_unit=False)} {unit}".rstrip())
+    for d in rec.findings:
+        out.append(f"    ! {d.code} {d.name}: {d.message}")
+    return out
+
+
+# ---- JSON ---------------------------------------------------------------------------------------
+def json_value(f: Field) -> Any:
+    v = f.value
+    if isinstance(v, float):
+        return round(v, 6)
+    return v
+
+
+def field_json(f: Field) -> dict[str, Any]:
+    return {"id": f.id, "address": f.address, "name": f.name, "raw": f.raw.hex(), "value": json_value(f),
+            "unit": f.unit, **({"partial": f.partial} if f.partial else {})}
+
+
+def request_flag_names(ev: ShortPacket | LongPacket) -> list[str]:
+    """The request flag's meanings by name (table 4.2-4.3); a long packet's flag has only bit 7 to name."""
+    if isinstance(ev, ShortPacket):
+        return _short_flag_names(ev.flag)
+    return ["reserved_bit7"] if ev.flag & FLAG_RESERVED else []
+
+
+_NO_FIELDS = {False: '"fields": []', True: '"fields":[]'}
+_SPACED = json.JSONEncoder(check_circular=False).encode
+_COMPACT = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
+
+
+def record_json_text(rec: Record, only: set[int] | None = None, compact: bool = False) -> str:
+    """``json.dumps(record_json(rec, only))`` (``compact``: with "," and ":" separators), the same text
+    made faster: the fields come from per-layout templates (Record.fields_json), not Field objects."""
+    text = (_COMPACT if compact else _SPACED)(record_json(rec, only, fields=False))
+    fields = rec.fields_json(only, compact)
+    if fields:
+        empty = _NO_FIELDS[compact]
+        # "fields" is the first list in the object and its key comes before any string that could hold
+        # the same characters (hex, names and numbers only): the first match is the right one.
+        text = text.replace(empty, empty[:-1] + fields + "]", 1)
+    return text
+
+
+def record_json(rec: Record, only: set[int] | None = None, *, fields: bool = True) -> dict[str, Any]:
+    """The public JSON object of a record (``decode --format jsonl``, MCAP /rs30x/packets); ``only``
+    keeps a long packet's fields for those servo IDs alone (``decode --id``); ``fields=False`` leaves
+    the fields list empty (record_json_text fills it in)."""
+    ev = rec.event
+    t = type(ev)
+    obj: dict[str, Any] = {
+        "type": ev.kind,
+        "offset": ev.offset,
+        "t": ev.t_start,
+        "t_end": ev.t_end,
+        "raw": ev.raw.hex(),
+        "checksum_ok": ev.checksum_ok,
+        "id": None, "flag": None, "address": None, "length": None, "count": None,
+        "op": None,
+        "model": rec.model.name if rec.model is not None and t is not Garbage else None,
+        "fields": [field_json(f) for f in rec.fields if only is None or f.id in only] if fields else [],
+        "flags": [],
+        "reply_to": rec.request.offset if rec.request is not None else None,
+        "reply": rec.reply.offset if rec.reply is not None else None,
+        "latency_s": rec.latency,
+        "status": rec.status,
+        "diagnostics": [d.as_json() for d in rec.findings],
+    }
+    if t is ShortPacket or t is LongPacket or t is ReturnPacket:
+        obj.update(id=ev.id, address=ev.address, length=ev.length, count=ev.count)
+        obj["flag"] = ev.flags if t is ReturnPacket else ev.flag
+        obj["flags"] = list(ev.flag_names) if t is ReturnPacket else request_flag_names(ev)
+    elif rec.is_reply:
+        obj["id"] = rec.id
+    if t is ShortPacket:
+        obj["op"] = ev.op
+        if ev.read_range is not None:
+            a, n = ev.read_range
+            obj["read"] = {"address": a, "length": n, "names": rec.read_names}
+    elif t is LongPacket:
+        obj["op"] = "write"
+        obj["vids"] = [r.vid for r in ev.records]
+    elif t is Garbage:
+        obj["reason"] = ev.reason
+    return obj

@@ -1,0 +1,1 @@
+"""Sinks: the drive loop, printed lines, statistics and health, tables, MCAP and Foxglove."""

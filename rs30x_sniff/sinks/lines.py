@@ -1,0 +1,150 @@
+"""Small sinks of the drive loop: decode's text and JSON lines, lint's findings, a progress bar."""
+
+from __future__ import annotations
+
+import json
+from typing import IO, Any, Callable
+
+from ..render.block_json import block_json_lines, record_json_line
+from ..render.block_text import block_text, record_line
+from ..decode.blocks import Block
+from ..decode.pairing import Record
+from ..decode.frame_runs import LONG
+from ..filters import Filter
+from .pipeline import Sink
+from ..decode.decoder import Step
+from ..render.records import text_line, verbose_lines
+
+
+def block_rows_involving(blk: Block, ids: set[int]) -> list[int]:
+    """The rows of a Block that ``involves`` keeps."""
+    run = blk.run
+    blob = run.blob
+    out = []
+    for k, (s, e, kind) in enumerate(zip(run.starts[blk.lo:blk.hi].tolist(), run.ends[blk.lo:blk.hi].tolist(),
+                                         blk.cols["kind"].tolist())):
+        if kind == LONG:
+            if blob[s + 5] and not ids.isdisjoint(blob[s + 7:e - 1:blob[s + 5]]):
+                out.append(k)
+        elif blob[s + 2] in ids:
+            out.append(k)
+    return out
+
+
+def involves(rec: Record, ids: set[int]) -> bool:
+    """Whether a record is to or from one of ``ids`` (a long packet: any of its VIDs)."""
+    ev = rec.event
+    if ev.kind == "long":
+        return any(r.vid in ids for r in ev.records)
+    return rec.id in ids
+
+
+class _LineSink(Sink):
+    """One line per record (and one per finding only the end of input reveals), optionally one servo's."""
+
+    def __init__(self, out: IO[str], *, ids: set[int] | None = None, flush: bool = False,
+                 filter: Filter | None = None) -> None:
+        self.out = out
+        self.ids = ids
+        self.filter = filter  # decode --filter: the monitor's filter language
+        self.flush = flush  # a person or a pipe watches a live bus: show each batch as it comes
+        self.records = 0
+
+    takes_blocks = True
+
+    def batch(self, step: Step) -> None:
+        ids = self.ids
+        flt = self.filter
+        write = self.out.write
+        line = self.line
+        if step.blocks and flt is not None:
+            step = step.expanded()  # the filter language reads records
+        for rec in step:
+            if type(rec) is Block:
+                rows = None if ids is None else block_rows_involving(rec, ids)
+                text = self.block_lines(rec, rows)
+                if text:
+                    write(text)
+                    self.records += len(rec) if rows is None else len(rows)
+                continue
+            if (ids is None or involves(rec, ids)) and (flt is None or flt.matches(rec)):
+                write(line(rec))
+                self.records += 1
+        # Findings only the end of input reveals belong to records already written: they come last,
+        # each naming its record's offset. The filter judges them by what it can (id, sev, t, text).
+        for f in step.late:
+            if (ids is None or f.id in ids) and (flt is None or flt.matches_finding(f)):
+                write(self.finding_line(f))
+        if self.flush:
+            self.out.flush()
+
+    def line(self, rec: Record) -> str:
+        raise NotImplementedError
+
+    def block_lines(self, blk: Block, rows: list[int] | None) -> str:
+        """The lines of a Block's rows (``rows``: those alone), as ``line`` would write their records."""
+        recs = blk.records()
+        return "".join([self.line(recs[k]) for k in (range(len(recs)) if rows is None else rows)])
+
+    def finding_line(self, f: Any) -> str:
+        raise NotImplementedError
+
+
+class TextSink(_LineSink):
+    """``decode``'s text: one line per event with its findings, ``verbose`` adds the field tree."""
+
+    def __init__(self, out: IO[str], *, verbose: bool = False, **kw: Any) -> None:
+        super().__init__(out, **kw)
+        self.verbose = verbose
+
+    def line(self, rec: Record) -> str:
+        if self.verbose:
+            return text_line(rec, self.ids) + "\n" + "\n".join(verbose_lines(rec)) + "\n"
+        return record_line(rec, self.ids)
+
+    def block_lines(self, blk: Block, rows: list[int] | None) -> str:
+        return block_text(blk, self.ids, self.verbose, rows)
+
+    def finding_line(self, f: Any) -> str:
+        ts = f"{f.t:12.6f}" if f.t is not None else f"{'-':>12}"
+        return f"{ts} @{f.offset:<8} lint  {f.code} {f.name}: {f.message}\n"
+
+
+class JsonlSink(_LineSink):
+    """``decode --format jsonl``: one JSON object per event, end-of-input findings as diagnostics."""
+
+    def line(self, rec: Record) -> str:
+        return record_json_line(rec, self.ids) + "\n"
+
+    def block_lines(self, blk: Block, rows: list[int] | None) -> str:
+        return block_json_lines(blk, self.ids, rows=rows)
+
+    def finding_line(self, f: Any) -> str:
+        return json.dumps({"type": "diagnostic", **f.as_json()}) + "\n"
+
+
+class FindingsSink(Sink):
+    """Every lint finding and the record count: what a lint report needs of one capture."""
+
+    takes_blocks = True  # counts a Block's rows; reads nothing else of them
+
+    def __init__(self) -> None:
+        self.findings: list = []
+        self.records = 0
+
+    def batch(self, step: Step) -> None:
+        self.records += step.count
+        if step.findings:
+            self.findings += step.findings
+
+
+class ProgressSink(Sink):
+    """Advances a progress bar by the bytes read."""
+
+    takes_blocks = True
+
+    def __init__(self, advance: Callable[[int], None]) -> None:
+        self.advance = advance
+
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
+        self.advance(len(data))

@@ -1,0 +1,1 @@
+"""MCAP and Foxglove: the file writer, the live server, channels, servo states."""

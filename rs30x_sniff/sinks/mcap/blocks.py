@@ -1,0 +1,144 @@
+"""A Block's MCAP messages (packets, servo states, transactions) from templates: what JsonChannels.record
+writes for each row, byte for byte, without building the rows' Records."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from ...render.block_json import block_json_rows, json_template
+from ...decode.frame_runs import LONG
+from ...protocol.memmap import Layout, _value_text
+
+_encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
+_TX_SLOTS = ("request_offset", "t_request", "request_raw", "reply_offset", "t_reply", "reply_raw", "latency_s")
+_TX_TEMPLATES: dict[tuple, tuple[str | None, tuple[str, ...], Any]] = {}  # key -> (format or None, slots, model)
+_NAMED: dict[int, tuple[Layout, tuple]] = {}
+_MAX = 4096
+
+
+def _named_plan(layout: Layout) -> tuple:
+    """For each record of the layout (one for a short packet or a return): the index of its VID in
+    ``unpack_raw`` (None without one) and each whole named register as (raw index, name, '"name":', text
+    by raw value) — Layout.named_values with each value's JSON text (JsonChannels' _fragment) looked up."""
+    got = _NAMED.get(id(layout))
+    if got is not None and got[0] is layout:
+        return got[1]
+    n = len(layout.parts)
+    named = [(j, reg) for j, (_, _, reg, partial) in enumerate(layout.parts) if reg.name is not None and not partial]
+    if not layout.records:
+        plan = ((None, tuple((j, reg.name, f'"{reg.name}":', _value_text(reg, None)) for j, reg in named)),)
+    else:
+        plan = tuple((r * (n + 1), tuple((r * (n + 1) + 1 + j, reg.name, f'"{reg.name}":', _value_text(reg, None))
+                                         for j, reg in named)) for r in range(layout.records))
+    if len(_NAMED) >= _MAX:
+        _NAMED.clear()
+    _NAMED[id(layout)] = (layout, plan)
+    return plan
+
+
+def _tx_template(blk: Any, k: int, key: tuple) -> tuple[str | None, tuple[str, ...], Any]:
+    """The /rs30x/transactions body of row ``k``'s shape with a %s where each row differs (None when
+    the row's request expects no reply: no message), the slots, and the model it was made for."""
+    from .writer import transaction_json
+
+    rec = blk.record(k)
+    tpl = (None, (), rec.model)
+    if rec.expects is not None:
+        text, slots = json_template(transaction_json(rec), _TX_SLOTS, _encode, strings=("request_raw", "reply_raw"))
+        tpl = (text, slots, rec.model)
+    if len(_TX_TEMPLATES) >= _MAX:
+        _TX_TEMPLATES.clear()
+    _TX_TEMPLATES[key] = tpl
+    return tpl
+
+
+def block_messages(ch: Any, blk: Any, emit: Any) -> None:
+    """Emit (channel, log_time, body) for each row of ``blk`` as ``ch.record`` would, in the same order:
+    the packet, the state of each servo it sets, the transaction of a request that expects a reply."""
+    from .writer import PACKETS_TOPIC, TRANSACTIONS_TOPIC, _ns
+
+    if isinstance(blk._records, list) or blk.vid_models is not None:
+        for rec in blk.records():
+            ch.record(rec)
+        return
+    run = blk.run
+    blob, lo, base = run.blob, blk.lo, run.base
+    starts, ends = run.starts[lo:blk.hi].tolist(), run.ends[lo:blk.hi].tolist()
+    kinds = blk.cols["kind"].tolist()
+    timed = blk.t0 is not None
+    t0 = blk.t0.tolist() if timed else None
+    lat = blk.latencies().tolist() if timed else None
+    answered = blk.answered.tolist()
+    packets = block_json_rows(blk, None, compact=True)
+    time_of = ch._time
+    cid_packets = ch._channel(PACKETS_TOPIC, "rs30x.Packet")
+    cid_tx = None
+    servos = ch._servos
+    models, known = servos.models, servos.known
+    slot = ch._state_slot
+    state_models = ch._models
+    blk_models, default = blk.models, blk.default
+    for k, (s, e, kind) in enumerate(zip(starts, ends, kinds)):
+        offset = base + s
+        t = t0[k] if timed else None
+        log_time = _ns(time_of(t, offset))
+        emit(cid_packets, log_time, packets[k].encode())
+        raw = blob[s:e]
+        if kind == LONG:
+            model = default
+            layout = model.long_layout(raw[4], raw[5], raw[6]) if raw[5] and e - s > 8 else None
+        else:
+            sid = raw[2]
+            model = blk_models[sid]
+            if sid != 255:
+                models[sid] = model.name  # ServoStates.changes: the model name the servo's records used
+            layout = model.layout(raw[4], e - s - 8) if e - s > 8 else None
+        if layout is not None:
+            values = layout.unpack_raw(raw[7:-1])
+            changed: dict[int, list[tuple[str, str]]] = {}
+            for vid_at, parts in _named_plan(layout):
+                if not parts:
+                    continue
+                tid = raw[2] if vid_at is None else values[vid_at]
+                pairs = changed.get(tid)
+                if pairs is None:
+                    pairs = changed[tid] = []
+                    known[tid] = None
+                for at, name, prefix, text in parts:
+                    pairs.append((name, prefix + text[values[at]]))
+            if changed:
+                tail = f',"t":{"null" if t is None else repr(t)},"offset":{offset},'
+                fallback = model.name
+                for tid, pairs in changed.items():
+                    cid, st = slot(tid)
+                    for name, frag in pairs:
+                        st[name] = frag
+                    body = f'{{"id":{tid},"model":"{state_models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
+                    emit(cid, log_time, body.encode())
+        if answered[k]:
+            key = (raw[:7], e - s, id(model), timed)
+            tpl = _TX_TEMPLATES.get(key)
+            if tpl is None or tpl[2] is not model:  # (an id is reused once its model is gone)
+                tpl = _tx_template(blk, k, key)
+            if tpl[0] is not None:
+                fmt, slots, _ = tpl
+                vals = []
+                for name in slots:
+                    if name == "request_offset":
+                        vals.append(str(offset))
+                    elif name == "t_request":
+                        vals.append(repr(t))
+                    elif name == "request_raw":
+                        vals.append(raw.hex())
+                    elif name == "reply_offset":
+                        vals.append(str(base + ends[k]))
+                    elif name == "t_reply":
+                        vals.append(repr(t0[k + 1]))
+                    elif name == "reply_raw":
+                        vals.append(blob[ends[k]:ends[k + 1]].hex())
+                    else:
+                        vals.append(repr(lat[k + 1]))
+                if cid_tx is None:
+                    cid_tx = ch._channel(TRANSACTIONS_TOPIC, "rs30x.Transaction")
+                emit(cid_tx, log_time, (fmt % tuple(vals)).encode())

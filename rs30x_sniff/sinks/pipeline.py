@@ -1,0 +1,192 @@
+"""The one drive loop of every command: (bytes, t) chunks -> Decoder (frames, pairs, lint) -> sinks."""
+
+from __future__ import annotations
+
+from typing import Any, Iterable, Iterator
+
+from ..decode.blocks import Block
+from ..decode.decoder import DecodeOptions, Decoder, Step
+from ..protocol.chunks import Marked
+
+# A columnar Pipeline decodes a file's chunks this many bytes at a time (unless told otherwise).
+GROUP_BYTES = 1 << 16
+
+
+class Sink:
+    """Where decoded traffic goes (text, JSON lines, a lint report, MCAP, statistics, the monitor).
+
+    The drive loop calls ``chunk`` with the raw bytes before they are decoded (so nothing read is lost
+    to a decoding error; ``sender`` and ``error`` are what the capture said of them, rs30x_sniff.protocol.chunks),
+    ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing for a moment, and
+    ``close`` once at the end. Every method is optional.
+
+    A sink with ``takes_blocks`` True is handed a columnar decoder's steps as they are (Records and
+    Blocks, rs30x_sniff.decode.blocks); any other sink gets them with every Block's rows as Records.
+    """
+
+    takes_blocks = False
+
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
+        pass
+
+    def batch(self, step: Step) -> None:
+        pass
+
+    def idle(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+class Pipeline:
+    """A decoder and its sinks: the drive loop every command and the monitor share.
+
+    Sinks may be added and removed between chunks (the monitor's ``r`` starts and stops an MCAP sink).
+    """
+
+    def __init__(self, decoder: Decoder, sinks: Iterable[Sink] = (), group_bytes: int = GROUP_BYTES) -> None:
+        self.decoder = decoder
+        self.sinks: tuple[Sink, ...] = tuple(sinks)  # replaced, never changed in place: safe to edit mid-loop
+        self.closed = False
+        self.group_bytes = group_bytes  # a columnar decoder's group of plain chunks
+
+    def add(self, sink: Sink) -> None:
+        self.sinks = (*self.sinks, sink)
+
+    def remove(self, sink: Sink) -> None:
+        self.sinks = tuple(s for s in self.sinks if s is not sink)
+
+    def _hand_out(self, step: Step) -> None:
+        """``step`` to every sink, as Blocks to those that take them and as Records to the rest."""
+        records = None
+        for s in self.sinks:
+            if not step.blocks or getattr(s, "takes_blocks", False):
+                s.batch(step)
+            else:
+                if records is None:
+                    records = step.expanded()
+                s.batch(records)
+
+    def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> Step:
+        """Several plain chunks through the decoder at once (Decoder.feed_many) into every sink."""
+        for s in self.sinks:
+            group = getattr(s, "chunk_group", None)
+            if group is not None:
+                group(chunks)  # a sink that takes the group's chunks at once (McapSink orders its messages)
+            elif type(s).chunk is not Sink.chunk:  # (most sinks read no chunk: a call per chunk for nothing)
+                for data, t in chunks:
+                    s.chunk(data, t, None, None)
+        step = self.decoder.feed_many(chunks)
+        if step or step.findings:
+            self._hand_out(step)
+        return step
+
+    def feed(self, data: bytes, t: float | None = None, sender: str | None = None,
+             error: str | None = None) -> Step:
+        """One chunk through the decoder into every sink; an empty chunk means the source is idle."""
+        sinks = self.sinks
+        if not data:
+            for s in sinks:
+                s.idle()
+            return Step()
+        for s in sinks:
+            s.chunk(data, t, sender, error)
+        step = self.decoder.feed(data, t, sender, error)
+        if step or step.findings:
+            self._hand_out(step)
+        return step
+
+    def close(self) -> Step:
+        """End of input: the decoder's last records and late findings, then every sink closes (once)."""
+        if self.closed:
+            return Step()
+        self.closed = True
+        step = self.decoder.close()
+        try:
+            self._hand_out(step)
+        finally:
+            errors = []
+            for s in self.sinks:
+                try:
+                    s.close()
+                except Exception as e:  # noqa: BLE001 - close them all; raise the first failure after
+                    errors.append(e)
+            if errors:
+                raise errors[0]
+        return step
+
+    def run(self, chunks: Iterable[tuple[bytes, float | None]]) -> Decoder:
+        """Feed every chunk, then close. The sinks are closed even when the source fails midway (a
+        corrupt file, a lost port), so what was read is written; the source's error is raised after."""
+        try:
+            if self.decoder.columnar:
+                self._run_grouped(chunks)
+            else:
+                feed = self.feed
+                for chunk in chunks:
+                    if type(chunk) is Marked:
+                        feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+                    else:
+                        feed(*chunk)
+        except BaseException:
+            try:
+                self.close()
+            except Exception:  # noqa: BLE001 - the source's error is the one to report
+                pass
+            raise
+        self.close()
+        return self.decoder
+
+
+    def _run_grouped(self, chunks: Iterable[tuple[bytes, float | None]]) -> None:
+        """The columnar decoder's loop: plain chunks in groups of about ``group_bytes`` (one kernel pass
+        and one Block per clean stretch), marked and empty ones alone, in order."""
+        group: list[tuple[bytes, float | None]] = []
+        size = 0
+        feed_many = self.feed_many
+        group_bytes = self.group_bytes
+        append = group.append
+        marked = Marked
+        try:
+            for chunk in chunks:
+                data = chunk[0]
+                if not data or type(chunk) is marked:
+                    if group:
+                        group, pending = [], group  # taken before it is fed: never fed twice
+                        append = group.append
+                        size = 0
+                        feed_many(pending)
+                    if type(chunk) is Marked:
+                        self.feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+                    else:
+                        self.feed(*chunk)
+                    continue
+                append(chunk)
+                size += len(data)
+                if size >= group_bytes:
+                    group, pending = [], group
+                    append = group.append
+                    size = 0
+                    feed_many(pending)
+        finally:
+            # What was read is decoded, also when the source fails or the run is stopped midway.
+            if group:
+                feed_many(group)
+
+
+def drive(chunks: Iterable[tuple[bytes, float | None]], decoder: Decoder, *sinks: Sink) -> Decoder:
+    """Run ``chunks`` through ``decoder`` into ``sinks``; returns the decoder (its linter, its counts)."""
+    return Pipeline(decoder, sinks).run(chunks)
+
+
+def decode_records(chunks: Iterable[tuple[bytes, float | None]], options: DecodeOptions | None = None,
+                   decoder: Decoder | None = None) -> Iterator[Record]:
+    """Stream records from chunks (a generator over the same decoder, for library use)."""
+    dec = decoder or Decoder(options)
+    for chunk in chunks:
+        if type(chunk) is Marked:
+            yield from dec.feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+        else:
+            yield from dec.feed(*chunk)
+    yield from dec.close()

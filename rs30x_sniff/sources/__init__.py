@@ -1,0 +1,1 @@
+"""Sources: capture files, other tools' formats, MCAP reading, serial ports, time references."""

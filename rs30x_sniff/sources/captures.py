@@ -1,0 +1,672 @@
+"""Capture files: detect the format, read them as (bytes, t) chunks, and write them back."""
+
+from __future__ import annotations
+
+import io
+import math
+import re
+import sys
+from array import array
+from bisect import bisect_right
+from dataclasses import dataclass
+from pathlib import Path
+from typing import BinaryIO, Callable, Iterable, Iterator
+
+from . import timeunit
+from ..protocol.chunks import Marked
+from .timeunit import TimeUnit
+from . import foreign
+
+Chunk = tuple[bytes, float | None]
+
+BINARY, HEX, TIMESTAMPED, MCAP = "bin", "hex", "timestamped", "mcap"
+FORMATS = (BINARY, HEX, TIMESTAMPED, MCAP)
+_EXTENSIONS = {".bin": BINARY, ".raw": BINARY, ".mcap": MCAP}
+_TEXT_EXTENSIONS = {".hex", ".txt", ".log", ".thex"}
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+_READ_SIZE = 1 << 16
+_HEAD_SIZE = 4096           # bytes the format is sniffed from
+_MAX_LINE = 64 << 20        # a longer "line" is not a text capture (and would have to sit in memory whole)
+_BOM = b"\xef\xbb\xbf"
+_HEX_TOKEN = re.compile(rb"^(?:[0-9a-fA-F]{2})+$")
+_HEX_PAIR = re.compile(rb"[0-9a-fA-F]{2}")
+_TOKEN = re.compile(rb"\S+")
+# Anything float() reads as a decimal number, and the words it reads as nan/inf (so a bad time is
+# reported as a bad time rather than as a bad hex byte); underscores and hex floats are not times.
+_NUMBER = re.compile(rb"^[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?$|^[+-]?(?:nan|inf|infinity)$", re.I)
+# Control bytes no text capture holds: a head with one of them is binary, and on a pipe the sniffer
+# can stop waiting for more (the bytes of a frame header, FA and FD, are not valid UTF-8 either).
+_NOT_TEXT = re.compile(rb"[\x00-\x08\x0e-\x1f\x7f\xf8-\xff]")
+
+
+class CaptureError(ValueError):
+    """A capture cannot be read; the message is one line naming the file (and the line, for text).
+
+    ``line`` and ``column`` (1-based, or None) say where in a text capture the problem is.
+    """
+
+    def __init__(self, message: str, *, line: int | None = None, column: int | None = None) -> None:
+        super().__init__(message)
+        self.line = line
+        self.column = column
+
+
+@dataclass(frozen=True)
+class CaptureWarning:
+    """A problem the reader worked around: the capture is still read, up to ``offset`` bytes into the file.
+
+    ``message`` is one line naming the file; ``offset`` is the file position where reading stopped
+    (None if not one place) and ``lost_bytes`` how much of the file was not read.
+    """
+
+    path: str
+    message: str
+    offset: int | None = None
+    lost_bytes: int = 0
+
+    def __str__(self) -> str:
+        return self.message
+
+
+def stderr_warning(text: str) -> None:
+    """The default ``warn`` callback: one line on stderr."""
+    print(f"rs30x-sniff: warning: {text}", file=sys.stderr)
+
+
+# ---- opening: every input is opened once --------------------------------------------------------
+class _Chain(io.RawIOBase):
+    """The head already read from a stream that cannot seek back, then the rest of that stream."""
+
+    def __init__(self, head: bytes, f: BinaryIO, owns: bool) -> None:
+        super().__init__()
+        self._head = memoryview(head)
+        self._f = f
+        self._owns = owns
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, b) -> int:  # type: ignore[no-untyped-def]
+        if len(self._head):
+            n = min(len(b), len(self._head))
+            b[:n] = self._head[:n]
+            self._head = self._head[n:]
+            return n
+        # read1: what the pipe has now (at most one read), so a live stream is not held back.
+        read1 = getattr(self._f, "read1", None)
+        data = read1(len(b)) if read1 is not None else self._f.read(len(b))
+        n = len(data)
+        b[:n] = data
+        return n
+
+    def close(self) -> None:
+        if not self.closed and self._owns:
+            self._f.close()
+        super().close()
+
+
+@dataclass
+class _Opened:
+    stream: BinaryIO  # reads the capture from its first byte
+    head: bytes       # its first bytes, for sniffing
+    complete: bool    # the head is the whole capture
+    seekable: bool
+    fmt: str | None = None
+    taken: bool = False
+
+
+# A pipe, FIFO or stdin can be read only once, but callers may ask for its format and then read it
+# (convert and info do): the one open stream waits here, with its format, until it is closed.
+_PIPES: dict[str, _Opened] = {}
+
+
+def _open(path: str) -> _Opened:
+    """Open ``path`` (``-`` is stdin) and read its head: a file seeks back, a pipe (or stdin) is chained."""
+    if path == "-":
+        f = getattr(sys.stdin, "buffer", None)
+        if f is None:
+            raise CaptureError("-: there is no standard input to read")
+        owns = False
+        seekable = False  # stdin is read as a stream, whatever it is, and never closed
+    else:
+        f = open_capture(path)
+        owns = True
+        try:
+            seekable = f.seekable()
+        except OSError:
+            seekable = False
+    try:
+        if seekable:
+            start = f.tell()
+            head = f.read(_HEAD_SIZE)
+            f.seek(start)
+            return _Opened(f, head, len(head) < _HEAD_SIZE, True)
+        head, ended = _read_head(f)
+    except OSError as e:
+        if owns:
+            f.close()
+        raise CaptureError(f"{path}: cannot read: {e.strerror or e}") from None
+    stream = io.BufferedReader(_Chain(head, f, owns), buffer_size=_READ_SIZE)
+    return _Opened(stream, head, ended, False)  # type: ignore[arg-type]
+
+
+def _read_head(f: BinaryIO) -> tuple[bytes, bool]:
+    """The head of a pipe and whether the pipe ended within it.
+
+    Takes what arrives until the head is full, the pipe ends, or a byte says "binary": a live binary
+    stream of a few bytes a second must not wait for 4 KiB before it is decoded.
+    """
+    read1 = getattr(f, "read1", None) or f.read
+    head = bytearray()
+    while len(head) < _HEAD_SIZE:
+        block = read1(_HEAD_SIZE - len(head))
+        if not block:
+            return bytes(head), True
+        head += block
+        if _NOT_TEXT.search(block):
+            break
+    return bytes(head), False
+
+
+def _sniffed(path: str, fmt: str | None) -> _Opened:
+    """The open input of ``path`` with its format (``fmt`` if given, else detected)."""
+    pending = _PIPES.get(path)
+    if pending is not None and pending.stream.closed:
+        del _PIPES[path]
+        pending = None
+    if pending is None:
+        pending = _open(path)
+        if not pending.seekable:
+            _PIPES[path] = pending
+    if pending.fmt is None or fmt is not None:
+        try:
+            pending.fmt = fmt or _detect(path, pending)
+        except CaptureError:
+            pending.stream.close()
+            raise
+    return pending
+
+
+def detect_format(path: str) -> str:
+    """The format of a capture file: by extension, else by content (``-`` is stdin, sniffed too).
+
+    A pipe or FIFO is opened once: it stays open, so that :func:`read_capture` reads it from its first byte.
+    """
+    opened = _sniffed(path, None)
+    if opened.seekable:
+        opened.stream.close()
+    return opened.fmt  # type: ignore[return-value]
+
+
+def _detect(path: str, opened: _Opened) -> str:
+    ext = Path(path).suffix.lower() if path != "-" else ""
+    head = opened.head
+    if head.startswith(MCAP_MAGIC) and not opened.seekable:
+        raise CaptureError(f"{path}: an MCAP capture needs a seekable file, not a pipe (save it to a file first)")
+    if ext in _EXTENSIONS:
+        return _EXTENSIONS[ext]
+    if head.startswith(MCAP_MAGIC):
+        return MCAP
+    other = foreign.by_extension(ext) or foreign.sniff(head)
+    if other is not None:
+        return other.name
+    if not head and ext not in _TEXT_EXTENSIONS:
+        return BINARY  # nothing to read either way
+    text_kind = _sniff_text(head, opened.complete)
+    if text_kind:
+        return text_kind
+    if ext in _TEXT_EXTENSIONS or (not _NOT_TEXT.search(head) and _first_line_kind(head)):
+        # A text capture with a bad token: read it as its first data line says, so the error names the line.
+        return _first_line_kind(head) or HEX
+    if b"\xfa\xaf" in head or b"\xfd\xdf" in head or not opened.seekable:
+        # stdin was always raw bytes, and a pipe's head may be one short read: not text is binary.
+        return BINARY
+    raise CaptureError(f"{path}: unknown capture format (use --input-format {'|'.join(input_formats())})")
+
+
+def _data_lines(head: bytes, complete: bool) -> list[list[bytes]]:
+    """The tokens of each line of ``head`` that has any outside its comment."""
+    if head.startswith(_BOM):
+        head = head[len(_BOM):]
+    raw = head.splitlines()
+    if not complete and raw and not head.endswith((b"\n", b"\r")):
+        raw = raw[:-1]  # the last line may be cut by the 4 KiB window
+    return [toks for toks in (ln.partition(b"#")[0].split() for ln in raw) if toks]
+
+
+def _sniff_text(head: bytes, complete: bool = True) -> str | None:
+    """HEX or TIMESTAMPED when the data lines of ``head`` are all one or the other.
+
+    Comments (``#`` to the end of the line) may hold any text, UTF-8 or not; a UTF-8 BOM is skipped.
+    The rule for times: a file is timestamped when the first token of every data line is a decimal
+    number (``0.5``, ``12``, ``1e-3``; ``nan``/``-1`` too, so the reader can say the time is bad)
+    followed by hex bytes, and that first column cannot be hex data: some first token is not a whole
+    number of hex bytes (it has a ``.``, a sign or an exponent, or an odd number of digits), or every
+    first token is an integer of three or more digits and they never decrease (clock ticks). A file
+    whose first tokens are all two-digit numbers (``10 FA AF``) is ambiguous and read as plain hex,
+    unless the caller asks for ``timestamped``.
+    """
+    if _NOT_TEXT.search(head):
+        return None
+    lines = _data_lines(head, complete)
+    if not lines:
+        return HEX  # blank or comments only (so far)
+    if all(_NUMBER.match(ln[0]) and all(_HEX_TOKEN.match(t) for t in ln[1:]) for ln in lines):
+        firsts = [ln[0] for ln in lines]
+        if any(not _HEX_TOKEN.match(f) for f in firsts):
+            return TIMESTAMPED
+        if len(firsts) > 1 and all(f.isdigit() and len(f) > 2 for f in firsts) and \
+                all(int(a) <= int(b) for a, b in zip(firsts, firsts[1:])):
+            return TIMESTAMPED
+    if all(all(_HEX_TOKEN.match(t) for t in ln) for ln in lines):
+        return HEX
+    return None
+
+
+def _first_line_kind(head: bytes) -> str | None:
+    """The format the first data line of ``head`` reads as on its own (None if neither)."""
+    lines = _data_lines(head, True)[:1]
+    if not lines:
+        return None
+    first = lines[0]
+    if _NUMBER.match(first[0]) and not _HEX_TOKEN.match(first[0]):
+        return TIMESTAMPED
+    return HEX if all(_HEX_TOKEN.match(t) for t in first) else None
+
+
+# ---- reading -------------------------------------------------------------------------------------
+def input_formats() -> tuple[str, ...]:
+    """Every format name ``--input-format`` takes: ours, then other tools' (rs30x_sniff.sources.foreign)."""
+    return (*FORMATS, *foreign.formats())
+
+
+def read_capture(path: str, fmt: str | None = None, *,
+                 warn: Callable[[str], None] | None = stderr_warning,
+                 options: dict | None = None) -> CaptureReader:
+    """Stream a capture as (bytes, t) chunks; ``t`` is the capture time of the chunk's first byte.
+
+    ``path`` may be a file, a pipe or FIFO (``/dev/fd/N``), or ``-`` for stdin: each is opened once and
+    sniffed from its first 4 KiB (an MCAP needs a seekable file). Without ``fmt`` the format is
+    detected now, so an unreadable or unknown file fails here; with it, at the first chunk. Problems
+    the reader works around (a damaged MCAP) go to ``warn`` as one line each, and stay in the
+    returned reader's ``warnings`` as :class:`CaptureWarning` objects.
+    """
+    if fmt is not None and fmt not in input_formats():
+        raise CaptureError(f"{path}: unknown input format {fmt!r} (use one of {', '.join(input_formats())})")
+    reader = CaptureReader(path, fmt, warn, options)
+    if fmt is None:
+        reader._start()
+    return reader
+
+
+class CaptureReader:
+    """An iterator over the (bytes, t) chunks of one capture, which can say where a byte came from.
+
+    ``locate(offset)`` maps a stream byte offset (the position of a byte in the concatenated chunks,
+    as events report it) to ``(line, column)`` in a hex or timestamped-hex file, both 1-based, the
+    column being that of the byte's first hex digit; None for binary and MCAP captures, for a reader
+    opened with the option ``"locate": False`` (it keeps no index), and for offsets not read yet.
+    The reader keeps a few integers per line with data (and a column per byte only for lines whose
+    bytes are not evenly spaced), not the text.
+    ``warnings`` lists the :class:`CaptureWarning` objects of the problems worked around so far.
+    ``time_unit`` says how a timestamped hex capture's times were read (rs30x_sniff.sources.timeunit): in the
+    unit of the option ``"time_unit"``, else in the one the content tells; they come out in seconds
+    (epoch times as seconds since the epoch). The option ``"say_time_unit"`` says a told unit other
+    than seconds on stderr.
+    """
+
+    def __init__(self, path: str, fmt: str | None, warn: Callable[[str], None] | None,
+                 options: dict | None = None) -> None:
+        self.path = path
+        self.format = fmt
+        # What another tool's reader was given (--channel, --baud) and learned (a found baud rate).
+        self.context = foreign.ReadContext(path, dict(options or {}), warn)
+        self.warnings: list[CaptureWarning] = []
+        # How a timestamped hex capture's times were read (None until its first times are in).
+        self.time_unit: TimeUnit | None = None
+        self._warn = warn
+        self._gen: Iterator[Chunk] | None = None
+        self._lines: _LineIndex | None = None
+
+    def _start(self) -> Iterator[Chunk]:
+        if self._gen is None:
+            path = self.path
+            opened = _sniffed(path, self.format)
+            if opened.taken:
+                raise CaptureError(f"{path}: is a pipe already being read (a pipe can be read only once)")
+            self.format = fmt = opened.fmt
+            opened.taken = True
+            if fmt == MCAP:
+                opened.stream.close()  # the MCAP reader seeks by itself
+                self._gen = self._mcap(opened.seekable)
+            elif fmt == BINARY:
+                self._gen = _read_binary(opened.stream)
+            elif fmt not in FORMATS:
+                other = foreign.get(fmt)
+                if other.needs_seek and not opened.seekable:
+                    opened.stream.close()
+                    raise CaptureError(f"{path}: a {fmt} capture needs a seekable file, not a pipe "
+                                       "(save it to a file first)")
+                self._gen = _closing(_sane_times(other.read(opened.stream, self.context), path), opened.stream)
+            else:
+                # 16 bytes a line, for findings' FILE:LINE:COL: a reader nobody will ask (options
+                # "locate": False, as convert's) keeps none (locate() is None), and a long capture's
+                # memory stays flat.
+                self._lines = _LineIndex() if self.context.options.get("locate", True) else None
+                self._gen = _read_text(opened.stream, path, fmt == TIMESTAMPED, self._lines,
+                                       self.context.options.get("time_unit"), self._unit_decided)
+        return self._gen
+
+    def _unit_decided(self, unit: TimeUnit) -> None:
+        self.time_unit = self.context.found["time_unit"] = unit
+        if unit.told and unit.unit != timeunit.SECONDS and self.context.options.get("say_time_unit"):
+            # Seconds are what a timestamped capture holds unless it says otherwise: only other units are said.
+            print(f"rs30x-sniff: {self.path}: {unit.describe()}, told by the content (--time-unit to say otherwise)",
+                  file=sys.stderr)
+
+    def _mcap(self, seekable: bool) -> Iterator[Chunk]:
+        from .mcap_reader import McapRawReader
+
+        if not seekable:
+            raise CaptureError(f"{self.path}: an MCAP capture needs a seekable file, not a pipe "
+                               "(save it to a file first)")
+        reader = McapRawReader(self.path, warn=self._warn)
+        reader.warnings = self.warnings
+        for data, t, _, marks in reader:
+            yield (data, t) if marks is None else Marked(data, t, sender=marks[0], error=marks[1])
+
+    def __iter__(self) -> Iterator[Chunk]:
+        return self._start()
+
+    def __next__(self) -> Chunk:
+        return next(self._start())
+
+    def close(self) -> None:
+        """Stop reading and close the file (also done when the chunks run out)."""
+        gen = self._gen
+        if gen is not None:
+            gen.close()  # type: ignore[attr-defined]
+
+    def locate(self, offset: int) -> tuple[int, int] | None:
+        """``(line, column)`` of the stream byte at ``offset`` in a text capture, else None."""
+        lines = self._lines
+        return lines.locate(offset) if lines is not None else None
+
+
+class _LineIndex:
+    """Where each line's bytes start in the stream, and how to find a byte's column in the line.
+
+    Two integers per line with data: the stream offset of its first byte, and its line number,
+    first column and spacing packed in one (the text reader appends them itself, inline).
+    """
+
+    def __init__(self) -> None:
+        self.starts = array("q")   # stream offset of the line's first byte (increasing)
+        self.where = array("q")    # line << 32 | first column << 2 | spacing (3 "FA AF", 2 "FAAF", 0 uneven)
+        self.uneven: dict[int, array] = {}  # index -> the column of every byte, for uneven lines
+        self.end = 0               # stream offset after the last byte indexed
+
+    def locate(self, offset: int) -> tuple[int, int] | None:
+        if offset < 0 or offset >= self.end:
+            return None
+        i = bisect_right(self.starts, offset) - 1
+        k = offset - self.starts[i]
+        w = self.where[i]
+        step = w & 3
+        col = ((w >> 2) & 0x3FFFFFFF) + step * k if step else self.uneven[i][k]
+        return w >> 32, col
+
+
+def open_capture(path: str) -> BinaryIO:
+    """Open a capture for binary reading; failure is a one-line CaptureError naming the file."""
+    try:
+        return open(path, "rb")
+    except FileNotFoundError:
+        if str(path).startswith("/dev/"):
+            raise CaptureError(f"{path}: no such port (is the adapter plugged in?)") from None
+        raise CaptureError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise CaptureError(f"{path}: is a directory, not a capture") from None
+    except OSError as e:
+        raise CaptureError(f"{path}: cannot read: {e.strerror}") from None
+
+
+def _sane_times(chunks: Iterator[Chunk], path: str) -> Iterator[Chunk]:
+    """Another tool's chunks, each time checked: one that is not finite, after the year 2100, or more
+    than 130 years before the capture's start is an input error naming the byte (a reader that knows
+    the line checks its times first; this catches what it lets through)."""
+    offset = 0
+    try:
+        for chunk in chunks:
+            t = chunk[1]
+            if t is not None and not -timeunit.EPOCH_MAX <= t <= timeunit.EPOCH_MAX:
+                why = timeunit.problem(t) if not math.isfinite(t) or t > 0 else "is more than 130 years before its start"
+                raise CaptureError(f"{path}: the time {t:g} s of the byte at stream offset {offset} {why}")
+            offset += len(chunk[0])
+            yield chunk
+    finally:
+        close = getattr(chunks, "close", None)
+        if close is not None:
+            close()  # the reader's own cleanup, while its file is still open
+
+
+def _closing(chunks: Iterator[Chunk], f: BinaryIO) -> Iterator[Chunk]:
+    """A foreign reader's chunks, closing the file when they end or the reader is closed."""
+    try:
+        yield from chunks
+    finally:
+        f.close()
+
+
+def _read_binary(f: BinaryIO) -> Iterator[Chunk]:
+    read = getattr(f, "read1", None) or f.read
+    try:
+        while True:
+            block = read(_READ_SIZE)
+            if not block:
+                return
+            yield bytes(block), None
+    finally:
+        f.close()
+
+
+# A timestamped capture's first chunks are held back until their spacing tells the unit of their times
+# (rs30x_sniff.sources.timeunit): at most _UNIT_SAMPLE, fewer when the spacing is clear sooner (at a checkpoint),
+# so a live pipe of timestamped lines waits only for its first few dozen.
+_UNIT_SAMPLE = 512
+_UNIT_CHECKPOINTS = frozenset((32, 128))
+_SampledLine = tuple  # (data, time as written, its token, line number, its column)
+_EPOCH_MAX = timeunit.EPOCH_MAX
+
+
+def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | None,
+               time_unit: str | None = None, decided: Callable[[TimeUnit], None] | None = None) -> Iterator[Chunk]:
+    """The chunks of a hex or timestamped-hex capture; each line with data is indexed in ``index``
+    for locate(), unless it is None. An error names the line whether or not there is an index.
+
+    A timestamped capture's times come out in seconds: read in ``time_unit`` (s, ms, us, ns) if
+    given, else in the unit the spacing of the first chunks tells; ``decided`` hears the unit once.
+    """
+    pending = bytearray()  # untimed hex lines are merged into larger chunks
+    readline = f.readline
+    if index is not None:
+        starts, where, uneven = index.starts.append, index.where.append, index.uneven
+    offset = 0
+    lineno = 0
+    unit: TimeUnit | None = None
+    exp = 0  # the unit's power of ten below a second, once known
+    sample: list[_SampledLine] = []
+    try:
+        while True:
+            line = readline(_MAX_LINE)
+            if not line:
+                break
+            lineno += 1
+            if len(line) == _MAX_LINE and not line.endswith(b"\n"):
+                raise CaptureError(f"{path}:{lineno}: the line is longer than {_MAX_LINE >> 20} MiB: "
+                                   "not a text capture", line=lineno)
+            if lineno == 1 and line.startswith(_BOM):
+                line = line[len(_BOM):]
+            body = line.partition(b"#")[0]
+            base = 0  # column of body[0] in the line, 0-based
+            t = None
+            if timestamped:
+                parts = body.split(None, 1)
+                if not parts:
+                    continue
+                head = parts[0]
+                rest = parts[1] if len(parts) > 1 else b""
+                if not _NUMBER.match(head):
+                    raise CaptureError(f"{path}:{lineno}: expected a time in seconds, got {_show(head)}",
+                                       line=lineno, column=len(body) - len(body.lstrip()) + 1)
+                t = float(head)
+                if not (t >= 0 and math.isfinite(t)):
+                    raise CaptureError(f"{path}:{lineno}: time {_show(head)} is not a finite, non-negative number",
+                                       line=lineno, column=len(body) - len(body.lstrip()) + 1)
+                tbody = body
+                base = len(body) - len(rest)
+                body = rest
+            try:
+                # fromhex skips the whitespace between bytes: one C call per line.
+                data = bytes.fromhex(body.decode("ascii"))
+            except (ValueError, UnicodeDecodeError):
+                bad, col = _bad_token(body)
+                raise CaptureError(f"{path}:{lineno}: not a hex byte: {_show(bad)}",
+                                   line=lineno, column=base + col) from None
+            n = len(data)
+            if not n:
+                continue
+            if index is not None:
+                # Index the line for locate(): its bytes are evenly spaced unless the text says otherwise.
+                stripped = body.lstrip()
+                first = base + len(body) - len(stripped) + 1
+                width = len(stripped.rstrip())
+                if width == 3 * n - 1 and stripped[2:width:3] == b" " * (n - 1):
+                    step = 3
+                elif width == 2 * n:
+                    step = 2
+                else:
+                    step = 0
+                    uneven[len(index.starts)] = array(
+                        "q", (base + m.start() + 1 for m in _HEX_PAIR.finditer(body)))
+                starts(offset)
+                where(lineno << 32 | first << 2 | step)
+                index.end = offset + n
+            offset += n
+            if timestamped:
+                if unit is None:
+                    if time_unit is None:
+                        sample.append((data, t, head, lineno, len(tbody) - len(tbody.lstrip()) + 1))
+                        k = len(sample)
+                        if k < _UNIT_SAMPLE and k not in _UNIT_CHECKPOINTS:
+                            continue
+                        found = _sampled_unit(sample)
+                        if k < _UNIT_SAMPLE and found.how != timeunit.SPACING:
+                            continue  # not clear yet: sample on
+                        unit, exp = found, found.exponent
+                        if decided is not None:
+                            decided(unit)
+                        yield from _in_seconds(sample, unit, path)
+                        sample.clear()
+                        continue
+                    unit = timeunit.given(time_unit, t)
+                    exp = unit.exponent
+                    if decided is not None:
+                        decided(unit)
+                if exp or t > _EPOCH_MAX:  # type: ignore[operator]
+                    t = _seconds(t, head, unit, path, lineno, len(tbody) - len(tbody.lstrip()) + 1)  # type: ignore[arg-type]
+                yield data, t
+            else:
+                pending += data
+                if len(pending) >= _READ_SIZE:
+                    yield bytes(pending), None
+                    pending.clear()
+        if pending:
+            yield bytes(pending), None
+        if sample:
+            unit = _sampled_unit(sample)
+            if decided is not None:
+                decided(unit)
+            yield from _in_seconds(sample, unit, path)
+    except CaptureError:
+        if sample and unit is None:
+            # A bad line within the sample: the lines before it are read (in the unit they tell) first.
+            unit = _sampled_unit(sample)
+            if decided is not None:
+                decided(unit)
+            yield from _in_seconds(sample, unit, path)
+        raise
+    finally:
+        f.close()
+
+
+def _sampled_unit(sample: list[_SampledLine]) -> TimeUnit:
+    """The unit the sampled lines' times are in (their resolution as written keeps rounding from
+    counting as gaps or overlaps)."""
+    step = max(timeunit.resolution(line[2].decode("ascii")) for line in sample)
+    return timeunit.detect_unit([(line[0], line[1]) for line in sample], step=step)
+
+
+def _in_seconds(sample: list[_SampledLine], unit: TimeUnit, path: str) -> Iterator[Chunk]:
+    for data, t, head, lineno, column in sample:
+        yield data, _seconds(t, head, unit, path, lineno, column)
+
+
+def _seconds(t: float, head: bytes, unit: TimeUnit, path: str, lineno: int, column: int) -> float:
+    """A time as written (``t``, from the token ``head``) in seconds, or a CaptureError for a time after 2100."""
+    if unit.exponent:
+        t = timeunit.seconds(head.decode("ascii"), unit.unit)
+    if t > timeunit.EPOCH_MAX:
+        raise CaptureError(f"{path}:{lineno}: time {_show(head)} in {timeunit.NAMES[unit.unit]} is after the year "
+                           f"2100 (--time-unit to read it in another unit)", line=lineno, column=column)
+    return t
+
+
+def _bad_token(body: bytes) -> tuple[bytes, int]:
+    """The first token of ``body`` that is not hex bytes, and its 1-based column."""
+    for m in _TOKEN.finditer(body):
+        if not _HEX_TOKEN.match(m.group()):
+            return m.group(), m.start() + 1
+    m = _TOKEN.search(body)
+    return (m.group(), m.start() + 1) if m else (body, 1)
+
+
+def _show(token: bytes) -> str:
+    return repr(token.decode("utf-8", "replace")[:20])
+
+
+# ---- writers -------------------------------------------------------------------------------------
+def write_capture(path: str | Path, chunks: Iterable[Chunk], fmt: str) -> int:
+    """Write chunks as a capture of ``fmt`` (bin, hex or timestamped); returns the bytes written."""
+    total = 0
+    if fmt == BINARY:
+        with open(path, "wb") as f:
+            for data, _ in chunks:
+                f.write(data)
+                total += len(data)
+        return total
+    if fmt not in (HEX, TIMESTAMPED):
+        raise CaptureError(f"{path}: cannot write format {fmt!r}")
+    with open(path, "w", encoding="ascii") as f:
+        for data, t in chunks:
+            if not data:
+                continue
+            hexs = data.hex(" ").upper()
+            if fmt == TIMESTAMPED:
+                f.write(f"{(t or 0.0):.6f} {hexs}\n")
+            else:
+                f.write(hexs + "\n")
+            total += len(data)
+    return total
+
+
+def format_for_output(path: str, fmt: str | None) -> str:
+    """The capture format to write ``path`` in: the explicit one, else by extension."""
+    if fmt:
+        return fmt
+    ext = Path(path).suffix.lower()
+    if ext in (".bin", ".raw"):
+        return BINARY
+    if ext == ".mcap":
+        return MCAP
+    return TIMESTAMPED if ext in (".thex", ".log") else HEX

@@ -1,0 +1,224 @@
+"""What unit a capture's plain-number times count in (s, ms, us, ns; from the epoch or not), told by their spacing on the wire."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from decimal import Decimal, InvalidOperation
+from typing import Iterable
+
+from ..protocol.wire import BAUD_RATES, byte_time
+
+SECONDS = "s"
+EXPONENTS = {"s": 0, "ms": 3, "us": 6, "ns": 9}  # a unit is 10**-exponent seconds
+UNITS = tuple(EXPONENTS)
+NAMES = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
+
+# A first time that falls between these, read in some unit, is a wall-clock stamp in that unit; no
+# capture time, counted from the epoch or from the capture's start, is later than EPOCH_MAX.
+EPOCH_MIN = 946_684_800.0    # 2000-01-01T00:00:00Z
+EPOCH_MAX = 4_102_444_800.0  # 2100-01-01T00:00:00Z
+
+# How a unit was known (TimeUnit.how).
+SPACING, SIZE, GIVEN, ASSUMED = "spacing", "size", "given", "assumed"
+
+MIN_PAIRS = 8            # timed neighbours needed before the spacing says anything
+# A chunk "follows closely" when it starts within this much idle line of the previous one's end (or,
+# stamped at arrival, ends that soon after it): a servo's return delay, a host's turnaround. Far
+# below what a wrong unit makes of it (at least 39 ms a byte read 1000x too coarse).
+CLOSE_GAP = 0.002
+CLOSE_BYTES = 2          # ... or this many byte times, at the slow rates
+OVERLAP_TOLERANCE = 0.10  # a spacing this far below n byte times is impossible at that rate (jitter aside)
+MIN_CLOSE = 4            # closely following pairs a unit needs, of at least two lengths ...
+MIN_CLOSE_SHARE = 0.10   # ... and this share of all pairs
+MAX_OVERLAP_SHARE = 0.5  # more pairs than this impossible at every rate: not the unit
+MAX_STEP = 0.005         # times written more coarsely than this (s) cannot show bytes following each other
+
+
+@dataclass(frozen=True)
+class TimeUnit:
+    """How to read a capture's plain-number times.
+
+    ``unit`` is s, ms, us or ns (``scale`` seconds each); ``epoch`` says they count from 1970-01-01
+    UTC, so that ``start``, the first time in seconds, is the capture's wall-clock anchor. ``how``
+    says how the unit was known: ``spacing`` (the chunks' spacing fits the wire only in this unit),
+    ``size`` (only this unit puts the first time between 2000 and 2100), ``given`` (--time-unit)
+    or ``assumed`` (seconds: the sample could not tell); ``evidence`` says it in words.
+    """
+
+    unit: str = SECONDS
+    epoch: bool = False
+    how: str = ASSUMED
+    evidence: str = ""
+    start: float | None = None
+
+    @property
+    def exponent(self) -> int:
+        return EXPONENTS[self.unit]
+
+    @property
+    def scale(self) -> float:
+        """Seconds per unit."""
+        return 10.0 ** -self.exponent
+
+    @property
+    def told(self) -> bool:
+        """Whether the content told the unit (rather than an option, or the default)."""
+        return self.how in (SPACING, SIZE)
+
+    def describe(self) -> str:
+        """``times in milliseconds since the epoch``."""
+        return f"times in {NAMES[self.unit]}" + (" since the epoch" if self.epoch else "")
+
+
+def seconds(text: str, unit: str = SECONDS) -> float:
+    """A time written as ``text`` in ``unit``, in seconds: shifted as a decimal, so ``500.794`` ms is
+    exactly the float ``0.500794`` s is (a capture reads the same whatever unit it was written in)."""
+    exp = EXPONENTS[unit]
+    if not exp:
+        return float(text)
+    try:
+        return float(Decimal(text).scaleb(-exp))
+    except InvalidOperation:
+        return float(text)  # float() takes spellings Decimal does not ("infinity" aside, none in practice)
+
+
+def resolution(text: str) -> float:
+    """The step of the last digit of a time written as ``text`` (``0.000123`` -> 1e-6, ``500`` -> 1),
+    in its own unit; 0 when it has none (nan, inf)."""
+    try:
+        exp = Decimal(text).as_tuple().exponent
+    except InvalidOperation:
+        return 0.0
+    return 10.0 ** exp if isinstance(exp, int) else 0.0
+
+
+def problem(t: float) -> str | None:
+    """Why ``t`` (seconds, from the capture start or the epoch) cannot be a capture time, or None."""
+    if not math.isfinite(t):
+        return "is not a finite number"
+    if t < 0:
+        return "is negative"
+    if t > EPOCH_MAX:
+        return "is after the year 2100"
+    return None
+
+
+def epoch_unit(first: float) -> str | None:
+    """The unit in which ``first`` falls between 2000 and 2100 as a time since the epoch, or None."""
+    for unit, exp in EXPONENTS.items():
+        if EPOCH_MIN <= first * 10.0 ** -exp < EPOCH_MAX:
+            return unit
+    return None
+
+
+def given(unit: str, first: float | None = None) -> TimeUnit:
+    """The unit an option names (``--time-unit``); ``first``, the first time as written, says whether
+    the times count from the epoch."""
+    epoch = first is not None and _is_epoch(first, unit)
+    start = None if first is None else first * 10.0 ** -EXPONENTS[unit]
+    return TimeUnit(unit, epoch, GIVEN, "given by --time-unit", start)
+
+
+def _is_epoch(first: float, unit: str) -> bool:
+    return EPOCH_MIN <= first * 10.0 ** -EXPONENTS[unit] < EPOCH_MAX
+
+
+def _when(t: float) -> str:
+    return datetime.fromtimestamp(t, timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """How a capture's spacing reads in one unit: closely following pairs at the best rate, impossible ones."""
+
+    pairs: int
+    close: int = 0
+    lengths: int = 0
+    rate: int | None = None
+    overlaps: int = 0
+
+    @property
+    def backs(self) -> bool:
+        return (self.close >= MIN_CLOSE and self.lengths >= 2 and self.close >= MIN_CLOSE_SHARE * self.pairs
+                and self.overlaps <= MAX_OVERLAP_SHARE * self.pairs)
+
+
+def _fit(pairs: list[tuple[int, int, float]], scale: float, step: float, rates: tuple[int, ...]) -> _Fit:
+    """``pairs`` are (bytes before, bytes after, raw spacing); ``step`` is the times' resolution in seconds."""
+    fastest = byte_time(max(rates))
+    overlaps = sum(1 for n1, n2, d in pairs
+                   if d * scale + step < (1 - OVERLAP_TOLERANCE) * min(n1, n2) * fastest)
+    best = _Fit(len(pairs), overlaps=overlaps)
+    for rate in rates:
+        bt = byte_time(rate)
+        slack = max(CLOSE_GAP, CLOSE_BYTES * bt) + step
+        # Stamped at the first byte, a chunk starts n byte times after the previous one did (n of the
+        # previous chunk); stamped at arrival, it ends n byte times (n of its own) after the previous end.
+        for side in (0, 1):
+            close = 0
+            lengths: set[int] = set()
+            for pair in pairs:
+                n, d = pair[side], pair[2] * scale
+                gap = d - n * bt
+                if -(OVERLAP_TOLERANCE * n * bt + step) <= gap <= slack:
+                    close += 1
+                    lengths.add(n)
+            if close > best.close and len(lengths) >= 2:
+                best = _Fit(len(pairs), close, len(lengths), rate, overlaps)
+    return best
+
+
+def detect_unit(chunks: Iterable[tuple[bytes, float | None]], *, step: float = 0.0,
+                rates: Iterable[int] = BAUD_RATES) -> TimeUnit:
+    """The unit of a sample of timed chunks ``(bytes, t)``, ``t`` as written (any unit).
+
+    At the right unit, chunks that follow each other closely (a reply after its request, frames on a
+    busy bus) are about n byte times apart at one rate of table 4.7, for chunks of several lengths,
+    and few chunks start before the previous one could have ended; read 1000 times too fine, nearly
+    all of them would, and read 1000 times too coarse none follows closely. When exactly one unit
+    fits so, it is the unit; else a first time that only one unit puts between 2000 and 2100 names
+    it (a wall-clock stamp); else seconds are assumed. ``step`` is the times' resolution as
+    written (1 for whole numbers), so rounding is not taken for a gap or an overlap.
+    """
+    timed = [(len(d), t) for d, t in chunks if d and t is not None and math.isfinite(t) and t >= 0]
+    if not timed:
+        return TimeUnit(evidence="no times to tell the unit by: seconds assumed")
+    first = timed[0][1]
+    rates = tuple(rates)
+    # Equal stamps (a coarse clock) and a clock that goes back say nothing about the unit.
+    pairs = [(n1, n2, t2 - t1) for (n1, t1), (n2, t2) in zip(timed, timed[1:]) if t2 > t1]
+    fits: dict[str, _Fit] = {}
+    if len(pairs) >= MIN_PAIRS:
+        for unit, exp in EXPONENTS.items():
+            scale = 10.0 ** -exp
+            # A unit that puts the capture after 2100 is not its unit; one in which the times are
+            # written too coarsely to show a frame (whole seconds) has nothing to say.
+            if first * scale <= EPOCH_MAX and step * scale <= MAX_STEP:
+                fits[unit] = _fit(pairs, scale, step * scale, rates)
+    backed = [u for u, f in fits.items() if f.backs]
+    by_size = epoch_unit(first)
+    if len(backed) == 1:
+        unit, how = backed[0], SPACING
+        f = fits[unit]
+        evidence = (f"read in {NAMES[unit]}, {f.close} of {f.pairs} chunks follow the previous one as closely as "
+                    f"{f.rate} bit/s allows")
+        finer = UNITS.index(unit) + 1
+        if finer < len(UNITS) and UNITS[finer] in fits:
+            g = fits[UNITS[finer]]
+            evidence += f"; read in {NAMES[UNITS[finer]]}, {g.overlaps} would start before the previous one ended"
+    elif by_size is not None:
+        unit, how = by_size, SIZE
+        evidence = f"its first time, {_when(first * 10.0 ** -EXPONENTS[by_size])}, read in {NAMES[by_size]}"
+        if backed:
+            evidence += f" (the spacing fits {' and '.join(NAMES[u] for u in backed)} too)"
+        elif len(pairs) < MIN_PAIRS:
+            evidence += f" ({len(pairs)} spacings: too few to check)"
+    else:
+        why = (f"{len(pairs)} spacings: too few to tell" if len(pairs) < MIN_PAIRS else
+               "the spacing fits no unit alone" if not backed else
+               f"the spacing fits {' and '.join(NAMES[u] for u in backed)}")
+        return TimeUnit(evidence=f"{why}: seconds assumed", start=first)
+    scale = 10.0 ** -EXPONENTS[unit]
+    return TimeUnit(unit, _is_epoch(first, unit), how, evidence, first * scale)
