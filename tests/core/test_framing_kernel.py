@@ -5,7 +5,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rs30x_sniff.decode import framing
-from rs30x_sniff.decode.framing_kernel import scan_regular
+from rs30x_sniff.decode.framing_kernel import scan_regular_arrays
 from rs30x_sniff.protocol.wire import encode_long, encode_read, encode_return, encode_short
 from tests.conftest import assert_same_events, decode_chunks, split_timed
 from tests.core.test_properties import frames
@@ -26,6 +26,12 @@ irregular = st.one_of(
     st.just(encode_return(1, 0x2A, b"\xfa\xaf\x01\x02\xfd\xdf")),
 )
 streams = st.lists(st.one_of(frames, frames, frames, irregular), min_size=1, max_size=60).map(b"".join)
+
+
+def scan(window: bytes, max_data: int) -> tuple[list[int], list[int], bool]:
+    """The kernel's run, its starts and ends as lists."""
+    starts, ends, more = scan_regular_arrays(window, max_data)
+    return starts.tolist(), ends.tolist(), more
 
 
 @pytest.fixture(params=["small windows", "default windows"])
@@ -52,7 +58,7 @@ def test_kernel_on_and_off_give_the_same_events(windows, data, cuts, t0, gap):
 @SETTINGS
 @given(data=streams)
 def test_the_kernel_run_is_a_prefix_of_clean_frames(data):
-    starts, ends, more = scan_regular(data, 1024)
+    starts, ends, more = scan(data, 1024)
     assert starts == ([0] + ends[:-1] if starts else [])
     events = decode_chunks([(data, None)], kernel=False)
     taken = [(e.offset, e.end_offset) for e in events[:len(starts)]]
@@ -62,12 +68,12 @@ def test_the_kernel_run_is_a_prefix_of_clean_frames(data):
 
 def test_the_kernel_says_why_it_stopped():
     a, b = encode_read(1, 0x2A, 2), encode_return(1, 0x2A, b"\x10\x00")
-    assert scan_regular(a + b + a[:5], 1024) == ([0, 8], [8, 18], True)   # the window ends inside a frame
-    assert scan_regular(a + b + b"\x55" + a, 1024) == ([0, 8], [8, 18], False)  # noise
-    assert scan_regular(a + b"\x07" + a, 1024) == ([0], [8], False)            # an ACK byte
+    assert scan(a + b + a[:5], 1024) == ([0, 8], [8, 18], True)         # the window ends inside a frame
+    assert scan(a + b + b"\x55" + a, 1024) == ([0, 8], [8, 18], False)  # noise
+    assert scan(a + b"\x07" + a, 1024) == ([0], [8], False)             # an ACK byte
     long = encode_long(0x1E, [(v, b"\x00\x01") for v in range(1, 5)])
-    assert scan_regular(long + a, 1024) == ([0, len(long)], [len(long), len(long) + 8], True)
-    assert scan_regular(long + a, 4) == ([], [], False)                        # over max_data: not a frame
+    assert scan(long + a, 1024) == ([0, len(long)], [len(long), len(long) + 8], True)
+    assert scan(long + a, 4) == ([], [], False)                         # over max_data: not a frame
 
 
 def test_long_clean_input_goes_through_the_kernel(monkeypatch):

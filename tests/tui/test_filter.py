@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rs30x_sniff.tui.filter import FilterError, parse_filter
+from rs30x_sniff.filters import FilterError, parse_filter
 from rs30x_sniff.protocol.wire import encode_long, encode_return, encode_short
 
 from .helpers import FakeFinding, manual_records, records_of

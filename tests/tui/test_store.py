@@ -11,7 +11,7 @@ import pytest
 
 from rs30x_sniff.sinks.stats import CaptureStats
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
-from rs30x_sniff.tui.filter import parse_filter
+from rs30x_sniff.filters import parse_filter
 from rs30x_sniff.tui.store import Store, register_value, servo_snapshot
 from rs30x_sniff.protocol.wire import encode_return, encode_short
 

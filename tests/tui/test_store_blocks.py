@@ -14,7 +14,7 @@ from rs30x_sniff.sinks.pipeline import Sink, drive
 from rs30x_sniff.sim import scenarios
 from rs30x_sniff.sinks.stats import CaptureStats
 from rs30x_sniff.tui.feed import split_block
-from rs30x_sniff.tui.filter import parse_filter
+from rs30x_sniff.filters import parse_filter
 from rs30x_sniff.tui.store import PLOT_POINTS, PLOT_REGISTERS, Store
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))

@@ -11,7 +11,7 @@ from rs30x_sniff.sources.inputs import read_input
 from rs30x_sniff.lint import Linter
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.tui.app import make_app
-from rs30x_sniff.tui.filter import parse_filter
+from rs30x_sniff.filters import parse_filter
 from rs30x_sniff.tui.sources import FileSource
 from rs30x_sniff.tui.timeline import Timeline
 
