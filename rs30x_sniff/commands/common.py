@@ -6,7 +6,6 @@ import argparse
 import dataclasses
 import itertools
 import os
-import stat
 import sys
 from typing import Any, Iterator
 
@@ -428,19 +427,6 @@ def input_options(settings: Settings) -> dict[str, Any]:
 def is_live(chunks: object) -> bool:
     """Whether an input from :func:`open_input` is a live port (flush output per batch, then)."""
     return bool(getattr(chunks, "live", False))
-
-
-def is_whole_file(path: str, chunks: object) -> bool:
-    """Whether an input is a regular file (stdin redirected from one counts), which the columnar path
-    decodes about 64 KiB at a time. A port, a pipe or a FIFO may be live (`socat ... | rs30x-sniff
-    decode -`): it is decoded record by record, each line out as soon as its bytes are in."""
-    if is_live(chunks):
-        return False
-    try:
-        mode = os.stat(sys.stdin.fileno() if path == "-" else path).st_mode  # os.stat takes a descriptor too
-    except (OSError, ValueError, AttributeError):
-        return False
-    return stat.S_ISREG(mode)
 
 
 def no_data(name: str, counted: Any, source: object = None) -> bool:

@@ -11,10 +11,10 @@ from typing import IO, Any, Iterator
 
 from ..sources.captures import Chunk, detect_format
 from ..decode.decoder import Decoder
-from ..sinks.pipeline import drive
+from ..sinks.pipeline import columnar_for, drive
 from ..settings import Settings
 from ..sinks.lines import ProgressSink
-from .common import (CliError, add_decode_options, add_lint_options, capture_start_time, is_live, make_linter, open_input,
+from .common import (CliError, add_decode_options, add_lint_options, capture_start_time, make_linter, open_input,
                      settings_for)
 from .outputs import STDOUT, check_output, output_binary, report_end
 
@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         # socat or jpnevulator log): the MCAP is anchored there, as --start-time would (which wins).
         start_time = capture_start_time(src)
     # A file takes the columnar path (the same messages, in log-time order within each 64 KiB group).
-    decoder = Decoder(settings.decode_options(), linter=linter, columnar=not is_live(src))
+    decoder = Decoder(settings.decode_options(), linter=linter, columnar=columnar_for(src))
     source = "stdin" if args.input == "-" else args.input
     total = os.path.getsize(args.input) if os.path.isfile(args.input) and (
         (args.input_format or detect_format(args.input)) == "bin") else None

@@ -6,10 +6,10 @@ import argparse
 
 from ..filters import FilterError, parse_filter
 from ..decode.decoder import Decoder
-from ..sinks.pipeline import drive
+from ..sinks.pipeline import columnar_for, drive
 from ..sinks.lines import JsonlSink, TextSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, is_live,
-                     is_whole_file, live_sinks, make_linter, no_data, open_input, settings_for)
+                     live_sinks, make_linter, no_data, open_input, settings_for)
 from .outputs import add_output_options, output_stream
 
 
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             sink = TextSink(out, ids=ids, filter=flt, flush=is_live(chunks), verbose=args.verbose)
         # A file takes the columnar path (the same lines); a port or a pipe, record by record as they come.
-        dec = drive(chunks, Decoder(opts, linter, columnar=is_whole_file(args.input, chunks)), sink,
+        dec = drive(chunks, Decoder(opts, linter, columnar=columnar_for(chunks, follow=True)), sink,
                     *live_sinks(settings, chunks, args.input))
     no_data(args.input, dec, chunks)
     return 1 if getattr(chunks, "lost", False) else 0  # a live port that failed (the source said why)

@@ -7,9 +7,9 @@ import json
 from typing import Any
 
 from ..decode.decoder import Decoder
-from ..sinks.pipeline import drive
+from ..sinks.pipeline import columnar_for, drive
 from ..sinks.stats import CaptureStats
-from .common import (add_decode_options, add_lint_options, add_live_options, capture_start_time, check_positive, is_live,
+from .common import (add_decode_options, add_lint_options, add_live_options, capture_start_time, check_positive,
                      live_sinks, make_linter, no_data,
                      open_input, settings_for)
 from .outputs import add_output_options, check_output, output_stream
@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     stats.timing_unsupported = getattr(settings, "timing_unsupported", None)  # the times contradict the baud
     stats.stalls = getattr(source, "stalls", stats.stalls)  # a live reader that fell behind (its own list)
     # A file takes the columnar path (the same figures); a port, record by record.
-    drive(source, Decoder(opts, linter, columnar=not is_live(source)), stats, *live_sinks(settings, source, args.input))
+    drive(source, Decoder(opts, linter, columnar=columnar_for(source)), stats, *live_sinks(settings, source, args.input))
     no_data(args.input, stats, source)
     stats.wall_anchor = capture_start_time(source)  # wall-clock times beside capture times, where the log has them
     shown = settings.as_json()

@@ -15,7 +15,7 @@ from ..lint.linter import Linter
 from ..lint.report import FileResult, fails, write_report
 from ..protocol.memmap import ModelError
 from ..decode.decoder import Decoder
-from ..sinks.pipeline import drive
+from ..sinks.pipeline import columnar_for, drive
 from ..settings import Settings
 from ..sinks.lines import FindingsSink, ProgressSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, config_layer,
@@ -61,7 +61,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
         source = open_input(path, fmt, settings, duration=duration, locate=True)  # findings by line
         result.format = getattr(source, "format", None)  # SARIF regions: lines of text, bytes of a binary file
         # A file takes the columnar path (same findings, a fraction of the time); a port, record by record.
-        dec = drive(source, Decoder(opts, linter, columnar=not is_live(source)), *sinks,
+        dec = drive(source, Decoder(opts, linter, columnar=columnar_for(source)), *sinks,
                     *live_sinks(settings, source, path))
     except (CaptureError, ModelError) as e:
         result.error = str(e)

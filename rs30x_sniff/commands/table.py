@@ -10,8 +10,8 @@ from ..sinks.tables import (
     CSV, KINDS, PARQUET, SINKS, TABLE_FORMATS, MissingPyarrow, open_table, require_pyarrow, table_format)
 from ..protocol.memmap import default_registry
 from ..decode.decoder import Decoder
-from ..sinks.pipeline import drive
-from .common import CliError, add_decode_options, add_lint_options, is_live, make_linter, no_data, open_input, settings_for
+from ..sinks.pipeline import columnar_for, drive
+from .common import CliError, add_decode_options, add_lint_options, make_linter, no_data, open_input, settings_for
 from .outputs import STDOUT, check_output, output_path, report_end
 
 
@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     # Only the findings table needs the rules run; the others read the records alone.
     linter = make_linter(args, settings) if args.of == "findings" else None
     chunks = open_input(args.input, args.input_format, settings, locate=args.of == "findings")
-    decoder = Decoder(opts, linter, columnar=not is_live(chunks))  # a file: the columnar path, the same rows
+    decoder = Decoder(opts, linter, columnar=columnar_for(chunks))  # a file: the columnar path, the same rows
     kw: dict = {"baud": settings.baud}
     if args.of == "states":
         kw.update(registry=opts.registry or default_registry(), models=dict(settings.models))

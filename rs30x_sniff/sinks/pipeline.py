@@ -175,6 +175,22 @@ class Pipeline:
                 feed_many(group)
 
 
+def columnar_for(source: object, *, follow: bool = False) -> bool:
+    """Whether a command decodes ``source`` on the columnar path: the one place that decides.
+
+    A source says what it is: a port is ``live`` (rs30x_sniff.sources.serial_tap.LiveSource), a capture
+    that is not a regular file (a pipe, a FIFO) is ``streamed`` (rs30x_sniff.sources.captures.CaptureReader).
+    A live port is decoded record by record, each record out as soon as its bytes are in; a file takes
+    the columnar path, about 64 KiB at a time (the same output in a fraction of the time). A pipe may be
+    live too (`socat ... | rs30x-sniff decode -`): a command whose output follows its input (``follow``:
+    decode's lines) takes it record by record; one whose output comes at the end (a report, figures, a
+    file) takes the columnar path, as for a file.
+    """
+    if getattr(source, "live", False):
+        return False
+    return not (follow and getattr(source, "streamed", False))
+
+
 def drive(chunks: Iterable[tuple[bytes, float | None]], decoder: Decoder, *sinks: Sink) -> Decoder:
     """Run ``chunks`` through ``decoder`` into ``sinks``; returns the decoder (its linter, its counts)."""
     return Pipeline(decoder, sinks).run(chunks)

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import io
 import math
+import os
 import re
+import stat
 import sys
 from array import array
 from bisect import bisect_right
@@ -309,16 +311,22 @@ class CaptureReader:
     The reader keeps a few integers per line with data (and a column per byte only for lines whose
     bytes are not evenly spaced), not the text.
     ``warnings`` lists the :class:`CaptureWarning` objects of the problems worked around so far.
+    ``streamed`` is True when the capture is not a regular file (a pipe, a FIFO, a terminal, a device):
+    its bytes may still be arriving as they are read (`socat ... | rs30x-sniff decode -`); stdin
+    redirected from a file is a file. ``live`` is False: a capture is not a port (rs30x_sniff.sources.serial_tap).
     ``time_unit`` says how a timestamped hex capture's times were read (rs30x_sniff.sources.timeunit): in the
     unit of the option ``"time_unit"``, else in the one the content tells; they come out in seconds
     (epoch times as seconds since the epoch). The option ``"say_time_unit"`` says a told unit other
     than seconds on stderr.
     """
 
+    live = False
+
     def __init__(self, path: str, fmt: str | None, warn: Callable[[str], None] | None,
                  options: dict | None = None) -> None:
         self.path = path
         self.format = fmt
+        self.streamed = _streamed(path)
         # What another tool's reader was given (--channel, --baud) and learned (a found baud rate).
         self.context = foreign.ReadContext(path, dict(options or {}), warn)
         self.warnings: list[CaptureWarning] = []
@@ -391,6 +399,15 @@ class CaptureReader:
         """``(line, column)`` of the stream byte at ``offset`` in a text capture, else None."""
         lines = self._lines
         return lines.locate(offset) if lines is not None else None
+
+
+def _streamed(path: str) -> bool:
+    """Whether ``path`` (``-``: stdin) is anything but a regular file, or cannot be looked at."""
+    try:
+        mode = os.stat(sys.stdin.fileno() if path == "-" else path).st_mode  # os.stat takes a descriptor too
+    except (OSError, ValueError, AttributeError):
+        return True
+    return not stat.S_ISREG(mode)
 
 
 class _LineIndex:

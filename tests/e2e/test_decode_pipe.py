@@ -5,8 +5,10 @@ import subprocess
 import sys
 import time
 
-from rs30x_sniff.commands.common import is_whole_file
 from rs30x_sniff.protocol.wire import encode_read, encode_return
+from rs30x_sniff.sinks.pipeline import columnar_for
+from rs30x_sniff.sources.captures import read_capture
+from rs30x_sniff.sources.serial_tap import LiveSource
 
 
 def test_a_line_per_frame_as_the_pipe_delivers_it():
@@ -31,8 +33,33 @@ def test_a_line_per_frame_as_the_pipe_delivers_it():
 def test_whole_files_and_streams(tmp_path):
     f = tmp_path / "x.bin"
     f.write_bytes(b"\x00")
-    assert is_whole_file(str(f), None)
+    assert not read_capture(str(f), "bin").streamed
     fifo = tmp_path / "fifo"
     os.mkfifo(fifo)
-    assert not is_whole_file(str(fifo), None)
-    assert not is_whole_file(str(tmp_path / "missing"), None)
+    assert read_capture(str(fifo), "bin").streamed  # not opened: a format given, nothing read yet
+    assert read_capture(str(tmp_path / "missing"), "bin").streamed
+
+
+def test_the_columnar_choice(tmp_path):
+    """A file takes the columnar path in every command; a port never; a pipe unless the command's output
+    follows its input (decode's lines)."""
+    f = tmp_path / "x.bin"
+    f.write_bytes(b"\x00")
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    file, pipe = read_capture(str(f), "bin"), read_capture(str(fifo), "bin")
+    assert columnar_for(file) and columnar_for(file, follow=True)
+    assert columnar_for(pipe) and not columnar_for(pipe, follow=True)
+    port = LiveSource.__new__(LiveSource)  # not opened: only what the class says of itself
+    assert not columnar_for(port) and not columnar_for(port, follow=True)
+
+
+def test_stdin_redirected_from_a_file_is_a_file(tmp_path):
+    f = tmp_path / "x.bin"
+    f.write_bytes(b"\x00")
+    code = "from rs30x_sniff.sources.captures import read_capture; print(read_capture('-', 'bin').streamed)"
+    with open(f, "rb") as stdin:
+        assert subprocess.run([sys.executable, "-c", code], stdin=stdin, capture_output=True, text=True,
+                              check=True).stdout.strip() == "False"
+    assert subprocess.run([sys.executable, "-c", code], input="", capture_output=True, text=True,
+                          check=True).stdout.strip() == "True"
