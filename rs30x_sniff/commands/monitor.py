@@ -7,10 +7,8 @@ import os
 from typing import Any
 
 from ..decode.decoder import DecodeOptions
-from ..settings import Settings
-from .common import (CliError, add_decode_options, add_lint_options, check_positive, input_options, is_port_path, lint_config,
-                     settings_for)
-from .serve import add_foxglove_option, live_start_time, start_foxglove
+from .common import CliError, add_decode_options, add_lint_options, check_positive, lint_config, settings_for
+from .live import add_foxglove_option, live_start_time, make_source, start_foxglove
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -30,27 +28,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_foxglove_option(p)
     add_lint_options(p)
     p.set_defaults(run=run)
-
-
-def make_source(args: argparse.Namespace, settings: Settings):
-    """The source the command line asks for, opened now so a bad one fails before the screen starts."""
-    from ..tui.sources import FileSource, PortSource, ReplaySource, SimulatorSource
-
-    if args.simulate:
-        if args.input:
-            raise CliError("give either INPUT or --simulate SCENARIO, not both")
-        return SimulatorSource(args.simulate, settings.baud, speed=args.speed)
-    if not args.input:
-        raise CliError("monitor needs INPUT (a capture file or a serial port) or --simulate SCENARIO")
-    if is_port_path(args.input, unplugged=True):
-        if args.replay:
-            raise CliError("--replay plays a capture file; a port is live already")
-        return PortSource(args.input, settings.baud)
-    if args.replay:
-        return ReplaySource(args.input, args.input_format, speed=args.speed, baud=settings.baud,
-                            time_ref=settings.time_ref, options=input_options(settings))
-    return FileSource(args.input, args.input_format, baud=settings.baud, time_ref=settings.time_ref,
-                      options=input_options(settings))
 
 
 def prepare(args: argparse.Namespace) -> tuple[Any, DecodeOptions, dict[str, Any]]:

@@ -17,7 +17,7 @@ from ..sinks.stats import RecentLoad
 from .common import (CliError, add_decode_options, add_lint_selection, check_positive, live_sinks, make_linter,
                      no_data, settings_for)
 from .outputs import STDOUT, check_output, write_error
-from .serve import add_foxglove_option, start_foxglove
+from .live import add_foxglove_option, start_foxglove
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 FLUSH_INTERVAL = 1.0    # an idle bus still gets its open MCAP chunk written within about a second

@@ -12,7 +12,7 @@ from .pipeline import Sink
 from ..decode.decoder import Step
 from ..render.records import direction, summary
 from ..protocol.wire import byte_time
-from .mcap.writer import transaction_json
+from .mcap.transactions import transaction_json
 from .mcap.servo_states import ServoStates
 
 KINDS = ("states", "transactions", "findings", "packets")

@@ -16,8 +16,10 @@ from typing import BinaryIO, Callable, Iterable, Iterator
 
 from . import timeunit
 from ..protocol.chunks import Marked
+from ..protocol.mcap_names import MCAP_MAGIC
 from .timeunit import TimeUnit
 from . import foreign
+from .base import CaptureError, CaptureWarning, open_capture, stderr_warning
 
 Chunk = tuple[bytes, float | None]
 
@@ -25,7 +27,6 @@ BINARY, HEX, TIMESTAMPED, MCAP = "bin", "hex", "timestamped", "mcap"
 FORMATS = (BINARY, HEX, TIMESTAMPED, MCAP)
 _EXTENSIONS = {".bin": BINARY, ".raw": BINARY, ".mcap": MCAP}
 _TEXT_EXTENSIONS = {".hex", ".txt", ".log", ".thex"}
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 _READ_SIZE = 1 << 16
 _HEAD_SIZE = 4096           # bytes the format is sniffed from
 _MAX_LINE = 64 << 20        # a longer "line" is not a text capture (and would have to sit in memory whole)
@@ -39,40 +40,6 @@ _NUMBER = re.compile(rb"^[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?$|
 # Control bytes no text capture holds: a head with one of them is binary, and on a pipe the sniffer
 # can stop waiting for more (the bytes of a frame header, FA and FD, are not valid UTF-8 either).
 _NOT_TEXT = re.compile(rb"[\x00-\x08\x0e-\x1f\x7f\xf8-\xff]")
-
-
-class CaptureError(ValueError):
-    """A capture cannot be read; the message is one line naming the file (and the line, for text).
-
-    ``line`` and ``column`` (1-based, or None) say where in a text capture the problem is.
-    """
-
-    def __init__(self, message: str, *, line: int | None = None, column: int | None = None) -> None:
-        super().__init__(message)
-        self.line = line
-        self.column = column
-
-
-@dataclass(frozen=True)
-class CaptureWarning:
-    """A problem the reader worked around: the capture is still read, up to ``offset`` bytes into the file.
-
-    ``message`` is one line naming the file; ``offset`` is the file position where reading stopped
-    (None if not one place) and ``lost_bytes`` how much of the file was not read.
-    """
-
-    path: str
-    message: str
-    offset: int | None = None
-    lost_bytes: int = 0
-
-    def __str__(self) -> str:
-        return self.message
-
-
-def stderr_warning(text: str) -> None:
-    """The default ``warn`` callback: one line on stderr."""
-    print(f"rs30x-sniff: warning: {text}", file=sys.stderr)
 
 
 # ---- opening: every input is opened once --------------------------------------------------------
@@ -432,20 +399,6 @@ class _LineIndex:
         step = w & 3
         col = ((w >> 2) & 0x3FFFFFFF) + step * k if step else self.uneven[i][k]
         return w >> 32, col
-
-
-def open_capture(path: str) -> BinaryIO:
-    """Open a capture for binary reading; failure is a one-line CaptureError naming the file."""
-    try:
-        return open(path, "rb")
-    except FileNotFoundError:
-        if str(path).startswith("/dev/"):
-            raise CaptureError(f"{path}: no such port (is the adapter plugged in?)") from None
-        raise CaptureError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise CaptureError(f"{path}: is a directory, not a capture") from None
-    except OSError as e:
-        raise CaptureError(f"{path}: cannot read: {e.strerror}") from None
 
 
 def _sane_times(chunks: Iterator[Chunk], path: str) -> Iterator[Chunk]:

@@ -16,11 +16,9 @@ import zstandard
 from mcap.opcode import Opcode
 
 from ..protocol.chunks import SENDERS, UART_ERRORS, Marked
-from .captures import MCAP_MAGIC, CaptureError, CaptureWarning, open_capture, stderr_warning
-from ..sinks.mcap.writer import METADATA_NAME, MODELS_METADATA_NAME, RAW_TOPIC
-
-RAW_SCHEMA = "rs30x.Raw"
-RAW_ENCODING = "json"
+from ..protocol.mcap_names import (MCAP_MAGIC, METADATA_NAME, MODELS_METADATA_NAME, RAW_ENCODING, RAW_SCHEMA,
+                                   RAW_TOPIC)
+from .base import CaptureError, CaptureWarning, open_capture, stderr_warning
 
 _RECORD_HEAD = struct.Struct("<BQ")
 _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")

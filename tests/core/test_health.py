@@ -13,7 +13,7 @@ from rs30x_sniff.sinks import health as health_module
 from rs30x_sniff.cli import main
 from rs30x_sniff.protocol.events import LongPacket, ReturnPacket, ShortPacket
 from rs30x_sniff.sinks.health import PRESENT, WRITTEN
-from rs30x_sniff.sinks.mcap.writer import STATS_METADATA_NAME
+from rs30x_sniff.protocol.mcap_names import STATS_METADATA_NAME
 from rs30x_sniff.sinks.pipeline import decode_records
 from rs30x_sniff.sinks.stats import CaptureStats
 from rs30x_sniff.protocol.wire import encode_read, encode_return

@@ -12,7 +12,7 @@ from mcap.reader import make_reader
 
 from rs30x_sniff.cli import build_parser, main
 from rs30x_sniff.commands import monitor as monitor_command
-from rs30x_sniff.sinks.mcap.writer import DIAGNOSTICS_TOPIC, STATS_METADATA_NAME
+from rs30x_sniff.protocol.mcap_names import DIAGNOSTICS_TOPIC, STATS_METADATA_NAME
 from rs30x_sniff.tui.feed import Feeder
 from rs30x_sniff.tui.store import Store
 

@@ -455,7 +455,8 @@ def test_the_layout_shows_what_we_publish():
     plotted field is a key the hexapod's state messages carry (per servo, 1 to 18)."""
     from pathlib import Path
 
-    from rs30x_sniff.sinks.mcap.writer import DIAGNOSTICS_TOPIC, PACKETS_TOPIC, McapSink
+    from rs30x_sniff.protocol.mcap_names import DIAGNOSTICS_TOPIC, PACKETS_TOPIC
+    from rs30x_sniff.sinks.mcap.writer import McapSink
     from rs30x_sniff.decode.decoder import Decoder
     from rs30x_sniff.sinks.pipeline import drive
     from rs30x_sniff.sim import run

@@ -9,7 +9,8 @@ import jsonschema
 import pytest
 from mcap.reader import make_reader
 
-from rs30x_sniff.sinks.mcap.writer import McapSink, transaction_json
+from rs30x_sniff.sinks.mcap.transactions import transaction_json
+from rs30x_sniff.sinks.mcap.writer import McapSink
 from rs30x_sniff.lint import Finding
 from rs30x_sniff.decode.decoder import Decoder
 from rs30x_sniff.schemas import SCHEMA_FILES, schema

@@ -8,7 +8,9 @@ from typing import Any
 
 from ...render.block_json import block_json_rows, json_template
 from ...decode.frame_runs import LONG
+from ...protocol.mcap_names import PACKETS_TOPIC, TRANSACTIONS_TOPIC, log_time_ns
 from ...protocol.memmap import Layout, _value_text
+from .transactions import transaction_json
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 _TX_SLOTS = ("request_offset", "t_request", "request_raw", "reply_offset", "t_reply", "reply_raw", "latency_s")
@@ -40,8 +42,6 @@ def _named_plan(layout: Layout) -> tuple:
 def _tx_template(blk: Any, k: int, key: tuple) -> tuple[str | None, tuple[str, ...], Any]:
     """The /rs30x/transactions body of row ``k``'s shape with a %s where each row differs (None when
     the row's request expects no reply: no message), the slots, and the model it was made for."""
-    from .writer import transaction_json
-
     rec = blk.record(k)
     tpl = (None, (), rec.model)
     if rec.expects is not None:
@@ -56,8 +56,6 @@ def _tx_template(blk: Any, k: int, key: tuple) -> tuple[str | None, tuple[str, .
 def block_messages(ch: Any, blk: Any, emit: Any) -> None:
     """Emit (channel, log_time, body) for each row of ``blk`` as ``ch.record`` would, in the same order:
     the packet, the state of each servo it sets, the transaction of a request that expects a reply."""
-    from .writer import PACKETS_TOPIC, TRANSACTIONS_TOPIC, _ns
-
     if isinstance(blk._records, list) or blk.vid_models is not None:
         for rec in blk.records():
             ch.record(rec)
@@ -82,7 +80,7 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
     for k, (s, e, kind) in enumerate(zip(starts, ends, kinds)):
         offset = base + s
         t = t0[k] if timed else None
-        log_time = _ns(time_of(t, offset))
+        log_time = log_time_ns(time_of(t, offset))
         emit(cid_packets, log_time, packets[k].encode())
         raw = blob[s:e]
         if kind == LONG:

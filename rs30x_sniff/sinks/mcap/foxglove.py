@@ -7,13 +7,15 @@ from typing import Any
 import foxglove
 
 from ...schemas import schema_bytes
-from .writer import DIAGNOSTICS_TOPIC, PACKETS_TOPIC, RAW_TOPIC, TRANSACTIONS_TOPIC, JsonChannels
+from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, LOG_SCHEMA, PACKET_SCHEMA, PACKETS_TOPIC, RAW_SCHEMA, RAW_TOPIC,
+                                    TRANSACTION_SCHEMA, TRANSACTIONS_TOPIC)
+from .writer import JsonChannels
 
 DEFAULT_HOST = "127.0.0.1"  # this machine only: the bus is not published to the network unless asked
 DEFAULT_PORT = 8765         # Foxglove's own default
 SERVER_NAME = "rs30x-sniff"
-FIXED_CHANNELS = ((RAW_TOPIC, "rs30x.Raw"), (PACKETS_TOPIC, "rs30x.Packet"),
-                  (TRANSACTIONS_TOPIC, "rs30x.Transaction"), (DIAGNOSTICS_TOPIC, "foxglove.Log"))
+FIXED_CHANNELS = ((RAW_TOPIC, RAW_SCHEMA), (PACKETS_TOPIC, PACKET_SCHEMA),
+                  (TRANSACTIONS_TOPIC, TRANSACTION_SCHEMA), (DIAGNOSTICS_TOPIC, LOG_SCHEMA))
 
 
 class FoxgloveError(Exception):

@@ -14,28 +14,20 @@ import foxglove
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from ... import __version__
-from ...protocol.events import Garbage, ShortPacket
+from ...protocol.events import Garbage
+from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, LOG_SCHEMA, MCAP_MAGIC, METADATA_NAME, MODELS_METADATA_NAME,
+                                    PACKET_SCHEMA, PACKETS_TOPIC, RAW_SCHEMA, RAW_TOPIC, SERVO_STATE_SCHEMA,
+                                    STATE_TOPIC, STATS_METADATA_NAME, TIME_BASES, TRANSACTION_SCHEMA,
+                                    TRANSACTIONS_TOPIC, log_time_ns)
 from ...render.block_json import record_json_line
 from ...schemas import schema_bytes
-from ...sources.captures import MCAP_MAGIC as _MAGIC
 from ...decode.blocks import Block
 from .blocks import block_messages
 from .servo_states import ServoStates
+from .transactions import transaction_json
 from ..stats import CaptureStats
 from ...protocol.wire import byte_time
 
-RAW_TOPIC = "/rs30x/raw"
-PACKETS_TOPIC = "/rs30x/packets"
-TRANSACTIONS_TOPIC = "/rs30x/transactions"
-DIAGNOSTICS_TOPIC = "/rs30x/diagnostics"
-STATE_TOPIC = "/rs30x/servo/{id}/state"
-METADATA_NAME = "rs30x"               # written first: a killed writer still leaves it
-MODELS_METADATA_NAME = "rs30x.models"  # written by finish(): what the bus taught us
-STATS_METADATA_NAME = "rs30x.stats"    # written by finish(): `info`'s figures for the whole log, as JSON
-
-# capture: the capture's own times; synthetic: byte positions at the baud rate (no timestamps);
-# wall: a live port, in wall-clock time; monotonic: older live logs, seconds since the port opened.
-TIME_BASES = ("capture", "synthetic", "wall", "monotonic")
 # foxglove.LogLevel values (Foxglove's published schema).
 _LOG_LEVEL = {"info": 2, "warning": 3, "error": 4}
 # Bytes a message record adds to a chunk besides its data (opcode, length, channel, sequence, two times).
@@ -47,10 +39,6 @@ _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 
 
 _log_time = itemgetter(0)  # a held message's (log_time, channel, data)
-
-
-def _ns(t: float) -> int:
-    return int(round(t * 1e9)) if t > 0 else 0
 
 
 class JsonChannels:
@@ -122,22 +110,22 @@ class JsonChannels:
             return
         offset = self._raw_offset
         self._raw_offset += len(data)
-        cid = self._channel(RAW_TOPIC, "rs30x.Raw")
+        cid = self._channel(RAW_TOPIC, RAW_SCHEMA)
         if not (self._every_message or self._live(cid)):
             return
         ts = "null" if t is None else repr(float(t))
         marks = (f',"sender":"{sender}"' if sender else "") + (f',"error":"{error}"' if error else "")
         body = (f'{{"offset":{offset},"t":{ts},"length":{len(data)},"data":"'
                 f'{base64.b64encode(data).decode("ascii")}"{marks}}}').encode()
-        self._emit(cid, _ns(self._time(t, offset)), body)
+        self._emit(cid, log_time_ns(self._time(t, offset)), body)
 
     def record(self, rec: Any) -> None:
         """A decoded record: its /rs30x/packets message, the state of every servo it changes, and
         its /rs30x/transactions message if it is a request that asked for a reply."""
         ev = rec.event
-        log_time = _ns(self._time(ev.t_start, ev.offset))
+        log_time = log_time_ns(self._time(ev.t_start, ev.offset))
         every = self._every_message
-        cid = self._channel(PACKETS_TOPIC, "rs30x.Packet")
+        cid = self._channel(PACKETS_TOPIC, PACKET_SCHEMA)
         if every or self._live(cid):
             self._emit(cid, log_time, record_json_line(rec, compact=True).encode())
         if type(ev) is Garbage:
@@ -146,7 +134,7 @@ class JsonChannels:
         if changed:
             self._update_state(rec, changed, log_time)
         if rec.expects is not None:
-            cid = self._channel(TRANSACTIONS_TOPIC, "rs30x.Transaction")
+            cid = self._channel(TRANSACTIONS_TOPIC, TRANSACTION_SCHEMA)
             if every or self._live(cid):
                 self._emit(cid, log_time, _encode(transaction_json(rec)).encode())
 
@@ -154,7 +142,7 @@ class JsonChannels:
         """Servo ``tid``'s state channel and its fragments ('"name":value' by name), made on first use."""
         cid = self._state_channels.get(tid)
         if cid is None:
-            cid = self._state_channels[tid] = self._channel(STATE_TOPIC.format(id=tid), "rs30x.ServoState")
+            cid = self._state_channels[tid] = self._channel(STATE_TOPIC.format(id=tid), SERVO_STATE_SCHEMA)
         st = self._states.get(tid)
         if st is None:
             st = self._states[tid] = {}
@@ -195,12 +183,12 @@ class JsonChannels:
 
     def findings(self, findings: Iterable[Any]) -> None:
         """Lint findings as foxglove.Log messages on /rs30x/diagnostics."""
-        cid = self._channel(DIAGNOSTICS_TOPIC, "foxglove.Log")
+        cid = self._channel(DIAGNOSTICS_TOPIC, LOG_SCHEMA)
         if not (self._every_message or self._live(cid)):
             return
         for f in findings:
             t = self._time(f.t, f.offset)
-            ns = _ns(t)
+            ns = log_time_ns(t)
             msg = {"timestamp": {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000},
                    "level": _LOG_LEVEL.get(f.severity, 0),
                    "message": f.message if f.id is None else f"id {f.id}: {f.message}",
@@ -555,11 +543,11 @@ class _SdkFile:
         try:
             f.seek(self.readable)
             f.truncate()
-            f.write(_DATA_END + _FOOTER + _MAGIC)
+            f.write(_DATA_END + _FOOTER + MCAP_MAGIC)
             f.flush()
         except (OSError, ValueError, AttributeError):
             return False
-        self.position = self.readable = self.readable + len(_DATA_END) + len(_FOOTER) + len(_MAGIC)
+        self.position = self.readable = self.readable + len(_DATA_END) + len(_FOOTER) + len(MCAP_MAGIC)
         return True
 
     def release(self) -> None:
@@ -567,8 +555,8 @@ class _SdkFile:
         self.file = None
 
     def _own_header(self, data: bytes) -> bytes:
-        n = len(_MAGIC)
-        if data[:n] != _MAGIC or len(data) < n + 9 or data[n] != _HEADER:
+        n = len(MCAP_MAGIC)
+        if data[:n] != MCAP_MAGIC or len(data) < n + 9 or data[n] != _HEADER:
             raise RuntimeError("the Foxglove SDK did not begin its MCAP with a header record")
         length = _U64.unpack_from(data, n + 1)[0]
         body_at = n + 9
@@ -594,21 +582,3 @@ def _fragment(name: str, value: Any) -> str:
 def _models_text(models: dict[int, str]) -> str:
     """``{1: "RS303MR", 3: "RS304MD"}`` -> ``"1=RS303MR,3=RS304MD"`` (metadata values are strings)."""
     return ",".join(f"{i}={m}" for i, m in sorted(models.items()))
-
-
-def transaction_json(rec: Any) -> dict[str, Any]:
-    """A request that expects a reply, with its reply and latency (the /rs30x/transactions object)."""
-    ev = rec.event
-    reply = rec.reply
-    rev = reply.event if reply is not None else None
-    return {
-        "id": ev.id, "op": ev.op if type(ev) is ShortPacket else "write", "expects": rec.expects,
-        "status": rec.status or "missing", "request_offset": ev.offset, "t_request": ev.t_start,
-        "request_raw": ev.raw.hex(), "read": rec.read_names,
-        "reply_type": rev.kind if rev is not None else None,
-        "reply_offset": rev.offset if rev is not None else None,
-        "t_reply": rev.t_start if rev is not None else None,
-        "reply_raw": rev.raw.hex() if rev is not None else None,
-        "reply_checksum_ok": rev.checksum_ok if rev is not None else None,
-        "latency_s": reply.latency if reply is not None else None,
-    }

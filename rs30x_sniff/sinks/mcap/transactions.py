@@ -1,0 +1,25 @@
+"""The /rs30x/transactions body of a request that expects a reply (an MCAP file, the Foxglove server, tables)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ...protocol.events import ShortPacket
+
+
+def transaction_json(rec: Any) -> dict[str, Any]:
+    """A request that expects a reply, with its reply and latency (the /rs30x/transactions object)."""
+    ev = rec.event
+    reply = rec.reply
+    rev = reply.event if reply is not None else None
+    return {
+        "id": ev.id, "op": ev.op if type(ev) is ShortPacket else "write", "expects": rec.expects,
+        "status": rec.status or "missing", "request_offset": ev.offset, "t_request": ev.t_start,
+        "request_raw": ev.raw.hex(), "read": rec.read_names,
+        "reply_type": rev.kind if rev is not None else None,
+        "reply_offset": rev.offset if rev is not None else None,
+        "t_reply": rev.t_start if rev is not None else None,
+        "reply_raw": rev.raw.hex() if rev is not None else None,
+        "reply_checksum_ok": rev.checksum_ok if rev is not None else None,
+        "latency_s": reply.latency if reply is not None else None,
+    }
