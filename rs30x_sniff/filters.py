@@ -334,20 +334,20 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
             tables.append((reg, table))
         return reg.address, reg.size, False, table.__getitem__
 
-    specs: dict[int, Any] = {}
+    specs: dict[Model, Any] = {}  # by model (a Model hashes as itself)
     for model in registry.models.values():  # every model now, so a bad value is an error at once
-        specs[id(model)] = compile_for(model)
+        specs[model] = compile_for(model)
 
     def spec_of(model: Model):
         try:
             s = compile_for(model)
         except FilterError:  # a model outside the registry that takes the value otherwise: no match
             s = None
-        specs[id(model)] = s
+        specs[model] = s
         return s
 
     def spec_for(model: Model):
-        spec = specs.get(id(model), _UNSEEN)
+        spec = specs.get(model, _UNSEEN)
         return spec_of(model) if spec is _UNSEEN else spec
 
     def carries(spec, address: int, data: bytes) -> bool:

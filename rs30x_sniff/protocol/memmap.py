@@ -6,6 +6,7 @@ import json
 import os
 import struct
 import tomllib
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -20,6 +21,9 @@ _REGISTER_KEYS = {"name", "address", "size", "signed", "scale", "offset", "unit"
                   "default", "range", "mode", "enum", "table", "format", "description"}
 _MODEL_KEYS = {"name", "model_number", "top_speed_s_per_60deg", "readable_to"}
 DEFAULT_MODEL = "RS303MR"
+# Entries a Model's cache holds before it starts afresh: its line templates go by header bytes, and a
+# stream of odd headers would otherwise pile them up (what is dropped is made again when met).
+MAX_CACHED = 4096
 
 
 class ModelError(ValueError):
@@ -46,6 +50,10 @@ class Register:
     table: dict[int, float] | None = None
     format: str | None = None
     description: str = ""
+    # What other modules make from this register once and keep with it, by a key they choose (a tuple
+    # or string starting with their tag): text and JSON of each raw value (memmap's own JSON, render's
+    # text), the monitor's plot values. Not part of the register's value: no init, repr or comparison.
+    cache: dict[Hashable, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def reserved(self) -> bool:
@@ -140,9 +148,13 @@ class Field:
         return None if self.partial else self.register.unit
 
 
-@dataclass(slots=True)
+@dataclass(slots=True, eq=False)
 class Model:
-    """A servo model's memory map, loaded from one ``decoders/*.toml`` file."""
+    """A servo model's memory map, loaded from one ``decoders/*.toml`` file.
+
+    A model is equal only to itself (and hashes so): the caches below belong to it, and what other
+    modules compile for a model (a filter's check, a line template) is kept by the model itself.
+    """
 
     name: str
     model_number: int
@@ -153,6 +165,18 @@ class Model:
     _by_address: dict[int, Register] = field(default_factory=dict, repr=False)
     _by_name: dict[str, Register] = field(default_factory=dict, repr=False)
     _layouts: dict[tuple, Layout] = field(default_factory=dict, repr=False)
+    # Line and message templates other modules compile for this model's packets (render's text and
+    # JSON, the MCAP transactions), by a key they choose that starts with their tag; filled by keep.
+    cache: dict[Hashable, Any] = field(default_factory=dict, repr=False)
+
+    def keep(self, key: Hashable, value: Any) -> Any:
+        """``value`` kept in ``cache`` under ``key``, and returned. Past MAX_CACHED entries the cache
+        starts afresh (templates go by header bytes: a stream of odd ones would pile them up)."""
+        cache = self.cache
+        if len(cache) >= MAX_CACHED:
+            cache.clear()
+        cache[key] = value
+        return value
 
     def __post_init__(self) -> None:
         for reg in self.registers:
@@ -219,7 +243,7 @@ class Layout:
     With ``records`` > 0 it is a long packet's data: that many repeats of VID + ``length`` bytes.
     """
 
-    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_json", "_named", "_columns")
+    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_json", "_named", "_columns", "cache")
 
     def __init__(self, model: Model, address: int, length: int, records: int = 0) -> None:
         parts = []
@@ -251,6 +275,7 @@ class Layout:
         self._json: tuple[tuple[str, ...], ...] | None = None  # fields_json's templates (spaced, compact)
         self._named: tuple[tuple[int, str], ...] | None = None  # named_values' (part, name) pairs
         self._columns: Any = None  # value_columns' plan (made on first use there)
+        self.cache: dict[Hashable, Any] = {}  # what other modules make from this layout, by their key
         unpack = self.unpack_raw = struct.Struct("<" + "".join(codes)).unpack
         if all(e == f"r[{i}]" for i, e in enumerate(exprs)):
             self.values = unpack
@@ -367,15 +392,13 @@ class Layout:
 
 class _ByRaw(dict):
     """Something made from a part's raw value by ``make`` on first sight and kept (the first ``limit``
-    of them, when given: a 2-byte register has 65,536 raw values). ``register`` is kept alive: the
-    caches of these go by its id."""
+    of them, when given: a 2-byte register has 65,536 raw values)."""
 
-    __slots__ = ("make", "register", "limit")
+    __slots__ = ("make", "limit")
 
-    def __init__(self, make: Any, register: Register, limit: int | None = None) -> None:
+    def __init__(self, make: Any, limit: int | None = None) -> None:
         super().__init__()
         self.make = make
-        self.register = register
         self.limit = limit
 
     def __missing__(self, raw: int) -> Any:
@@ -392,17 +415,15 @@ def _converter(reg: Register, partial: str | None, wrap: str = "{}", env: dict |
     return eval(f"lambda x: {wrap.format(_conversion(reg, partial, 'x', env, 0))}", env)  # noqa: S307 - from the validated map
 
 
-_VALUE_TEXT: dict[tuple[int, str | None], _ByRaw] = {}
-
-
 def _value_text(reg: Register, partial: str | None) -> _ByRaw:
     """The JSON text of a part's engineering value, by raw value: the register's conversion
-    (_conversion) and then the JSON of its kind (_JSON_OF), as fields_json wrote them per value."""
-    key = (id(reg), partial)
-    table = _VALUE_TEXT.get(key)
-    if table is None or table.register is not reg:
-        table = _VALUE_TEXT[key] = _ByRaw(
-            _converter(reg, partial, _JSON_OF[_value_kind(reg, partial)], {"J": _json_scalar}), reg)
+    (_conversion) and then the JSON of its kind (_JSON_OF), as fields_json wrote them per value.
+    Kept in the register's cache."""
+    key = ("json", partial)
+    table = reg.cache.get(key)
+    if table is None:
+        table = reg.cache[key] = _ByRaw(
+            _converter(reg, partial, _JSON_OF[_value_kind(reg, partial)], {"J": _json_scalar}))
     return table
 
 

@@ -19,10 +19,9 @@ from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
 from ..decode.frame_runs import LONG
 from .records import _COMPACT, _NO_FIELDS, _SPACED, record_json, record_json_text
 
-# What varies between rows of one shape (besides the fields).
+# What varies between rows of one shape (besides the fields). The templates are kept by the model
+# they are for (Model.keep): (format, slots, layout) of a Block's rows, (format, slots) of a Record's.
 _SLOTS = ("offset", "t", "t_end", "raw", "reply_to", "reply", "latency_s")
-_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any, Any]] = {}  # key -> (format, slots, layout, model)
-_MAX_TEMPLATES = 4096
 
 
 class NonFiniteError(ValueError):
@@ -73,21 +72,20 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
     models, default = blk.models, blk.default
     only_key = None if only is None else frozenset(only)
     out = []
-    get = _TEMPLATES.get
     for k in (range(len(starts)) if rows is None else rows):
         s, e = starts[k], ends[k]
         raw = blob[s:e]
         kind = kinds[k]
         if kind == LONG:
             model = default
-            key = (raw[:7], e - s, id(model), raw[7:-1:raw[5] or 1], timed, compact, only_key)
+            key = ("json", raw[:7], e - s, raw[7:-1:raw[5] or 1], timed, compact, only_key)
         else:
             model = models[raw[2]]
-            key = (raw[:7], e - s, id(model), b"", timed, compact, only_key)
-        tpl = get(key)
-        if tpl is None or tpl[3] is not model:  # (an id is reused once its model is gone)
-            tpl = _template(blk, k, key, only, compact)
-        fmt, slots, layout, _ = tpl
+            key = ("json", raw[:7], e - s, b"", timed, compact, only_key)
+        tpl = model.cache.get(key)
+        if tpl is None:
+            tpl = _template(blk, k, model, key, only, compact)
+        fmt, slots, layout = tpl
         vals = []
         for name in slots:
             if name == "offset":
@@ -145,29 +143,23 @@ def _line_template(rec: Any, only: set[int] | None, compact: bool) -> tuple[str,
                          strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
 
 
-def _template(blk: Any, k: int, key: tuple, only: set[int] | None, compact: bool) -> tuple:
-    """The line of row ``k``'s shape with a %s for each part that varies, and the layout of its fields."""
+def _template(blk: Any, k: int, model: Any, key: tuple, only: set[int] | None, compact: bool) -> tuple:
+    """The line of row ``k``'s shape with a %s for each part that varies, and the layout of its fields;
+    kept by ``model``, the row's."""
     rec = blk.record(k)
     text, slots = _line_template(rec, only, compact)
     # The Block's servos share a model here (block_json_rows), so this is one Layout (or None).
-    tpl = (text, slots, rec._layout()[0], rec.model)
-    if len(_TEMPLATES) >= _MAX_TEMPLATES:
-        _TEMPLATES.clear()
-    _TEMPLATES[key] = tpl
-    return tpl
-
-
-
-_RECORD_TEMPLATES: dict[tuple, tuple[str, tuple[str, ...], Any]] = {}  # key -> (format, slots, model)
+    return model.keep(key, (text, slots, rec._layout()[0]))
 
 
 def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = False) -> str:
     """``record_json_text(rec, only, compact)``, from its shape's template where it has one: the record
     path's JSON (a live port's MCAP packets, jsonl from a pipe) without a dict per record.
 
-    A record with findings (its diagnostics), no header (ACK, NACK, garbage) or times that are not
-    plain floats (whose text ``repr`` might not give as JSON does) is written by record_json_text
-    itself. The fields are filled in by Record.fields_json, so the template holds no layout."""
+    A record with findings (its diagnostics), no header (ACK, NACK, garbage), no model or times that
+    are not plain floats (whose text ``repr`` might not give as JSON does) is written by
+    record_json_text itself. The fields are filled in by Record.fields_json, so the template holds no
+    layout; it is kept by the record's model."""
     ev = rec.event
     t0, t1, latency = ev.t_start, ev.t_end, rec.latency
     # x - x is 0.0 for every finite number, NaN for NaN and the infinities: three checks on the hot path.
@@ -177,22 +169,20 @@ def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = Fal
                        if v is not None and not math.isfinite(v))
         raise _not_finite(ev.offset, what, x)
     t = type(ev)
-    if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket):
+    model = rec.model
+    if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket) or model is None:
         return record_json_text(rec, only, compact)
     if ((t0 is not None and type(t0) is not float) or (t1 is not None and type(t1) is not float)
             or (latency is not None and type(latency) is not float)):
         return record_json_text(rec, only, compact)
     raw = ev[1]
     request, reply = rec.request, rec.reply
-    key = (raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"", ev.checksum_ok,
-           id(rec.model), t0 is None, t1 is None, latency is None, request is None, reply is None,
+    key = ("json record", raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"",
+           ev.checksum_ok, t0 is None, t1 is None, latency is None, request is None, reply is None,
            rec.status, compact, None if only is None else frozenset(only))
-    tpl = _RECORD_TEMPLATES.get(key)
-    if tpl is None or tpl[2] is not rec.model:  # (an id reused by a new model)
-        tpl = (*_line_template(rec, only, compact), rec.model)
-        if len(_RECORD_TEMPLATES) >= _MAX_TEMPLATES:
-            _RECORD_TEMPLATES.clear()
-        _RECORD_TEMPLATES[key] = tpl
+    tpl = model.cache.get(key)
+    if tpl is None:
+        tpl = model.keep(key, _line_template(rec, only, compact))
     vals = []
     for name in tpl[1]:
         if name == "offset":

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from typing import Any, Callable, Iterable
 
 from ..decode.blocks import Block, _pair
@@ -15,9 +14,8 @@ from ..protocol.wire import COMMAND_ADDRESS
 
 __all__ = ["block_text", "record_line"]
 
-# Compiled shapes and field texts are kept across Blocks (a capture has a handful of shapes); the bound
-# keeps a stream of odd headers from piling them up: the oldest goes first, and is made again if met.
-MAX_SHAPES = 4096
+# Compiled shapes are kept across Blocks by the model they are for (Model.keep, a capture has a handful
+# of shapes), a field's texts by its register.
 MAX_TEXTS = 8192  # field texts kept per register (and separator)
 _RETURN_SYNC = 0xFD  # a return's first byte (FD DF); FA AF requests have ID 0 for a long packet
 
@@ -27,13 +25,10 @@ class _Shape:
     (Layout.unpack_raw), ``fn(t, offset, raw, latency, request offset)`` the whole line. ``fn`` is None
     when the template could not be trusted: those rows go through Records."""
 
-    __slots__ = ("models", "raw", "fn")
+    __slots__ = ("raw", "fn")
 
-    def __init__(self, models: tuple, raw: Callable | None, fn: Callable | None) -> None:
-        self.models, self.raw, self.fn = models, raw, fn
-
-
-_SHAPES: OrderedDict[tuple, _Shape] = OrderedDict()
+    def __init__(self, raw: Callable | None, fn: Callable | None) -> None:
+        self.raw, self.fn = raw, fn
 
 
 def _field_text(reg: Register, partial: str | None, sep: str) -> Callable[[int], str]:
@@ -53,18 +48,13 @@ def _field_text(reg: Register, partial: str | None, sep: str) -> Callable[[int],
     return text
 
 
-_TEXTS: OrderedDict[tuple, _ByRaw] = OrderedDict()
-
-
 def _texts(reg: Register, partial: str | None, sep: str) -> _ByRaw:
-    """A field's texts by raw value (_field_text), made on first use; noise in a 2-byte field could
-    fill 65536 of them: the first MAX_TEXTS are kept."""
-    key = (id(reg), partial, sep)
-    memo = _TEXTS.get(key)
-    if memo is None or memo.register is not reg:  # an id reused by a new register: make it again
-        memo = _TEXTS[key] = _ByRaw(_field_text(reg, partial, sep), reg, MAX_TEXTS)
-        if len(_TEXTS) > MAX_SHAPES:
-            _TEXTS.popitem(last=False)
+    """A field's texts by raw value (_field_text), made on first use and kept in the register's cache;
+    noise in a 2-byte field could fill 65536 of them: the first MAX_TEXTS are kept."""
+    key = ("text", partial, sep)
+    memo = reg.cache.get(key)
+    if memo is None:
+        memo = reg.cache[key] = _ByRaw(_field_text(reg, partial, sep), MAX_TEXTS)
     return memo
 
 
@@ -134,19 +124,19 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
     return "".join(out)
 
 
-_RECORD_SHAPES: OrderedDict[tuple, _Shape] = OrderedDict()
-
-
 def record_line(rec: Record, only: set[int] | None = None) -> str:
     """``text_line(rec, only)`` and a newline, from its shape's template where it has one: the record
     path's lines (a live port, a pipe) without building the record's Field objects.
 
     A shape here is a Block's (header bytes, size, model) and what a Block's rows share but single
-    records do not: the pairing (status, request, latency) and whether the record has times. A
-    record with findings, a bad Sum or no header (ACK, NACK, garbage) is written by text_line itself."""
+    records do not: the pairing (status, request, latency) and whether the record has times; it is
+    kept by the record's model. A record with findings, a bad Sum, no header (ACK, NACK, garbage) or
+    no model is written by text_line itself."""
     ev = rec.event
     t = type(ev)
-    if rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket) or not ev.checksum_ok:
+    model = rec.model
+    if (rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket) or not ev.checksum_ok
+            or model is None):
         return text_line(rec, only) + "\n"
     lay, data = rec._layout()
     # A long packet to servos of mixed models has a layout per servo: the shape is theirs together.
@@ -154,12 +144,12 @@ def record_line(rec: Record, only: set[int] | None = None) -> str:
     raw = ev[1]
     request = rec.request
     latency = rec.latency
-    key = (raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"", id(rec.model),
-           tuple(map(id, layouts)), ev.t_start is not None, rec.status, request is not None, latency is not None,
+    key = ("text record", raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"",
+           layouts, ev.t_start is not None, rec.status, request is not None, latency is not None,
            None if only is None else frozenset(only))
-    shape = _RECORD_SHAPES.get(key)
-    if shape is None or not all(a is b for a, b in zip(shape.models, (rec.model, *layouts))):
-        shape = _record_shape(rec, key, only, layouts)
+    shape = model.cache.get(key)
+    if shape is None:
+        shape = _record_shape(rec, key, only)
     fn = shape.fn
     if fn is None:
         return text_line(rec, only) + "\n"
@@ -168,7 +158,7 @@ def record_line(rec: Record, only: set[int] | None = None) -> str:
               request.offset if request is not None else None)
 
 
-def _record_shape(rec: Record, key: tuple, only: set[int] | None, layouts: tuple) -> _Shape:
+def _record_shape(rec: Record, key: tuple, only: set[int] | None) -> _Shape:
     """A single record's compiled shape, checked once against text_line as a Block's are."""
     raw, fn = _compile(rec, only, rec.event.t_start is not None)
     if fn is not None:
@@ -178,11 +168,7 @@ def _record_shape(rec: Record, key: tuple, only: set[int] | None, layouts: tuple
                  request.offset if request is not None else None)
         if got != text_line(rec, only) + "\n":
             fn = None
-    # The model and layouts are kept so an id reused by new ones is not taken for them.
-    shape = _RECORD_SHAPES[key] = _Shape((rec.model, *layouts), raw, fn)
-    if len(_RECORD_SHAPES) > MAX_SHAPES:
-        _RECORD_SHAPES.popitem(last=False)
-    return shape
+    return rec.model.keep(key, _Shape(raw, fn))
 
 
 def _records_text(blk: Block, only: set[int] | None, verbose: bool, rows: Iterable[int] | None) -> str:
@@ -213,20 +199,20 @@ def _sample(blk: Block, k: int) -> Record:
 
 def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: frozenset | None,
            timed: bool) -> _Shape:
-    """The compiled shape of row ``k`` (from the cache when its models are the same objects)."""
+    """The compiled shape of row ``k``, from the cache of the model it is for (a long packet's: the
+    Block's default model, with the models of its VIDs in the key)."""
     h = key[0]
     is_long = len(key) == 3
     if is_long:
         vm = blk.vid_models
         vid_models = None if vm is None or not h[5] else tuple([vm[v] for v in key[2]])
-        models = (blk.default,) + (vid_models or ())
-        gkey = (timed, key, id(blk.default), vid_models and tuple(map(id, vid_models)), only_key)
+        owner = blk.default
+        gkey = ("text", timed, key, vid_models, only_key)
     else:
-        models = (blk.models[h[2]],)
-        gkey = (timed, key, id(models[0]))
-    shape = _SHAPES.get(gkey)
-    if shape is not None and len(shape.models) == len(models) and all(
-            a is b for a, b in zip(shape.models, models)):
+        owner = blk.models[h[2]]
+        gkey = ("text", timed, key)
+    shape = owner.cache.get(gkey)
+    if shape is not None:
         return shape
     sample = _sample(blk, k)
     raw, fn = _compile(sample, only, timed)
@@ -240,10 +226,7 @@ def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: froz
                  sample.request.offset if sample.request is not None else None)
         if got != text_line(sample, only) + "\n":
             fn = None
-    shape = _SHAPES[gkey] = _Shape(models, raw, fn)
-    if len(_SHAPES) > MAX_SHAPES:
-        _SHAPES.popitem(last=False)
-    return shape
+    return owner.keep(gkey, _Shape(raw, fn))
 
 
 def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable | None, Callable | None]:
@@ -254,14 +237,12 @@ def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable 
         return None, None
     pieces: list[tuple[str, str]] = []  # ("lit", text) or ("exp", f-string replacement field)
     env: dict[str, Any] = {"G": _join_shown}
-    names: dict[int, str] = {}
+    tables: list[_ByRaw] = []  # each field's texts by raw value, M0, M1, ... in the generated code
 
     def memo(reg: Register, partial: str | None, sep: str) -> str:
-        m = _texts(reg, partial, sep)
-        name = names.get(id(m))
-        if name is None:
-            name = names[id(m)] = f"M{len(names)}"
-            env[name] = m
+        name = f"M{len(tables)}"
+        tables.append(_texts(reg, partial, sep))
+        env[name] = tables[-1]
         return name
 
     pieces.append(("exp", "t:12.6f") if timed else ("lit", f"{'-':>12}"))

@@ -151,18 +151,18 @@ def built_nbytes(blk: Block) -> int:
 
 
 _NOT_READ = object()  # a Block whose plot points Store.add has not read ahead
-_LUTS: dict[int, list] = {}  # id of a register -> [it, values, is a number, worked out], by raw bytes
 
 
 def _values_of(reg: Any, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For a 1- or 2-byte register's raw bytes (as an unsigned little-endian number): the value
     register_value gives, as a float, and whether it is a number (an enum's label is not). Each raw
-    value is converted once, when first seen."""
-    lut = _LUTS.get(id(reg))
-    if lut is None or lut[0] is not reg:
+    value is converted once, when first seen: (values, is a number, worked out) by raw bytes, kept in
+    the register's cache."""
+    lut = reg.cache.get("plot values")
+    if lut is None:
         size = 1 << 8 * reg.size
-        lut = _LUTS[id(reg)] = [reg, np.zeros(size), np.zeros(size, dtype=bool), np.zeros(size, dtype=bool)]
-    _, values, ok, known = lut
+        lut = reg.cache["plot values"] = (np.zeros(size), np.zeros(size, dtype=bool), np.zeros(size, dtype=bool))
+    values, ok, known = lut
     new = raw[~known[raw]]
     if new.size:
         bits = 8 * reg.size

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rs30x_sniff.render import block_json
+from rs30x_sniff.protocol import memmap
 from rs30x_sniff.decode import blocks
 from rs30x_sniff.render.block_json import block_json_lines, record_json_line
 from rs30x_sniff.decode.blocks import Block
@@ -67,7 +67,7 @@ def test_scenarios(name):
        lint=st.booleans())
 def test_random_traffic(monkeypatch, seed, n, timed, rare, lint):
     monkeypatch.setattr(blocks, "MIN_BLOCK", 1)
-    monkeypatch.setattr(block_json, "_MAX_TEMPLATES", 8)  # the template cache fills and clears too
+    monkeypatch.setattr(memmap, "MAX_CACHED", 8)  # the models' template caches fill and clear too
     check_blocks(traffic(seed, n, timed=timed, gaps=True, faults=False, rare=rare), lint, group=50)
 
 
@@ -122,7 +122,7 @@ def test_record_json_of_random_traffic(monkeypatch, seed, n, timed, gaps, faults
     # Missing, unsolicited and extra replies, bad Sums, garbage, findings, servos of two models.
     from rs30x_sniff.decode.decoder import DecodeOptions
 
-    monkeypatch.setattr(block_json, "_MAX_TEMPLATES", 8)  # the template cache fills and clears too
+    monkeypatch.setattr(memmap, "MAX_CACHED", 8)  # the models' template caches fill and clear too
     check_records(traffic(seed, n, timed=timed, gaps=gaps, faults=faults, rare=rare), lint,
                   DecodeOptions(models={2: "RS304MD"}) if mixed else None)
 

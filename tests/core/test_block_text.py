@@ -7,7 +7,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bench.traffic import hexapod_frames
-from rs30x_sniff.render import block_text as block_text_module
 from rs30x_sniff.decode import blocks as blocks_module
 from rs30x_sniff.render.block_text import block_text, record_line
 from rs30x_sniff.decode.blocks import Block
@@ -15,6 +14,7 @@ from rs30x_sniff.lint import Linter
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.render.records import text_line, verbose_lines
 from rs30x_sniff.sim import scenarios
+from rs30x_sniff.protocol.memmap import default_registry
 from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
 from tests.core.test_columnar import traffic
 from tests.core.test_properties import frames
@@ -81,16 +81,29 @@ def tiny_blocks(monkeypatch):
     monkeypatch.setattr(blocks_module, "MIN_BLOCK", 1)
 
 
+def shapes(tag):
+    """(key, shape) of every shape compiled so far and kept by the models (tag "text": a Block's rows,
+    "text record": single Records), the key without its tag."""
+    return [(key[1:], shape) for m in default_registry().models.values() for key, shape in m.cache.items()
+            if type(key) is tuple and key[0] == tag]
+
+
+def forget_shapes(tag):
+    for m in default_registry().models.values():
+        for key in [k for k in m.cache if type(k) is tuple and k[0] == tag]:
+            del m.cache[key]
+
+
 def no_fallback():
     """Every shape compiled so far has its template (none sent to the record path)."""
-    return all(s.fn is not None for s in block_text_module._SHAPES.values())
+    return all(s.fn is not None for _, s in shapes("text"))
 
 
 def fallbacks_explained():
     """A shape goes to the record path only when it is meant to: a long packet naming a VID twice
     whose fields may hide (reserved bytes), where the order of its groups depends on the data. Any
     other means a template failed its check against text_line on its first row."""
-    for key, shape in block_text_module._SHAPES.items():
+    for key, shape in shapes("text"):
         if shape.fn is None:
             header = key[1]
             assert len(header) == 3 and len(set(header[2])) < len(header[2]), key
@@ -104,7 +117,7 @@ def test_hexapod(timed, lint):
     if not timed:
         data = b"".join(d for d, _ in chunks)
         chunks = [(data[i:i + 4096], None) for i in range(0, len(data), 4096)]
-    block_text_module._SHAPES.clear()
+    forget_shapes("text")
     blocks, fresh = check_blocks(chunks, (700, 300) if timed else (5, 3), lint=lint)
     assert blocks > 2 and fresh == blocks
     assert no_fallback()
@@ -219,7 +232,7 @@ def check_records(chunks, options=None, lint=False):
 
 def record_fallbacks_explained():
     """As fallbacks_explained, for the record shapes: only a long packet naming a VID twice may fail."""
-    for key, shape in block_text_module._RECORD_SHAPES.items():
+    for key, shape in shapes("text record"):
         if shape.fn is None:
             assert key[2] and len(set(key[2])) < len(key[2]), key
     return True
@@ -227,10 +240,10 @@ def record_fallbacks_explained():
 
 @pytest.mark.parametrize("lint", [False, True], ids=["plain", "lint"])
 def test_record_lines_of_hexapod(lint):
-    block_text_module._RECORD_SHAPES.clear()
+    forget_shapes("text record")
     n, templated = check_records(hexapod_frames(2000), lint=lint)
     assert templated > 0.9 * n  # the clean requests and replies, paired or waited for
-    assert all(s.fn is not None for s in block_text_module._RECORD_SHAPES.values())
+    assert all(s.fn is not None for _, s in shapes("text record"))
 
 
 @SETTINGS

@@ -14,18 +14,16 @@ from .transactions import transaction_json
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 _TX_SLOTS = ("request_offset", "t_request", "request_raw", "reply_offset", "t_reply", "reply_raw", "latency_s")
-_TX_TEMPLATES: dict[tuple, tuple[str | None, tuple[str, ...], Any]] = {}  # key -> (format or None, slots, model)
-_NAMED: dict[int, tuple[Layout, tuple]] = {}
-_MAX = 4096
 
 
 def _named_plan(layout: Layout) -> tuple:
     """For each record of the layout (one for a short packet or a return): the index of its VID in
     ``unpack_raw`` (None without one) and each whole named register as (raw index, name, '"name":', text
-    by raw value) — Layout.named_values with each value's JSON text (JsonChannels' _fragment) looked up."""
-    got = _NAMED.get(id(layout))
-    if got is not None and got[0] is layout:
-        return got[1]
+    by raw value) — Layout.named_values with each value's JSON text (JsonChannels' _fragment) looked up.
+    Kept in the layout's cache."""
+    plan = layout.cache.get("mcap states")
+    if plan is not None:
+        return plan
     n = len(layout.parts)
     named = [(j, reg) for j, (_, _, reg, partial) in enumerate(layout.parts) if reg.name is not None and not partial]
     if not layout.records:
@@ -33,24 +31,18 @@ def _named_plan(layout: Layout) -> tuple:
     else:
         plan = tuple((r * (n + 1), tuple((r * (n + 1) + 1 + j, reg.name, f'"{reg.name}":', _value_text(reg, None))
                                          for j, reg in named)) for r in range(layout.records))
-    if len(_NAMED) >= _MAX:
-        _NAMED.clear()
-    _NAMED[id(layout)] = (layout, plan)
+    layout.cache["mcap states"] = plan
     return plan
 
 
-def _tx_template(blk: Any, k: int, key: tuple) -> tuple[str | None, tuple[str, ...], Any]:
+def _tx_template(blk: Any, k: int, model: Any, key: tuple) -> tuple[str | None, tuple[str, ...]]:
     """The /rs30x/transactions body of row ``k``'s shape with a %s where each row differs (None when
-    the row's request expects no reply: no message), the slots, and the model it was made for."""
+    the row's request expects no reply: no message) and the slots; kept by ``model``, the row's."""
     rec = blk.record(k)
-    tpl = (None, (), rec.model)
+    tpl: tuple[str | None, tuple[str, ...]] = (None, ())
     if rec.expects is not None:
-        text, slots = json_template(transaction_json(rec), _TX_SLOTS, _encode, strings=("request_raw", "reply_raw"))
-        tpl = (text, slots, rec.model)
-    if len(_TX_TEMPLATES) >= _MAX:
-        _TX_TEMPLATES.clear()
-    _TX_TEMPLATES[key] = tpl
-    return tpl
+        tpl = json_template(transaction_json(rec), _TX_SLOTS, _encode, strings=("request_raw", "reply_raw"))
+    return model.keep(key, tpl)
 
 
 def block_messages(ch: Any, blk: Any, emit: Any) -> None:
@@ -115,12 +107,12 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
                     body = f'{{"id":{tid},"model":"{state_models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
                     emit(cid, log_time, body.encode())
         if answered[k]:
-            key = (raw[:7], e - s, id(model), timed)
-            tpl = _TX_TEMPLATES.get(key)
-            if tpl is None or tpl[2] is not model:  # (an id is reused once its model is gone)
-                tpl = _tx_template(blk, k, key)
-            if tpl[0] is not None:
-                fmt, slots, _ = tpl
+            key = ("mcap transaction", raw[:7], e - s, timed)
+            tpl = model.cache.get(key)
+            if tpl is None:
+                tpl = _tx_template(blk, k, model, key)
+            fmt, slots = tpl
+            if fmt is not None:
                 vals = []
                 for name in slots:
                     if name == "request_offset":
