@@ -1,143 +1,183 @@
 """The linter's column form: a Block no enabled rule would speak about is checked with array operations.
 
-:func:`quiet_block` either proves that feeding the Block's records one by one would produce no finding
-and moves the linter's memory past them exactly as that would (shadows, counters, rule states), or
-returns False having changed nothing, and the linter feeds the records one by one. Findings are the
+:meth:`BlockLinter.quiet` either proves that feeding the Block's records one by one would produce no
+finding and moves the linter's memory past them exactly as that would (shadows, counters, rule states),
+or returns False having changed nothing, and the linter feeds the records one by one. Findings are the
 same either way; the tests in tests/lint/test_batch.py compare the two on every rule's traffic.
 
-Every rule has a column form here, by one of three means:
-- rules that cannot fire on a Block's rows (garbage, corrupt frames, ACK/NACK, unpaired replies: a
-  Block has none) or whose trigger is checked for on the columns (commands, flagged returns, writes of
-  the registers they follow) and sends the Block to the record path;
-- HEADER rules, pure functions of a packet's header, its model and (for a reply) its request's header:
+Each rule declares its column form itself (``@rule(..., column=...)``, rs30x_sniff.lint.registry):
+- "silent": the rule cannot fire on a Block that passes the common checks below (a Block has no garbage,
+  corrupt frames, ACK/NACK or unpaired replies; one holding commands, flagged returns, writes of the
+  registers the shadows follow other than positions and goal times, or a write a "target" rule without a
+  column function would see, takes the record path);
+- "header": a pure function of a packet's header, its model and (for a reply) its request's header:
   each distinct header is checked once with the rule's own check on a sample record, and remembered;
-- the rules that read values, timing or the shadows (F004, F007, B006, M003, Q004, Q006, Q007), written
-  out on the columns below, with the same arithmetic in the same order as their checks.
-A rule not listed at all sends every Block to the record path, so a new rule is never skipped.
+- a function quiet(view) beside the rule (F004, F007, F009, B006, M003, M005, Q004, Q006, Q007), written
+  on the :class:`BlockView`'s columns with the same arithmetic, in the same order, as the rule's check.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from functools import partial
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 
 from ..decode.frame_runs import LONG, RETURN, SHORT
 from ..protocol.wire import BROADCAST_ID, COMMAND_BITS
-from .rules.direction import decide as decide_senders
 
-# Pure in the packet's header (and model, and request header): checked once per distinct header.
-HEADER = frozenset({"P001", "P002", "P003", "P004", "P005", "P006", "P007", "P010", "P011", "P012",
-                    "M001", "M002", "M004", "B004", "B005"})
-# Silent on a Block's rows whenever the checks below pass (what they watch sends the Block away).
-SILENT = frozenset({"F001", "F002", "F003", "F005", "F006", "F008", "F009", "F010", "P008", "P009", "P013", "M005",
-                    "B001", "B002", "B003", "B007", "B008", "B009", "S001", "S002", "S003", "S004",
-                    "Q001", "Q002", "Q003", "Q005", "Q008", "Q009"})
-# Written out on the columns here.
-COLUMNS = frozenset({"F004", "F007", "B006", "M003", "Q004", "Q006", "Q007"})
-KNOWN = HEADER | SILENT | COLUMNS
-# Shadow registers a Block may change (rs30x_sniff.lint.state._TRACKED): the others (torque, limits,
-# reverse, return delay, baud) change what later checks say, so a Block writing them takes the record path.
-_MOVING = frozenset({"pos", "goal_time"})
-_NONE = -(1 << 40)  # an unknown shadow value in an int64 column
+UNKNOWN = -(1 << 40)  # an unknown shadow value in an int64 column (BlockView.shadows)
 
 
-class _Probe:
-    """The linter as a HEADER rule sees it, but whose emit only notes that the rule spoke."""
+class Target(NamedTuple):
+    """Writes of one plan in a Block, a row per servo written (what a "target" rule's check sees)."""
+
+    plan: Any           # rs30x_sniff.lint.state.Plan
+    rows: np.ndarray    # the Block row of each write
+    subs: np.ndarray    # 0 for a short packet, the record's place (from 1) in a long packet
+    ids: np.ndarray     # the servo written (int64)
+    at: np.ndarray      # where its data starts in the run's bytes
+    made: dict          # part -> its raw values (BlockView.written), made on first use
+
+
+class BlockView:
+    """A Block as a rule's column form sees it: its columns, its writes by plan (:attr:`targets`), the
+    raw values they carry (:meth:`values`), and the shadow registers before any row (:meth:`shadows`,
+    :meth:`before`). ``timed``: the Block has times and the linter runs its timed rules."""
+
+    def __init__(self, lint: Any, blk: Any) -> None:
+        self.lint, self.blk = lint, blk
+        self.timed = blk.t0 is not None and bool(lint.timed)
+        c = self.cols = blk.cols
+        self.kind, self.ids, self.flag, self.data_len = c["kind"], c["id"], c["flag"], c["data_len"]
+        self.address, self.length = c["address"].astype(np.int64), c["length"].astype(np.int64)
+        self.is_short, self.is_long, self.is_return = self.kind == SHORT, self.kind == LONG, self.kind == RETURN
+        self.bytes = blk.run.bytes_array
+        self.starts = blk.run.starts[blk.lo:blk.hi]  # each row's first byte in the run's bytes
+        self.ends = blk.run.ends[blk.lo:blk.hi]
+        self.targets: list[Target] = []
+        # Shadow values a Block's rows set, by attribute: (order keys, servo ids, values) per group; a
+        # Block that sets any other shadow takes the record path.
+        self.sets: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {"pos": [], "goal_time": []}
+        self.made: dict[tuple[str, str], Any] = {}  # shadow columns and lookups, made on first use
+        self.on_accept: list[Callable[[], None]] = []  # the rules' memory moves (when_quiet)
+
+    def values(self, plan: Any, j: int, at: np.ndarray) -> np.ndarray:
+        """Raw value of part ``j`` of ``plan`` for data starting at ``at`` (as Plan.unpack)."""
+        start, size, reg, partial_ = plan.model.layout(plan.address, plan.n).parts[j]
+        a = self.bytes
+        lo = a[at + start].astype(np.int64)
+        if size == 2 and not partial_:
+            v = lo | a[at + start + 1].astype(np.int64) << 8
+            return v - (v >= 0x8000) * 0x10000 if reg.signed else v
+        return lo - (lo >= 0x80) * 0x100 if reg.signed and not partial_ else lo
+
+    def written(self, t: Target, j: int) -> np.ndarray:
+        """The raw values the writes ``t`` carry in part ``j`` of their plan (made once per Block)."""
+        v = t.made.get(j)
+        if v is None:
+            v = t.made[j] = self.values(t.plan, j, t.at)
+        return v
+
+    def shadows(self, attr: str) -> np.ndarray:
+        """Each servo's shadow ``attr`` by ID before the Block (UNKNOWN while unknown)."""
+        out = self.made.get(("shadows", attr))
+        if out is None:
+            out = self.made["shadows", attr] = np.full(256, UNKNOWN, dtype=np.int64)
+            for s, sh in self.lint.servos.items():
+                v = getattr(sh, attr)
+                if v is not None:
+                    out[s] = v
+        return out
+
+    def before(self, attr: str, order: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """Shadow ``attr`` ("pos" or "goal_time") of servos ``ids`` just before the points ``order``
+        (row * 512 + sub-order) of the Block, UNKNOWN while unknown."""
+        fn = self.made.get(("before", attr))
+        if fn is None:
+            fn = self.made["before", attr] = _before(self.sets[attr], self.shadows(attr))
+        return fn(order, ids)
+
+    def when_quiet(self, fn: Callable[[], None]) -> None:
+        """Call ``fn`` once the Block is accepted as quiet (a rule's memory moved past its rows)."""
+        self.on_accept.append(fn)
+
+
+class BlockLinter:
+    """The column form of one Linter (it holds the header rules' verdicts per distinct header)."""
 
     def __init__(self, lint: Any) -> None:
-        self._lint = lint
-        self.spoke = False
+        self.lint = lint
+        self.header_verdicts: dict[tuple, bool] = {}
 
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._lint, name)
-
-    def emit(self, *args: Any, **kwargs: Any) -> None:
-        self.spoke = True
-
-    emit_at = emit
-
-
-def quiet_block(lint: Any, blk: Any) -> bool:
-    """True if no enabled rule finds anything in ``blk``, with the linter moved past it; else False and
-    the linter untouched."""
-    if lint.timed is None:
-        lint._setup(blk.t0 is not None)
-    run = [r for r in lint.rules if lint.timed or not r.needs_time]
-    codes = {r.code for r in run}
-    if not codes <= KNOWN or not lint._counting:
-        return False
-    c = blk.cols
-    kind, sid, flag = c["kind"], c["id"], c["flag"]
-    address, length, dlen = c["address"].astype(np.int64), c["length"].astype(np.int64), c["data_len"]
-    is_short, is_long, is_return = kind == SHORT, kind == LONG, kind == RETURN
-    if (is_short & ((flag & COMMAND_BITS) != 0)).any():
-        return False  # flash / reboot / initialize: command rules and their state (P008, P009, Q001-Q004)
-    if (is_return & (flag != 0)).any():
-        return False  # a status flag: P013, S001-S004, and the temperature lock Q009 reads
-    if "M005" in codes and (is_return & (address == 0) & (dlen >= 2)).any():
-        return False  # a model number to judge
-    if "F009" in codes:
-        tally = lint.state_of("F009")
-        senders = decide_senders(tally, lint) if tally.senders is False else tally.senders
-        if senders is not None:
-            return False  # the capture says who sent what: each packet is checked against it
-    prev = lint.prev
-    if prev is not None and prev.event.kind == "garbage" and prev.event[4] == "truncated" \
-            and prev.event.end_offset == int(blk.offsets[0]):
-        return False  # B007: the first row starts where a cut-short frame ended
-    if blk.vid_models is not None:
-        return False  # servos of mixed models in long packets: per-record plans
-    # Q008: the servo IDs the bus has seen, with these.
-    long_rows = np.flatnonzero(is_long & (length > 0))
-    a, starts = blk.run.bytes_array, blk.run.starts[blk.lo:blk.hi]
-    vid_groups = []
-    for key in np.unique(length[long_rows] * 256 + c["count"][long_rows]).tolist():
-        rows = long_rows[length[long_rows] * 256 + c["count"][long_rows] == key]
-        ln, cnt = key // 256, key % 256
-        vid_groups.append((rows, a[(starts[rows] + 7)[:, None] + np.arange(cnt) * ln], ln))
-    ids = set(np.unique(sid[(is_short & (sid != BROADCAST_ID)) | is_return]).tolist())
-    for _, vids, _ in vid_groups:
-        ids.update(np.unique(vids).tolist())
-    new_ids = ids - lint.ids
-    if len(lint.ids) + len(new_ids) > lint.config.max_servos:
-        return False
-    if not _headers_quiet(lint, blk, run, vid_groups):
-        return False
-    timed = blk.t0 is not None and lint.timed
-    bt = lint.byte_time
-    if timed and "F004" in codes:
-        t0, t1 = blk.t0, blk.t1
-        idle = (t1 - t0) - (blk.run.ends[blk.lo:blk.hi] - starts) * bt
-        if (idle > lint.config.inter_byte_gap * bt).any():
+    def quiet(self, blk: Any) -> bool:
+        """True if no enabled rule finds anything in ``blk``, with the linter moved past it; else False
+        and the linter untouched."""
+        lint = self.lint
+        lint.begin(blk.t0 is not None)
+        max_servos = lint.config.max_servos
+        if len(lint.ids) > max_servos:
+            return False  # Q008 speaks on every packet now
+        view = BlockView(lint, blk)
+        sid, flag, address, dlen = view.ids, view.flag, view.address, view.data_len
+        is_short, is_long, is_return = view.is_short, view.is_long, view.is_return
+        if (is_short & ((flag & COMMAND_BITS) != 0)).any():
+            return False  # flash / reboot / initialize: command rules and their state (P008, P009, Q001-Q004)
+        if (is_return & (flag != 0)).any():
+            return False  # a status flag: P013, S001-S004, and the temperature lock Q009 reads
+        prev = lint.prev
+        if prev is not None and prev.event.kind == "garbage" and prev.event[4] == "truncated" \
+                and prev.event.end_offset == int(blk.offsets[0]):
+            return False  # B007: the first row starts where a cut-short frame ended
+        if blk.vid_models is not None:
+            return False  # servos of mixed models in long packets: per-record plans
+        # Q008: the servo IDs the bus has seen, with these.
+        length = view.length
+        long_rows = np.flatnonzero(is_long & (length > 0))
+        a, starts = view.bytes, view.starts
+        vid_groups = []
+        for key in np.unique(length[long_rows] * 256 + blk.cols["count"][long_rows]).tolist():
+            rows = long_rows[length[long_rows] * 256 + blk.cols["count"][long_rows] == key]
+            ln, cnt = key // 256, key % 256
+            vid_groups.append((rows, a[(starts[rows] + 7)[:, None] + np.arange(cnt) * ln], ln))
+        ids = set(np.unique(sid[(is_short & (sid != BROADCAST_ID)) | is_return]).tolist())
+        for _, vids, _ in vid_groups:
+            ids.update(np.unique(vids).tolist())
+        new_ids = ids - lint.ids
+        if len(lint.ids) + len(new_ids) > max_servos:
             return False
-    writes = _writes(lint, blk, is_short, is_return, address, dlen, vid_groups)
-    if writes is None:
-        return False
-    targets, pos_sets, goal_time_sets, shadow_order = writes
-    if not _values_quiet(lint, blk, codes, targets, pos_sets, goal_time_sets, timed):
-        return False
-    # ---- quiet: move the linter's memory past the rows, as feeding them would have ---------------
-    for s in shadow_order:
-        lint.shadow(s)
-    servos = lint.servos
-    for s, v in _last_per_servo(pos_sets).items():
-        servos[s].pos = v
-    for s, v in _last_per_servo(goal_time_sets).items():
-        servos[s].goal_time = v
-    for s in np.unique(sid[is_return]).tolist():
-        servos[s].flags = 0
-    if timed and "F007" in codes:
-        _f007_times(lint.state_of("F007").times, blk, starts)
-    lint.ids |= new_ids
-    lint.records += len(blk)
-    lint.prev = blk.record(len(blk) - 1)
-    return True
+        run = lint.active_rules
+        if not _headers_quiet(lint, self.header_verdicts, blk, run, vid_groups):
+            return False
+        shadow_order = _writes(view, run, vid_groups)
+        if shadow_order is None:
+            return False
+        for r in run:
+            quiet = r.column
+            if callable(quiet):
+                if r.state is not None:
+                    quiet = partial(quiet, lint.state_of(r.code))
+                if not quiet(view):
+                    return False
+        # ---- quiet: move the linter's memory past the rows, as feeding them would have -----------
+        for s in shadow_order:
+            lint.shadow(s)
+        servos = lint.servos
+        for s, v in _last_per_servo(view.sets["pos"]).items():
+            servos[s].pos = v
+        for s, v in _last_per_servo(view.sets["goal_time"]).items():
+            servos[s].goal_time = v
+        for s in np.unique(sid[is_return]).tolist():
+            servos[s].flags = 0
+        for fn in view.on_accept:
+            fn()
+        lint.moved_past(len(blk), blk.record(len(blk) - 1), new_ids)
+        return True
 
 
-def _headers_quiet(lint: Any, blk: Any, run: list, vid_groups: list) -> bool:
-    """Every HEADER rule silent on every distinct header of the block (each checked once, remembered)."""
-    memo = lint._header_memo
+def _headers_quiet(lint: Any, memo: dict, blk: Any, run: tuple, vid_groups: list) -> bool:
+    """Every "header" rule silent on every distinct header of the block (each checked once, remembered
+    in ``memo``)."""
     c = blk.cols
     kind = c["kind"]
     # The header packed in one int64 (kind 2 bits, five header bytes, data length 14 bits).
@@ -164,6 +204,7 @@ def _headers_quiet(lint: Any, blk: Any, run: list, vid_groups: list) -> bool:
             sub = rows[hdr[rows] == h]
             _, at = np.unique(v[hdr[rows] == h], return_index=True)
             samples += sub[at].tolist()
+    header_rules = None
     for k in samples:
         rec = blk.record(k)
         ev = rec.event
@@ -173,17 +214,35 @@ def _headers_quiet(lint: Any, blk: Any, run: list, vid_groups: list) -> bool:
                asked[:7], len(asked))
         quiet = memo.get(key)
         if quiet is None:
-            quiet = memo[key] = _header_sample_quiet(lint, run, rec, ev)
+            if header_rules is None:
+                header_rules = [r for r in run if r.column == "header"]
+            quiet = memo[key] = _header_sample_quiet(lint, header_rules, rec, ev)
         if not quiet:
             return False
     return True
 
 
-def _header_sample_quiet(lint: Any, run: list, rec: Any, ev: Any) -> bool:
+class _Probe:
+    """The linter as a "header" rule sees it, but whose emit only notes that the rule spoke."""
+
+    def __init__(self, lint: Any) -> None:
+        self.linter = lint
+        self.spoke = False
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.linter, name)
+
+    def emit(self, *args: Any, **kwargs: Any) -> None:
+        self.spoke = True
+
+    emit_at = emit
+
+
+def _header_sample_quiet(lint: Any, header_rules: list, rec: Any, ev: Any) -> bool:
     probe = _Probe(lint)
     kind = ev.kind
-    for r in run:
-        if r.code in HEADER and kind in r.kinds and r.when is None:
+    for r in header_rules:
+        if kind in r.kinds and r.when is None:
             r.check_for(kind)(probe, rec, ev)
     data = ev[1][7:-1]
     if kind != "return" and data and rec.model is not None:
@@ -191,20 +250,10 @@ def _header_sample_quiet(lint: Any, run: list, rec: Any, ev: Any) -> bool:
         if n > 0:
             plan = lint.plan(rec.model, ev.address, n)
             ids = (ev.id,) if kind == "short" else tuple(r[0] for r in ev.records)
-            for r in run:
-                if r.code in HEADER and "write" in r.kinds:
+            for r in header_rules:
+                if "write" in r.kinds:
                     r.check_for("write")(probe, rec, plan, ids)
     return not probe.spoke
-
-
-def _parts(a: np.ndarray, at: np.ndarray, plan: Any, j: int) -> np.ndarray:
-    """Raw value of part ``j`` of ``plan`` for data starting at blob index ``at`` (as Plan.unpack)."""
-    start, size, reg, partial = plan.model.layout(plan.address, plan.n).parts[j]
-    lo = a[at + start].astype(np.int64)
-    if size == 2 and not partial:
-        v = lo | a[at + start + 1].astype(np.int64) << 8
-        return v - (v >= 0x8000) * 0x10000 if reg.signed else v
-    return lo - (lo >= 0x80) * 0x100 if reg.signed and not partial else lo
 
 
 def _by_model(blk: Any, rows: np.ndarray, sid: np.ndarray) -> list[tuple[Any, np.ndarray]]:
@@ -218,19 +267,17 @@ def _by_model(blk: Any, rows: np.ndarray, sid: np.ndarray) -> list[tuple[Any, np
     return [(model, rows[np.isin(sid[rows], ids)]) for model, ids in by.values()]
 
 
-def _writes(lint, blk, is_short, is_return, address, dlen, vid_groups):
-    """The block's writes and position reports as columns: (targets, pos_sets, goal_time_sets, shadow
-    creation order), or None when one of them needs the record path (a followed register other than
-    position and goal time, or a target rule without a column form)."""
-    a, starts = blk.run.bytes_array, blk.run.starts[blk.lo:blk.hi]
-    sid = blk.cols["id"]
-    targets = []        # (plan, rows, subs, servo ids, data starts)
-    pos_sets = []       # (order keys, servo ids, values): pos changes
-    goal_time_sets = []
+def _writes(view: BlockView, run: tuple, vid_groups: list) -> list[int] | None:
+    """The block's writes and position reports as columns (view.targets, view.sets) and the order the
+    linter creates shadows in; None when one of them needs the record path (a followed register other
+    than position and goal time, or a write a "target" rule without a column function would see)."""
+    lint, blk = view.lint, view.blk
+    starts, sid, address, dlen = view.starts, view.ids, view.address, view.data_len
+    sets = view.sets
     mentions = []       # (order keys, servo ids): the shadows the linter creates, in order
-    target_codes = {r.code: r for r, _ in lint._target_rules}
+    silent_targets = [r for r in run if "target" in r.kinds and not callable(r.column)]
     groups = []         # (model, address, n, rows, subs, sids, data starts, kind)
-    short_rows = np.flatnonzero(is_short & (dlen > 0))
+    short_rows = np.flatnonzero(view.is_short & (dlen > 0))
     skey = address[short_rows] * 4096 + dlen[short_rows]
     for key in np.unique(skey).tolist():
         for model, r2 in _by_model(blk, short_rows[skey == key], sid):
@@ -245,7 +292,7 @@ def _writes(lint, blk, is_short, is_return, address, dlen, vid_groups):
             v2 = vids[address[rows] == ad]
             groups.append((blk.default, ad, ln - 1, np.repeat(r2, cnt), np.tile(np.arange(1, cnt + 1), len(r2)),
                            v2.ravel(), (starts[r2][:, None] + 8 + np.arange(cnt) * ln).ravel(), "write"))
-    ret_rows = np.flatnonzero(is_return)
+    ret_rows = np.flatnonzero(view.is_return)
     rkey = address[ret_rows] * 4096 + dlen[ret_rows]
     mentions.append((ret_rows.astype(np.int64) * 512, sid[ret_rows].astype(np.int64)))
     for key in np.unique(rkey).tolist():
@@ -259,20 +306,24 @@ def _writes(lint, blk, is_short, is_return, address, dlen, vid_groups):
         if model is None:
             continue
         plan = lint.plan(model, ad, n)
-        if any(attr not in _MOVING for attr, _ in plan.tracked):
+        if any(attr not in sets for attr, _ in plan.tracked):
             return None
         order = rows.astype(np.int64) * 512 + subs
+        sids = sids.astype(np.int64)
         if what == "write":
-            mentions.append((order, sids.astype(np.int64)))
+            mentions.append((order, sids))
             names = set(plan.index)
-            for code, r in target_codes.items():
-                if (r.fields is None or r.fields & names) and code not in ("M003", "Q004", "Q006", "Q007"):
+            for r in silent_targets:
+                if r.fields is None or r.fields & names:
                     return None
-            targets.append((plan, rows, subs, sids.astype(np.int64), at))
-        for attr, j in plan.tracked:
-            sets = pos_sets if attr == "pos" else goal_time_sets
+            t = Target(plan, rows, subs, sids, at, {})
+            view.targets.append(t)
             # A write's targets are all checked before any is applied: applied just after the row's checks.
-            sets.append((order + (256 if what == "write" else 0), sids.astype(np.int64), _parts(a, at, plan, j)))
+            for attr, j in plan.tracked:
+                sets[attr].append((order + 256, sids, view.written(t, j)))
+        else:
+            for attr, j in plan.tracked:
+                sets[attr].append((order, sids, view.values(plan, j, at)))
     m_order = np.concatenate([m[0] for m in mentions]) if mentions else np.zeros(0, np.int64)
     m_ids = np.concatenate([m[1] for m in mentions]) if mentions else np.zeros(0, np.int64)
     shadow_order = []
@@ -281,7 +332,7 @@ def _writes(lint, blk, is_short, is_return, address, dlen, vid_groups):
         if s not in seen:
             seen.add(s)
             shadow_order.append(s)
-    return targets, pos_sets, goal_time_sets, shadow_order
+    return shadow_order
 
 
 def _concat(sets):
@@ -301,11 +352,10 @@ def _last_per_servo(sets) -> dict[int, int]:
     return dict(zip(ids[last].tolist(), vals[last].tolist()))
 
 
-def _before(sets, lint, attr: str):
-    """A function of (order, servo ids): for each, the shadow's ``attr`` just before that point (_NONE
-    while unknown). The sets are sorted once, for every lookup."""
+def _before(sets, column: np.ndarray):
+    """A function of (order, servo ids): for each, the value just before that point, from ``sets`` or
+    else ``column`` (the value before the Block). The sets are sorted once, for every lookup."""
     s_order, s_ids, s_vals = _concat(sets)
-    column = _shadow_column(lint, attr)
     if not len(s_order):
         return lambda order, ids: column[ids]
     key = s_ids << 32 | s_order
@@ -321,96 +371,3 @@ def _before(sets, lint, attr: str):
         return out
 
     return before
-
-
-def _shadow_column(lint, attr: str) -> np.ndarray:
-    """Each servo's shadow ``attr`` by ID (_NONE while unknown)."""
-    out = np.full(256, _NONE, dtype=np.int64)
-    for s, sh in lint.servos.items():
-        v = getattr(sh, attr)
-        if v is not None:
-            out[s] = v
-    return out
-
-
-def _values_quiet(lint, blk, codes, targets, pos_sets, goal_time_sets, timed) -> bool:
-    """M003, Q004, Q006, Q007 on the writes' values; B006 on the latencies."""
-    a = blk.run.bytes_array
-    torque = _shadow_column(lint, "torque") if "Q004" in codes else None
-    said = lint.state_of("Q004") if "Q004" in codes else None
-    if "Q006" in codes:
-        cw, ccw, rev = _shadow_column(lint, "cw"), _shadow_column(lint, "ccw"), _shadow_column(lint, "reverse")
-    pos_before = goal_time_before = None  # made on first use (_before)
-    for plan, rows, subs, ids, at in targets:
-        if "M003" in codes:
-            for j, _, lo, hi in plan.ranged:
-                v = _parts(a, at, plan, j)
-                if ((v < lo) | (v > hi)).any():
-                    return False
-        g = plan.index.get("goal_position")
-        if g is None:
-            continue
-        goal = _parts(a, at, plan, g)
-        if torque is not None:
-            off = (torque[ids] == 0) & (ids != BROADCAST_ID)
-            if off.any() and any(s not in said for s in ids[off].tolist()):
-                return False
-        if "Q006" in codes:
-            free = rev[ids] != 1
-            over = free & (cw[ids] != _NONE) & (goal > cw[ids])
-            under = free & ~over & (ccw[ids] != _NONE) & (goal < ccw[ids])
-            if (over | under).any():
-                return False
-        if "Q007" in codes:
-            order = rows.astype(np.int64) * 512  # checked before the row's writes apply (its sub-order 0)
-            if pos_before is None:
-                pos_before = _before(pos_sets, lint, "pos")
-            pos = pos_before(order, ids)
-            j = plan.index.get("goal_time")
-            if j is not None:
-                gt = _parts(a, at, plan, j)
-            else:
-                if goal_time_before is None:
-                    goal_time_before = _before(goal_time_sets, lint, "goal_time")
-                gt = goal_time_before(order, ids)
-                gt = np.where(gt == _NONE, 0, gt)
-            known = (pos != _NONE) & (gt != 0)
-            dist = np.abs(goal - pos)
-            if (known & (dist * plan.model.top_speed_s_per_60deg > 6 * gt)).any():
-                return False
-    if timed and "B006" in codes:
-        replies, lat = blk.reply_latencies()
-        if replies.size:
-            # The requests' servos' return delay (0 while unknown), as return_latency reads it.
-            rd = _shadow_column(lint, "return_delay")[blk.cols["id"][replies - 1]]
-            expected = 100e-6 + 50e-6 * np.where(rd == _NONE, 0, rd)
-            if (np.abs(lat - expected) > lint.config.latency_margin).any():
-                return False
-    return True
-
-
-def _f007_times(times: Any, blk: Any, starts: np.ndarray) -> None:
-    """F007's line-rate estimator fed each packet's (length, start time), as its packet check does."""
-    lens = blk.run.ends[blk.lo:blk.hi] - starts
-    t0 = blk.t0
-    prev_len = np.empty(len(lens), dtype=np.int64)
-    prev_t = np.empty(len(lens))
-    prev_len[1:], prev_t[1:] = lens[:-1], t0[:-1]
-    p = times._prev
-    keep = np.ones(len(lens), dtype=bool)
-    if p is None:
-        keep[0] = False
-        prev_len[0], prev_t[0] = 1, 0.0
-    else:
-        prev_len[0], prev_t[0] = p[0], p[1]
-    keep &= t0 > prev_t
-    rows = np.flatnonzero(keep)
-    if times._samples.maxlen:
-        rows = rows[-times._samples.maxlen:]  # the deque keeps the last ones only: make those alone
-    if len(rows):
-        lens_kept = prev_len[rows]
-        times._samples.extend(zip(((t0[rows] - prev_t[rows]) / lens_kept).tolist(), lens_kept.tolist()))
-        times._cached = None
-    times._prev = (int(lens[-1]), float(t0[-1]))
-
-

@@ -8,7 +8,7 @@ from typing import Any, Callable
 from ..decode.pairing import MISSING, Record
 from ..protocol.wire import (
     BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, byte_time)
-from .batch import quiet_block
+from .batch import BlockLinter
 from .config import LintConfig
 from .registry import KINDS, RULES, WHEN, Finding, Rule
 from .state import Plan, Shadow
@@ -31,6 +31,7 @@ class Linter:
         self.findings: list[Finding] = []
         self.timed: bool | None = None
         self.skipped: tuple[str, ...] = ()
+        self.active_rules: tuple[Rule, ...] = ()  # the enabled rules that run (all but the skipped)
         self.byte_time = byte_time(c.baud)
         self.records = 0
         self._new: list[Finding] = []
@@ -45,12 +46,18 @@ class Linter:
         self._states = {r.code: r.state() for r in self.rules if r.state is not None}
         self._counting = True
         self._vid_sets: set[bytes] = set()
-        self._header_memo: dict[tuple, bool] = {}  # batch: header rules' verdict per distinct header
+        self._columns = BlockLinter(self)  # the column form, for Blocks (rs30x_sniff.lint.batch)
 
     # ---- setup -------------------------------------------------------------------------------
+    def begin(self, timed: bool) -> None:
+        """Decide whether the capture has timestamps, unless the first record (or Block) already did."""
+        if self.timed is None:
+            self._setup(timed)
+
     def _setup(self, timed: bool) -> None:
         self.timed = timed
         run = [r for r in self.rules if timed or not r.needs_time]
+        self.active_rules = tuple(run)
         self.skipped = tuple(r.code for r in self.rules if r.needs_time and not timed)
         self._target_rules = [(r, self._bound(r, "target")) for r in run if "target" in r.kinds]
         self._on = {k: tuple(self._bound(r, k) for r in run if k in r.kinds and r.when is None) for k in KINDS}
@@ -67,6 +74,14 @@ class Linter:
         """The check for ``kind``, with the rule's own state bound as its first argument if it has one."""
         fn = r.check_for(kind)
         return fn if r.state is None else MethodType(fn, self._states[r.code])
+
+    def stop_calling(self, state: Any, kinds: Any) -> None:
+        """Take the checks of ``kinds`` bound to a rule's ``state`` out of the per-kind dispatch for the rest
+        of this run (or time segment): a rule that found it has nothing to check stops costing a call per record."""
+        on = self._on
+        for kind in kinds:
+            if kind in on:
+                on[kind] = tuple(fn for fn in on[kind] if getattr(fn, "__self__", None) is not state)
 
     def state_of(self, code: str) -> Any:
         """The state object of rule ``code`` in this run (None for a rule without state or not enabled)."""
@@ -146,11 +161,18 @@ class Linter:
     def feed_block(self, blk: Any) -> None:
         """Check a Block's rows (rs30x_sniff.decode.blocks), in wire order, as if fed one by one: on the columns
         when no rule has anything to say of them (rs30x_sniff.lint.batch), else record by record."""
-        if quiet_block(self, blk):
+        if self._columns.quiet(blk):
             return
         feed = self.feed
         for rec in blk.records():
             feed(rec)
+
+    def moved_past(self, n: int, last: Record, ids: set[int]) -> None:
+        """The linter's counters moved past ``n`` records checked on the columns (rs30x_sniff.lint.batch),
+        as feeding them would have: ``last`` is the last of them, ``ids`` the servo IDs they add."""
+        self.ids |= ids
+        self.records += n
+        self.prev = last
 
     def seam(self, seam: Any) -> list[Finding]:
         """A seam of the capture's clock (rs30x_sniff.decode.framing.Seam) before the next record: nothing before

@@ -34,6 +34,20 @@ FAMILIES = {"F": "Framing", "P": "Packet structure", "M": "Memory map", "B": "Bu
 KINDS = ("short", "long", "return", "ack", "nack", "garbage", "corrupt", "command", "write", "target", "moved",
          "seam", "close")
 
+# Every rule also declares its column form with column=: how the linter's column path
+# (rs30x_sniff.lint.batch) knows the rule says nothing of a Block's rows without feeding them one by one.
+#   "header"    the rule's checks are pure in a packet's header, its model and (for a reply) its request's
+#               header: the batch linter runs them once per distinct header, on a sample record
+#   "silent"    the rule cannot speak of a Block that passes the batch linter's common checks (a Block has
+#               no garbage, corrupt frames, ACK/NACK or unpaired replies, and one holding commands, flagged
+#               returns or writes of registers other than positions and goal times takes the record path);
+#               a "target" rule declared silent sends every Block that writes one of its fields there
+#   a function  quiet(view) -> bool, or quiet(state, view) for a rule with state=: True when the rule finds
+#               nothing in the Block's rows (rs30x_sniff.lint.batch.BlockView: its columns, writes, the shadows
+#               as of any row); it may call view.when_quiet(fn) to move the rule's memory past the rows once
+#               the Block is accepted. It lives beside the rule, with the same arithmetic as its check.
+COLUMN_DECLARATIONS = ("header", "silent")
+
 
 # Preconditions a rule may declare with when=: the linter tests each once per record (for the kinds that
 # have rules waiting on it) and calls the rule only when it holds, so the common healthy record costs few
@@ -108,6 +122,7 @@ class Rule:
     when: str | None = None  # a cheap precondition the linter tests once for all rules sharing it (WHEN)
     state: Callable[[], Any] | None = None  # makes the rule's own memory, once per linter run
     handlers: dict[str, Callable[..., Any]] = field(default_factory=dict)  # kind -> check, where not ``check``
+    column: str | Callable[..., bool] | None = None  # the column form: "header", "silent" or quiet(view) (KINDS)
 
     def check_for(self, kind: str) -> Callable[..., Any]:
         """The function that checks records of ``kind`` (unbound: a stateful rule's take the state first)."""
@@ -148,6 +163,9 @@ class Registry:
         for part in ("What it does", "Why it matters", "Example"):
             if not r.section(part):
                 raise ValueError(f"{r.code}: doc has no {part!r} section")
+        if r.column not in COLUMN_DECLARATIONS and not callable(r.column):
+            raise ValueError(f"{r.code}: column={r.column!r}: declare the rule's column form (column='header', "
+                             "'silent' or a function quiet(view), see rs30x_sniff.lint.registry)")
         self._by_code[r.code] = r
         self._by_name[r.name] = r
 
@@ -216,8 +234,11 @@ def _expand(code: str, kinds: tuple[str, ...]) -> list[str]:
 
 def rule(code: str, name: str, severity: str, summary: str, doc: str, *, kinds: tuple[str, ...],
          needs_time: bool = False, fields: tuple[str, ...] | None = None, when: str | None = None,
-         state: Callable[[], Any] | None = None) -> Callable:
+         state: Callable[[], Any] | None = None, column: str | Callable[..., bool] | None = None) -> Callable:
     """Declare a rule; the decorated function is its check (see KINDS for how it is called).
+
+    ``column`` is the rule's column form, required: "header", "silent" or a function (see
+    COLUMN_DECLARATIONS); a rule without one is an error here, at import.
 
     ``state`` (a class or any callable) makes the rule's own memory; the decorated function gains
     ``.on(kind)``, a decorator giving one of the declared kinds a check of its own.
@@ -228,7 +249,7 @@ def rule(code: str, name: str, severity: str, summary: str, doc: str, *, kinds: 
 
     def deco(fn: Callable) -> Callable:
         r = Rule(code, name, severity, summary, doc.strip() + "\n", tuple(expanded), fn, needs_time,
-                 frozenset(fields) if fields else None, when, state)
+                 frozenset(fields) if fields else None, when, state, column=column)
         RULES.add(r)
 
         def on(*kinds_: str) -> Callable:

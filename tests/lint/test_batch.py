@@ -10,8 +10,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rs30x_sniff.decode import blocks as blocks_module
-from rs30x_sniff.lint.batch import KNOWN
-from rs30x_sniff.lint.registry import RULES, frame
+from rs30x_sniff.lint import batch
+from rs30x_sniff.lint.registry import RULES, Registry, Rule, frame, rule
 from rs30x_sniff.protocol.wire import RETURN_HEADER, byte_time, encode_long, encode_read, encode_return, encode_short
 from tests.core.test_columnar import columnar_path, record_key, record_path
 
@@ -81,21 +81,29 @@ def compare(chunks, groups=(500,)):
     assert shadows(db) == shadows(da)
     assert list(db.linter.servos) == list(da.linter.servos)
     assert db.linter.ids == da.linter.ids and db.linter.records == da.linter.records
-    times = lambda d: (list(d.linter.state_of("F007").times._samples), d.linter.state_of("F007").times._prev)  # noqa: E731
+    times = lambda d: (d.linter.state_of("F007").times.spacings, d.linter.state_of("F007").times.last)  # noqa: E731
     assert times(db) == times(da)
     return blocks, {f[0] for f in found}
 
 
-def test_every_rule_has_a_column_form():
-    assert {r.code for r in RULES} <= KNOWN
+def test_every_rule_declares_its_column_form():
+    for r in RULES:
+        assert r.column in ("header", "silent") or callable(r.column), r.code
+
+
+def test_a_rule_without_a_column_form_is_an_error_when_it_registers():
+    doc = "## What it does\nx\n## Why it matters\ny\n## Example\nz\n"
+    with pytest.raises(ValueError, match="column"):
+        rule("Q990", "scratch-rule", "info", "A scratch rule.", doc, kinds=("short",))(lambda lint, rec, ev: None)
+    assert "Q990" not in RULES
+    with pytest.raises(ValueError, match="column"):
+        Registry().add(Rule("Q991", "scratch-rule", "info", "s", doc, ("short",), print, column="sometimes"))
 
 
 def test_clean_traffic_is_linted_on_the_columns(monkeypatch):
     calls = []
-    from rs30x_sniff.lint import linter
-
-    real = linter.quiet_block
-    monkeypatch.setattr(linter, "quiet_block", lambda lint, blk: calls.append(real(lint, blk)) or calls[-1])
+    real = batch.BlockLinter.quiet
+    monkeypatch.setattr(batch.BlockLinter, "quiet", lambda self, blk: calls.append(real(self, blk)) or calls[-1])
     blocks, codes = compare(capture("P001", at=-1))
     assert blocks and calls and all(calls) and not codes
 

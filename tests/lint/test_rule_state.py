@@ -73,7 +73,7 @@ def test_when_is_a_table_of_documented_predicates():
 def test_on_refuses_a_kind_the_rule_did_not_declare():
     doc = "## What it does\nx\n## Why it matters\ny\n## Example\nz\n"
     try:
-        @rule("Q990", "test-only-rule", "info", "s", doc, kinds=("short",))
+        @rule("Q990", "test-only-rule", "info", "s", doc, kinds=("short",), column="silent")
         def check(lint, rec, ev):
             pass
 

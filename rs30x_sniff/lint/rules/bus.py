@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ...decode.pairing import EXTRA, MISSING, PAIRED, UNSOLICITED
 from ...protocol.wire import ACK, BROADCAST_ID, NACK, encode_read, encode_return, encode_short
+from ..batch import UNKNOWN
 from ..registry import example, rule
 
 _READ = encode_read(1, 0x2A, 2)              # present_position of ID 1
@@ -19,6 +22,12 @@ one, or none, is the servo's (B002).
 """
 
 
+def expected_latency(return_delay):
+    """The reply latency a return_delay means (table 4.6, No. 7): 100 us + 50 us x return_delay, in
+    seconds; for one servo, or a column of them."""
+    return 100e-6 + 50e-6 * return_delay
+
+
 def reply_due(lint, req) -> float:
     """Seconds after the end of ``req`` until which its reply was still due (see _TIMING)."""
     ev = req.event
@@ -26,7 +35,7 @@ def reply_due(lint, req) -> float:
     rd = sh.return_delay if sh is not None and sh.return_delay is not None else 0
     rr = ev.read_range
     size = 1 if rr is None else 8 + rr[1]
-    due = 100e-6 + 50e-6 * rd + size * lint.byte_time + lint.config.latency_margin
+    due = expected_latency(rd) + size * lint.byte_time + lint.config.latency_margin
     return min(due, lint.config.reply_timeout)
 
 
@@ -51,7 +60,7 @@ servo's reply and the host's next packet collide, both are lost, and the host ma
 
 ## Example
 {example((0.0, _READ), (0.0012, _POLL2), note="two polls 0.5 ms apart, the first never answered:")}
-""", kinds=("request",), needs_time=True, when="settles")
+""", kinds=("request",), needs_time=True, when="settles", column="silent")
 def request_before_return(lint, rec, ev):
     p = lint.missing
     if p is None or p.resolved_by is not rec or not p.event.checksum_ok:
@@ -79,7 +88,7 @@ is answering too late (return_delay). A control loop that waits for it stalls or
 
 ## Example
 {example(_READ, _POLL2, encode_return(2, 0x2A, bytes.fromhex("0000")), note="ID 1 never answers; ID 2 does:")}
-""", kinds=("short",), when="unpaired")
+""", kinds=("short",), when="unpaired", column="silent")
 def missing_return(lint, rec, ev):
     if rec.status != MISSING or ev.id == BROADCAST_ID:
         return
@@ -105,7 +114,7 @@ the host had given up on it and will read it as the answer to its next question.
 
 ## Example
 {example(encode_short(1, 0, 0x1E, bytes.fromhex("8403")), _RET, note="a write that asked for nothing, then a return:")}
-""", kinds=("reply",), when="unpaired")
+""", kinds=("reply",), when="unpaired", column="silent")
 def unsolicited_return(lint, rec, ev):
     if rec.status != UNSOLICITED:
         return
@@ -128,7 +137,7 @@ or a servo answered a packet meant for another: the host files data under the wr
 
 ## Example
 {example(_READ, encode_return(2, 0x2A, bytes.fromhex("8403")))}
-""", kinds=("return",))
+""", kinds=("return",), column="header")
 def return_id_mismatch(lint, rec, ev):
     req = rec.request
     if rec.status == PAIRED and req is not None and req.event.id != BROADCAST_ID and req.event.id != ev.id:
@@ -147,7 +156,7 @@ temperature field and so on. It means a firmware difference, or a reply to some 
 
 ## Example
 {example(_READ, encode_return(1, 0x2C, bytes.fromhex("0000")))}
-""", kinds=("return", "ack"))
+""", kinds=("return", "ack"), column="header")
 def return_range_mismatch(lint, rec, ev):
     req = rec.request
     if rec.status != PAIRED or req is None:
@@ -165,6 +174,24 @@ def return_range_mismatch(lint, rec, ev):
                                f"asked for {rr[1]} from {rr[0]}")
 
 
+def latency_off(lint, latency, expected):
+    """Whether a reply's latency (or each of a column of them) is off the expected one by more than
+    latency-margin: B006's test, on the record path and the column path alike."""
+    return abs(latency - expected) > lint.config.latency_margin
+
+
+def _return_latency_columns(view) -> bool:
+    """B006 on a Block: every reply's latency within the margin of its servo's return delay."""
+    if not view.timed:
+        return True
+    replies, lat = view.blk.reply_latencies()
+    if not replies.size:
+        return True
+    # The requests' servos' return delay (0 while unknown), as return_latency reads it.
+    rd = view.shadows("return_delay")[view.ids[replies - 1]]
+    return not latency_off(view.lint, lat, expected_latency(np.where(rd == UNKNOWN, 0, rd))).any()
+
+
 @rule("B006", "return-latency", "warning", "A reply much earlier or later than the servo's return delay.", f"""
 ## What it does
 Flags a reply whose latency (from the end of the request to the start of the reply) differs from the
@@ -179,7 +206,7 @@ B002. An impossibly early reply points at wrong timestamps or a second host.
 
 ## Example
 {example((0.0, _READ), (0.0106, _RET), note="a return 10 ms after the request, with return_delay 0:")}
-""", kinds=("reply",), needs_time=True)
+""", kinds=("reply",), needs_time=True, column=_return_latency_columns)
 def return_latency(lint, rec, ev):
     lat = rec.latency
     if lat is None or rec.status != PAIRED:
@@ -188,8 +215,8 @@ def return_latency(lint, rec, ev):
     sid = req.event.id if req is not None else None
     sh = lint.servos.get(sid)
     rd = sh.return_delay if sh is not None and sh.return_delay is not None else None
-    expected = 100e-6 + 50e-6 * (rd or 0)
-    if abs(lat - expected) > lint.config.latency_margin:
+    expected = expected_latency(rd or 0)
+    if latency_off(lint, lat, expected):
         lint.emit("B006", rec, f"reply {lat * 1e3:.3f} ms after the request; return_delay "
                                f"{rd if rd is not None else '0 (assumed)'} means {expected * 1e3:.3f} ms", sid=sid)
 
@@ -207,7 +234,7 @@ servos with one ID, or a second host. Both frames are damaged; the one that surv
 
 ## Example
 {example(encode_short(1, 0x09, 0, b"", length=0, count=1)[:6] + _RET, note="a poll of ID 1 cut off by a return that started inside it:")}
-""", kinds=("packet", "corrupt"), when="after-cut")
+""", kinds=("packet", "corrupt"), when="after-cut", column="silent")
 def bus_collision(lint, rec, ev):
     prev = lint.prev
     if prev is None:
@@ -230,7 +257,7 @@ malformed packet the host keeps sending.
 
 ## Example
 {example(encode_short(1, 0x01, 0x1E, bytes.fromhex("8403")), bytes((NACK,)))}
-""", kinds=("nack",))
+""", kinds=("nack",), column="silent")
 def nack(lint, rec, ev):
     req = rec.request
     lint.emit("B008", rec, f"NACK{f' from ID {req.event.id} to request @{req.offset}' if req is not None else ''}")
@@ -247,7 +274,7 @@ and every read is a collision waiting to happen.
 
 ## Example
 {example(_READ, _RET, encode_return(1, 0x2A, bytes.fromhex("8003")))}
-""", kinds=("reply",), when="unpaired")
+""", kinds=("reply",), when="unpaired", column="silent")
 def multiple_returns(lint, rec, ev):
     req = rec.request
     if rec.status == EXTRA and req is not None and req.event.id != BROADCAST_ID:

@@ -22,6 +22,12 @@ class _Tally:
         self.first: tuple | None = None  # (offset, t, id, kind, sender) of the first disagreement
 
 
+def _sender_mismatch_columns(st, view) -> bool:
+    """F009 on a Block: silent unless the capture says who sent what (then each packet is checked)."""
+    senders = decide(st, view.lint) if st.senders is False else st.senders
+    return senders is None
+
+
 @rule("F009", "sender-mismatch", "warning",
       "A packet the capture says the other side sent: a request from a servo, or a reply from the host.", """
 ## What it does
@@ -47,7 +53,7 @@ of present_position of ID 1 is logged as received (RX), the servo's return of 90
 000000.001 RX   0000  FA AF 01 0F 2A 02 00 26                           ....*..&
 000000.002 TX   0000  FD DF 01 00 2A 02 01 84  03 AF                    ....*.....
 ```
-""", kinds=("request", "reply", "close"), state=_Tally)
+""", kinds=("request", "reply", "close"), state=_Tally, column=_sender_mismatch_columns)
 def sender_mismatch(st, lint, rec, ev):
     senders = st.senders
     if senders is False:
@@ -77,12 +83,10 @@ def decide(st, lint):
 
 def _stop_calling(st, lint) -> None:
     # A capture that does not say who sent what (most do not) must not pay for this rule: its checks
-    # leave the linter's per-kind dispatch, which is built once per run (Linter._setup).
-    on = getattr(lint, "_on", None)
-    if isinstance(on, dict):
-        for kind in _EXPECTED:
-            if kind in on:
-                on[kind] = tuple(fn for fn in on[kind] if getattr(fn, "__self__", None) is not st)
+    # leave the linter's per-kind dispatch, which is built once per run.
+    stop = getattr(lint, "stop_calling", None)
+    if stop is not None:
+        stop(st, _EXPECTED)
 
 
 @sender_mismatch.on("close")

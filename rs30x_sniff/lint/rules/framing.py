@@ -23,7 +23,7 @@ a weak pull-up, a long cable, or two talkers at once.
 
 ## Example
 {example(_GOAL[:-1] + bytes((_GOAL[-1] ^ 0x01,)), note="goal_position 90.0 deg with the Sum off by one bit:")}
-""", kinds=("corrupt",))
+""", kinds=("corrupt",), column="silent")
 def checksum_mismatch(lint, rec, ev):
     lint.emit("F001", rec, f"Sum is 0x{ev.raw[-1]:02X} but the bytes from ID on XOR to 0x{_xor(ev.raw[2:-1]):02X}")
 
@@ -48,7 +48,7 @@ servo's own parser and cost the next command.
 
 ## Example
 {example(_GOAL, bytes.fromhex("123456"), _GOAL, note="three stray bytes between two goal_position writes:")}
-""", kinds=("garbage",))
+""", kinds=("garbage",), column="silent")
 def garbage_bytes(lint, rec, ev):
     # Cut-short frames are F003's, bytes the capturing UART flagged are F008's (rs30x_sniff.protocol.chunks), and
     # frames the capture's own start or end cut are no fault of the bus.
@@ -76,10 +76,20 @@ was pre-empted, or filled a transmit buffer.
 
 ## Example
 {example((0.0, _GOAL[:8]), (0.01, _GOAL), note="a goal_position write that stops after 8 of its 10 bytes, then another:")}
-""", kinds=("garbage",))
+""", kinds=("garbage",), column="silent")
 def truncated_frame(lint, rec, ev):
     if ev.reason == "truncated":
         lint.emit("F003", rec, f"frame cut short after {len(ev.raw)} byte(s)", sid=ev.raw[2] if len(ev.raw) > 2 else None)
+
+
+def _inter_byte_gap_columns(view) -> bool:
+    """F004 on a Block: no row's bytes took longer than their count needs by more than the gap."""
+    if not view.timed:
+        return True
+    lint, blk = view.lint, view.blk
+    bt = lint.byte_time
+    idle = (blk.t1 - blk.t0) - (view.ends - view.starts) * bt
+    return not (idle > lint.config.inter_byte_gap * bt).any()
 
 
 @rule("F004", "inter-byte-gap", "warning", "Idle time inside a frame, between two of its bytes.", f"""
@@ -95,7 +105,7 @@ or merging it with the next one.
 
 ## Example
 {example((0.0, _GOAL[:5]), (0.001, _GOAL[5:]), note="a goal_position write with 1 ms of silence after its fifth byte:")}
-""", kinds=("packet", "corrupt"), needs_time=True)
+""", kinds=("packet", "corrupt"), needs_time=True, column=_inter_byte_gap_columns)
 def inter_byte_gap(lint, rec, ev):
     t0, t1 = ev[2], ev[3]
     if t0 is None or t1 is None:
@@ -127,6 +137,14 @@ _WRONG_BAUD = bytes.fromhex(
     "1FE6090B94B48061 0ECC090BC43E8061 0BC90A0BD4E68561 0ACB0A0B84FE")
 
 
+def _wrong_baud_rate_columns(st, view) -> bool:
+    """F007 on a Block: a Block holds valid frames only, which end a stretch and (timed) feed the rate
+    estimate, as the check of each packet does."""
+    if view.timed:
+        view.when_quiet(lambda: st.times.chunks(view.ends - view.starts, view.blk.t0))
+    return True
+
+
 @rule("F007", "wrong-baud-rate", "error", "A long run of bytes with no valid frame: the bus is at another baud rate.", f"""
 ## What it does
 Flags a stretch of traffic that holds no checksum-valid frame where a healthy bus would have had
@@ -143,7 +161,7 @@ factory default 115200 on a bus that runs at another rate. `--baud auto` on a po
 
 ## Example
 {example(_WRONG_BAUD, note="18 goal writes sent at 115200 bit/s, read at 57600:")}
-""", kinds=("garbage", "corrupt", "packet", "ack", "nack"), state=_Stretch)
+""", kinds=("garbage", "corrupt", "packet", "ack", "nack"), state=_Stretch, column=_wrong_baud_rate_columns)
 def wrong_baud_rate(st, lint, rec, ev):
     # Garbage: the run grows. Runs of garbage are split where the decoder found a (corrupt) frame
     # header or an idle gap, so consecutive garbage records are one stretch.

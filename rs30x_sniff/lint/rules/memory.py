@@ -25,7 +25,7 @@ the host's register offsets are off by a few bytes.
 
 ## Example
 {example(encode_short(1, 0, 0x2A, bytes.fromhex("8403")), note="a write to present_position:")}
-""", kinds=("write",))
+""", kinds=("write",), column="header")
 def write_read_only(lint, rec, plan, ids):
     if plan.read_only:
         who, sid = _who(ids)
@@ -44,11 +44,21 @@ instead of 0x0A, a typo that lands in a reserved area.
 
 ## Example
 {example(bytes.fromhex("FAAF0100100201 18FC F6".replace(" ", "")), note="the manual's ccw_angle_limit example, sent to 0x10:")}
-""", kinds=("write",))
+""", kinds=("write",), column="header")
 def write_reserved(lint, rec, plan, ids):
     if plan.reserved:
         who, sid = _who(ids)
         lint.emit("M002", rec, f"writes {', '.join(plan.reserved)} of {who}", sid=sid)
+
+
+def _value_out_of_range_columns(view) -> bool:
+    """M003 on a Block: every whole-register value its writes carry within the settable range."""
+    for t in view.targets:
+        for j, _, lo, hi in t.plan.ranged:
+            v = view.written(t, j)
+            if ((v < lo) | (v > hi)).any():
+                return False
+    return True
 
 
 @rule("M003", "value-out-of-range", "error", "A register written with a value outside its settable range.", f"""
@@ -64,7 +74,7 @@ servo stop somewhere the host did not plan for.
 
 ## Example
 {example(encode_short(1, 0, 0x23, bytes((120,))), note="max_torque 120 %:")}
-""", kinds=("target",))
+""", kinds=("target",), column=_value_out_of_range_columns)
 def value_out_of_range(lint, rec, plan, targets):
     for j, name, lo, hi in plan.ranged:
         for sid, raws, _ in targets:
@@ -88,7 +98,7 @@ alone is written becomes a goal nobody asked for. The usual cause is a Length on
 
 ## Example
 {example(encode_long(0x1E, [(1, bytes.fromhex("84")), (2, bytes.fromhex("84"))]), note="a long packet writing only goal_position's low byte:")}
-""", kinds=("write",))
+""", kinds=("write",), column="header")
 def partial_register_write(lint, rec, plan, ids):
     if plan.partial:
         who, sid = _who(ids)
@@ -97,6 +107,11 @@ def partial_register_write(lint, rec, plan, ids):
 
 def _known_models() -> str:
     return ", ".join(f"0x{n:04X} {m.name}" for n, m in sorted(default_registry().by_number.items()))
+
+
+def _unknown_model_number_columns(said, view) -> bool:
+    """M005 on a Block: no return of the model number to judge (one sends the Block row by row)."""
+    return not (view.is_return & (view.address == 0) & (view.data_len >= 2)).any()
 
 
 @rule("M005", "unknown-model-number", "info", "A servo reports a model number no memory map knows.", f"""
@@ -114,7 +129,7 @@ a memory map for the model under decoders/.
 
 ## Example
 {example(encode_read(1, 0x00, 2), encode_return(1, 0x00, bytes.fromhex("0C30")), note="a servo answers model number 0x300C:")}
-""", kinds=("return",), state=set)
+""", kinds=("return",), state=set, column=_unknown_model_number_columns)
 def unknown_model_number(said, lint, rec, ev):
     # said: servo IDs already named
     if ev.address != 0:

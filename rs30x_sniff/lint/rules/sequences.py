@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ...protocol.wire import (
     BROADCAST_ID, FLAG_REBOOT as _REBOOT, FLAG_WRITE_FLASH as _FLASH, RETURN_TEMPERATURE_LIMIT, encode_command,
     encode_long, encode_return, encode_short)
+from ..batch import UNKNOWN
 from ..registry import example, rule
 
 # A flash write or reboot still due when a timed capture ends this soon after the write that needs it
@@ -43,7 +46,7 @@ rebooted. A host that switches its own port to the new rate right after the writ
 
 ## Example
 {example(encode_short(1, 0, 0x06, bytes((4,))), encode_command(1, _FLASH), note="the baud rate is flashed but the servo never rebooted:")}
-""", kinds=("target", "command", "moved", "seam", "close"), fields=("baud_rate",), state=dict)
+""", kinds=("target", "command", "moved", "seam", "close"), fields=("baud_rate",), state=dict, column="silent")
 def baud_change_not_applied(pending, lint, rec, plan, targets):
     # pending: servo (by its current ID) -> [the baud_rate write, the step it waits for ("flash" | "reboot"),
     # the rate code, the ID it was written to]
@@ -107,7 +110,7 @@ power-up (table 4.6, No. 4). A flash write sent to the old ID after the change r
 
 ## Example
 {example(encode_short(1, 0, 0x04, bytes((5,))), encode_command(1, _FLASH), note="ID 1 becomes 5, then the flash write goes to the old ID 1:")}
-""", kinds=("target", "command", "seam", "close"), fields=("servo_id",), state=dict)
+""", kinds=("target", "command", "seam", "close"), fields=("servo_id",), state=dict, column="silent")
 def id_change_not_persisted(pending, lint, rec, plan, targets):
     # pending: new servo ID -> (the write that set it, the ID the servo had when last flashed, as far as known)
     j = plan.index["servo_id"]
@@ -156,7 +159,7 @@ power during one: a reboot in the middle can leave the stored settings half writ
 
 ## Example
 {example((0.0, encode_command(1, _FLASH)), (0.002, encode_command(1, _REBOOT)), note="a reboot 1.3 ms after the flash write:")}
-""", kinds=("command", "moved", "seam"), needs_time=True, state=dict)
+""", kinds=("command", "moved", "seam"), needs_time=True, state=dict, column="silent")
 def reboot_too_soon_after_flash(flashed, lint, rec, ev):
     # flashed: servo -> (time its last flash write is done, the time that write ended, its offset)
     flag, sid = ev.flag, ev.id
@@ -189,6 +192,20 @@ def _flash_times_end_at_seam(flashed, lint, seam):
     flashed.clear()  # a flash write's time says nothing of a reboot on the other side of a seam
 
 
+def _goal_while_torque_off_columns(said, view) -> bool:
+    """Q004 on a Block: no goal_position to a servo whose torque is off and that Q004 has not named yet
+    (torque_enable writes take the record path: torque stays as it was before the Block)."""
+    torque = view.shadows("torque")
+    for t in view.targets:
+        if "goal_position" not in t.plan.index:
+            continue
+        ids = t.ids
+        off = (torque[ids] == 0) & (ids != BROADCAST_ID)
+        if off.any() and any(s not in said for s in ids[off].tolist()):
+            return False
+    return True
+
+
 @rule("Q004", "goal-while-torque-off", "warning", "A goal position sent to a servo whose torque is off.", f"""
 ## What it does
 Flags a goal_position write to a servo whose torque_enable the linter last saw as 0 (written or read,
@@ -201,7 +218,7 @@ step after power-up or a reboot.
 
 ## Example
 {example(encode_short(1, 0, 0x24, bytes((0,))), encode_short(1, 0, 0x1E, bytes.fromhex("8403")))}
-""", kinds=("target", "command", "moved"), fields=("goal_position", "torque_enable"), state=set)
+""", kinds=("target", "command", "moved"), fields=("goal_position", "torque_enable"), state=set, column=_goal_while_torque_off_columns)
 def goal_while_torque_off(said, lint, rec, plan, targets):
     # said: servos Q004 spoke for in their current torque-off spell; a torque_enable write or a reboot
     # ends the spell.
@@ -241,7 +258,7 @@ present position into the goal, overwriting the goal sent in the same packet.
 
 ## Example
 {example(encode_short(1, 0, 0x1E, bytes.fromhex("8403 0000 00 64 01")))}
-""", kinds=("target",), fields=("torque_enable",))
+""", kinds=("target",), fields=("torque_enable",), column="silent")
 def torque_on_with_goal(lint, rec, plan, targets):
     idx = plan.index
     if "goal_position" not in idx:
@@ -250,6 +267,22 @@ def torque_on_with_goal(lint, rec, plan, targets):
         if raws[idx["torque_enable"]] == 1 and sh.torque != 1:
             lint.emit("Q005", rec, f"torque on and goal_position {_deg(raws[idx['goal_position']])} in one packet "
                                    f"to ID {sid}: the servo will not move", sid=sid)
+
+
+def _goal_beyond_angle_limit_columns(view) -> bool:
+    """Q006 on a Block: no goal_position beyond the limits (limit writes take the record path)."""
+    cw, ccw, rev = view.shadows("cw"), view.shadows("ccw"), view.shadows("reverse")
+    for t in view.targets:
+        g = t.plan.index.get("goal_position")
+        if g is None:
+            continue
+        goal, ids = view.written(t, g), t.ids
+        free = rev[ids] != 1
+        over = free & (cw[ids] != UNKNOWN) & (goal > cw[ids])
+        under = free & ~over & (ccw[ids] != UNKNOWN) & (goal < ccw[ids])
+        if (over | under).any():
+            return False
+    return True
 
 
 @rule("Q006", "goal-beyond-angle-limit", "warning", "A goal position beyond the servo's angle limits.", f"""
@@ -264,7 +297,7 @@ it is; gait and kinematics computed from the commanded angle go wrong.
 ## Example
 {example(encode_short(1, 0, 0x08, (1000).to_bytes(2, "little")), encode_short(1, 0, 0x1E, (1200).to_bytes(2, "little")),
          note="cw_angle_limit 100.0 deg, then a goal of 120.0 deg:")}
-""", kinds=("target",), fields=("goal_position",))
+""", kinds=("target",), fields=("goal_position",), column=_goal_beyond_angle_limit_columns)
 def goal_beyond_angle_limit(lint, rec, plan, targets):
     j = plan.index["goal_position"]
     for sid, raws, sh in targets:
@@ -276,6 +309,35 @@ def goal_beyond_angle_limit(lint, rec, plan, targets):
         elif sh.ccw is not None and g < sh.ccw:
             lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its ccw_angle_limit {_deg(sh.ccw)}",
                       sid=sid)
+
+
+def too_fast(dist, top_speed_s_per_60deg, goal_time):
+    """Whether moving ``dist`` (raw 0.1 deg) in ``goal_time`` (raw 10 ms) asks for more than the top speed:
+    (dist/10 deg) / (goal_time/100 s) > 60 deg / top speed. For one move, or a column of them."""
+    return dist * top_speed_s_per_60deg > 6 * goal_time
+
+
+def _goal_time_too_fast_columns(view) -> bool:
+    """Q007 on a Block: no move faster than the model's top speed, from the position and goal time each
+    servo's shadow holds just before its row (Blocks follow both, row by row)."""
+    for t in view.targets:
+        plan = t.plan
+        g = plan.index.get("goal_position")
+        if g is None:
+            continue
+        goal, ids = view.written(t, g), t.ids
+        order = t.rows.astype(np.int64) * 512  # checked before the row's writes apply (its sub-order 0)
+        pos = view.before("pos", order, ids)
+        j = plan.index.get("goal_time")
+        if j is not None:
+            gt = view.written(t, j)
+        else:
+            gt = view.before("goal_time", order, ids)
+            gt = np.where(gt == UNKNOWN, 0, gt)
+        known = (pos != UNKNOWN) & (gt != 0)
+        if (known & too_fast(np.abs(goal - pos), plan.model.top_speed_s_per_60deg, gt)).any():
+            return False
+    return True
 
 
 @rule("Q007", "goal-time-too-fast", "warning", "A move faster than the model's top speed.", f"""
@@ -291,7 +353,7 @@ that relies on the timing drifts, and the servos run hot pushing at their limit.
 ## Example
 {example(encode_short(1, 0, 0x1E, bytes.fromhex("0000 6400")), encode_short(1, 0, 0x1E, bytes.fromhex("8403 0A00")),
          note="90 deg in 0.1 s on an RS303MR (it needs 0.165 s):")}
-""", kinds=("target",), fields=("goal_position",))
+""", kinds=("target",), fields=("goal_position",), column=_goal_time_too_fast_columns)
 def goal_time_too_fast(lint, rec, plan, targets):
     idx = plan.index
     j = idx.get("goal_time")
@@ -305,7 +367,7 @@ def goal_time_too_fast(lint, rec, plan, targets):
         if not gt:
             continue
         dist = abs(raws[g] - pos)
-        if dist * ts <= 6 * gt:  # (dist/10 deg) / (gt/100 s) <= 60 deg / ts: within the top speed
+        if not too_fast(dist, ts, gt):
             continue
         lint.emit("Q007", rec, f"{dist / 10:.1f} deg in {gt * 10} ms on ID {sid} asks {dist * 10 / gt:.0f} deg/s; "
                                f"{plan.model.name} tops out at {60 / ts:.0f} deg/s", sid=sid)
@@ -322,7 +384,7 @@ load and the time each poll cycle takes both grow with every servo.
 
 ## Example
 {example(encode_long(0x23, [(i, bytes((100,))) for i in range(1, 26)]), note="max_torque to 25 servos in one long packet:")}
-""", kinds=("short", "long", "return"), when="crowded", state=list)
+""", kinds=("short", "long", "return"), when="crowded", state=list, column="silent")
 def too_many_servos(said, lint, rec, ev):
     # said: empty until Q008 has spoken (it speaks once)
     if not said and len(lint.ids) > lint.config.max_servos:
@@ -341,7 +403,7 @@ power-cycled: the command does nothing and the joint stays limp, while the host 
 
 ## Example
 {example(encode_return(1, 0x2A, bytes.fromhex("8403"), flags=RETURN_TEMPERATURE_LIMIT), encode_short(1, 0, 0x24, bytes((1,))))}
-""", kinds=("target",), fields=("torque_enable",))
+""", kinds=("target",), fields=("torque_enable",), column="silent")
 def torque_on_after_temperature_limit(lint, rec, plan, targets):
     j = plan.index["torque_enable"]
     for sid, raws, sh in targets:

@@ -35,7 +35,7 @@ it cools down and is rebooted (see Q009); the motor is then at 120-140 degC.
 
 ## Example
 {_ret(RETURN_TEMPERATURE_LIMIT)}
-""", kinds=("return",), when="flagged")
+""", kinds=("return",), when="flagged", column="silent")
 def temperature_limit(lint, rec, ev):
     if _turned_on(lint, ev, RETURN_TEMPERATURE_LIMIT):
         lint.emit("S001", rec, f"ID {ev.id} passed its temperature limit and cut torque")
@@ -50,7 +50,7 @@ It is the last warning before the servo cuts its torque (S001). Reduce the load 
 
 ## Example
 {_ret(RETURN_TEMPERATURE_ALARM)}
-""", kinds=("return",), when="flagged")
+""", kinds=("return",), when="flagged", column="silent")
 def temperature_alarm(lint, rec, ev):
     if _turned_on(lint, ev, RETURN_TEMPERATURE_ALARM):
         lint.emit("S002", rec, f"ID {ev.id} is within 10 degC of its temperature limit")
@@ -66,7 +66,7 @@ comes back with old values, maybe on another ID or baud rate.
 
 ## Example
 {_ret(RETURN_FLASH_WRITE_ERROR)}
-""", kinds=("return",), when="flagged")
+""", kinds=("return",), when="flagged", column="silent")
 def flash_write_error(lint, rec, ev):
     if _turned_on(lint, ev, RETURN_FLASH_WRITE_ERROR):
         lint.emit("S003", rec, f"ID {ev.id} failed to write its flash ROM")
@@ -83,7 +83,7 @@ differs from the tap's (noise near the servo, a marginal baud rate).
 
 ## Example
 {_ret(RETURN_RECEIVED_ERROR)}
-""", kinds=("return",), when="flagged")
+""", kinds=("return",), when="flagged", column="silent")
 def received_packet_error(lint, rec, ev):
     if _turned_on(lint, ev, RETURN_RECEIVED_ERROR):
         lint.emit("S004", rec, f"ID {ev.id} received a packet it could not accept")

@@ -28,7 +28,7 @@ wrong variable.
 
 ## Example
 {example(encode_short(1, 0x80, 0x1E, _G90))}
-""", kinds=("short",))
+""", kinds=("short",), column="header")
 def reserved_flag_bit(lint, rec, ev):
     if ev.flag & FLAG_RESERVED:
         lint.emit("P001", rec, f"flag 0x{ev.flag:02X} sets reserved bit 7")
@@ -44,7 +44,7 @@ there are at best ignored and at worst make some servos act on them.
 
 ## Example
 {example(frame(0, 0x40, 0x1E, 3, 2, 1, 0x64, 0, 2, 0x64, 0), note="a long packet with the flash bit set:")}
-""", kinds=("long",))
+""", kinds=("long",), column="header")
 def long_packet_flags(lint, rec, ev):
     if ev.flag:
         lint.emit("P002", rec, f"long packet with flag 0x{ev.flag:02X} (must be 0)")
@@ -62,7 +62,7 @@ Length without the VID byte or sent an empty batch.
 
 ## Example
 {example(frame(0, 0, 0x1E, 1, 0), note="Length 1, Count 0:")}
-""", kinds=("long",))
+""", kinds=("long",), column="header")
 def long_packet_length(lint, rec, ev):
     if ev.length < 2 or ev.count == 0:
         lint.emit("P003", rec, f"long packet with Length {ev.length} and Count {ev.count} writes nothing")
@@ -78,7 +78,7 @@ commands is silently lost; usually a copy-paste slip in the host's servo table.
 
 ## Example
 {example(encode_long(0x1E, [(1, _P10), (1, _P50)]))}
-""", kinds=("long",))
+""", kinds=("long",), column="header")
 def duplicate_vid(lint, rec, ev):
     vids = [r[0] for r in ev.records]
     if len(set(vids)) != len(vids):
@@ -98,7 +98,7 @@ or comes from something that is not an RS30x servo.
 
 ## Example
 {example(encode_short(200, 0, 0x1E, _G90))}
-""", kinds=("short", "long", "return"))
+""", kinds=("short", "long", "return"), column="header")
 def invalid_id(lint, rec, ev):
     kind = ev.kind
     if kind == "long":
@@ -123,7 +123,7 @@ it either takes the next packet's bytes as data or writes garbage past the inten
 
 ## Example
 {example(frame(1, 0, 0x1E, 1, 2, 0x84, 0x03), frame(1, 0x0F, 0x2A, 2, 1, 0, 0), note="a 1-byte write with Count 2, and a read with Count 1:")}
-""", kinds=("short",))
+""", kinds=("short",), column="header")
 def bad_count(lint, rec, ev):
     if ev.flag & COMMAND_BITS:
         return
@@ -145,7 +145,7 @@ request with a reply either, so a stray return may follow and collide with the n
 
 ## Example
 {example(encode_short(1, 0x02, 0x1E, _G90))}
-""", kinds=("short",))
+""", kinds=("short",), column="header")
 def undefined_return_mode(lint, rec, ev):
     mode = ev.return_mode
     if mode not in RETURN_MODES:
@@ -165,7 +165,7 @@ the flash or the reboot, or at all.
 
 ## Example
 {example(frame(1, 0x40, 0x07, 1, 1, 0x12), note="a flash write that also carries return_delay 18:")}
-""", kinds=("command",))
+""", kinds=("command",), column="silent")
 def command_packet_format(lint, rec, ev):
     problems = []
     if ev.address != COMMAND_ADDRESS:
@@ -191,7 +191,7 @@ configuration (the manual warns not to cut power during a flash write).
 
 ## Example
 {example(bytes.fromhex("FAAF01600701011274"), note="the manual's own return-delay example:")}
-""", kinds=("command",))
+""", kinds=("command",), column="silent")
 def combined_flash_reboot(lint, rec, ev):
     if ev.flag & _FLASH_REBOOT == _FLASH_REBOOT:
         lint.emit("P009", rec, "flash write and reboot in one packet; send the reboot separately, after the flash write")
@@ -207,7 +207,7 @@ and the host gets garbage (and may conclude servos are missing).
 
 ## Example
 {example(encode_read(255, 0x2A, 2))}
-""", kinds=("short",))
+""", kinds=("short",), column="header")
 def broadcast_return_request(lint, rec, ev):
     if ev.id == BROADCAST_ID and rec.expects is not None:
         lint.emit("P010", rec, f"broadcast packet asks every servo for {'an ACK' if rec.expects == 'ack' else 'a return'}")
@@ -224,7 +224,7 @@ return, or not at all, and the host waits for a reply that never fits.
 
 ## Example
 {example(encode_read(1, 0x80, 16))}
-""", kinds=("short",))
+""", kinds=("short",), column="header")
 def read_out_of_range(lint, rec, ev):
     if ev.return_mode != RETURN_SPECIFIED:
         return
@@ -245,7 +245,7 @@ matched by chance) or comes from a device that only imitates the protocol.
 
 ## Example
 {example(frame(1, 0, 0x2A, 2, 2, 0x84, 0x03, header=_RET))}
-""", kinds=("return",))
+""", kinds=("return",), column="header")
 def return_count(lint, rec, ev):
     if ev.count != 1:
         lint.emit("P012", rec, f"return with Count {ev.count} (always 1)")
@@ -261,7 +261,7 @@ does not know; its other status bits are then not to be trusted either.
 
 ## Example
 {example(encode_return(1, 0x2A, _G90, flags=0x40))}
-""", kinds=("return",), when="flagged")
+""", kinds=("return",), when="flagged", column="silent")
 def return_reserved_flag(lint, rec, ev):
     if ev.flags & RETURN_FLAGS_RESERVED:
         lint.emit("P013", rec, f"return flags 0x{ev.flags:02X} set reserved bit(s) "

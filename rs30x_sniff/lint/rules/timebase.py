@@ -28,7 +28,7 @@ Read as they stand they give negative latencies, a zero-length capture and a bus
 
 ## Example
 {example((0.2, _GOAL), (0.195, _READ), note="the second line is stamped 5 ms before the first:")}
-""", kinds=("close",), needs_time=True)
+""", kinds=("close",), needs_time=True, column="silent")
 def time_went_backwards(lint):
     fault = getattr(lint, "time_faults", {}).get(TIME_BACKWARDS)
     if fault is not None:
@@ -53,7 +53,7 @@ before their requests end and latencies come out negative.
 
 ## Example
 {example((0.0, _GOAL), (0.0005, _READ), note="a 10-byte write at 115200 bit/s takes 0.868 ms; the next line is stamped 0.5 ms after it began:")}
-""", kinds=("close",), needs_time=True)
+""", kinds=("close",), needs_time=True, column="silent")
 def time_too_close(lint):
     fault = getattr(lint, "time_faults", {}).get(TIME_TOO_CLOSE)
     if fault is not None:
@@ -79,6 +79,6 @@ false (a duration of half the traffic, a bus load of 100 %, latencies of 0 ms) a
 
 ## Example
 {example((3.0, _GOAL), (0.0, _READ), note="a capture that ended at 3 s joined to one that starts at 0 s:")}
-""", kinds=("seam",), needs_time=True)
+""", kinds=("seam",), needs_time=True, column="silent")
 def capture_seam(lint, seam):
     lint.emit_at("F010", seam.offset, seam.t_start, seam.describe())

@@ -43,7 +43,7 @@ table 4.7): the analyzer is set to expect a parity bit.
 A Saleae Logic 2 table of a goal_position write whose eighth byte the analyzer flagged:
 
 {_saleae_table(_GOAL, {7: FRAMING_ERROR})}
-""", kinds=("garbage",))
+""", kinds=("garbage",), column="silent")
 def uart_error(lint, rec, ev):
     reason = ev.reason
     if reason not in UART_ERRORS:
