@@ -11,6 +11,7 @@ exactly as the tracker would have.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -79,46 +80,48 @@ class Block:
         out[got[0]] = got[1]
         return out
 
-    def data_matrix(self, rows: np.ndarray, width: int) -> np.ndarray:
-        """The data bytes (after the 7-byte header, before the Sum) of ``rows``, all ``width`` long."""
-        at = self.run.starts[self.lo:self.hi][rows] + 7
-        return self.run.bytes_array[at[:, None] + np.arange(width)]
+    # ---- the rows as Records -------------------------------------------------------------------
+    # A Block keeps the Records it has built: none; some, row by row (a dict: :meth:`record`, the ones the
+    # tracker and the linter hold, which may yet be given findings); or all (a list: :meth:`records`, as
+    # when the linter went through the rows one by one). The column forms read the rows from the run's
+    # bytes unless a Record of them is kept.
 
-    def value_columns(self) -> list[tuple[np.ndarray, Any, list[np.ndarray]]]:
-        """Every row's field values as numpy columns (rs30x_sniff.decode.value_columns), per shape of data:
-        ``(rows, layout, columns)``, equal to ``layout.values(data)`` row by row (Record.values)."""
-        from .value_columns import value_columns
+    @property
+    def linted_by_rows(self) -> bool:
+        """True once every row is built as a Record (:meth:`records`: the linter went through the rows one
+        by one, so they may carry findings): each column form then writes the rows from their Records."""
+        return type(self._records) is list
 
-        c = self.cols
-        kind, sid, address, length, count, dlen = (c["kind"], c["id"], c["address"], c["length"], c["count"],
-                                                    c["data_len"])
-        out = []
-        has_data = np.flatnonzero(dlen > 0)
-        if not len(has_data):
-            return out
-        # One shape: kind, address, data length, Length x Count for long packets, and the servo's model.
-        key = (kind[has_data].astype(np.int64) << 40 | address[has_data].astype(np.int64) << 32
-               | length[has_data].astype(np.int64) << 24 | count[has_data].astype(np.int64) << 16
-               | dlen[has_data])
-        for k in np.unique(key).tolist():
-            rows = has_data[key == k]
-            r0 = int(rows[0])
-            width = int(dlen[r0])
-            if kind[r0] == LONG:
-                if self.vid_models is not None:
-                    continue  # servos of mixed models: per record (Record.values)
-                groups = [(rows, self.default.long_layout(int(address[r0]), int(length[r0]), int(count[r0])))]
-            else:
-                groups = [(rows[sid[rows] == s], self.models[s].layout(int(address[r0]), width))
-                          for s in np.unique(sid[rows]).tolist()]
-                # Servos of one model share a layout: decode them together.
-                merged: dict[int, list] = {}
-                for r, lay in groups:
-                    merged.setdefault(id(lay), [lay, []])[1].append(r)
-                groups = [(np.sort(np.concatenate(rs)), lay) for lay, rs in merged.values()]
-            for r, lay in groups:
-                out.append((r, lay, value_columns(lay, self.data_matrix(r, width))))
-        return out
+    @property
+    def made_rows(self) -> Mapping[int, Record]:
+        """The rows built as Records so far, row -> Record (empty when none is): read-only."""
+        made = self._records
+        if made is None:
+            return {}
+        if type(made) is list:
+            return _AllRows(made)
+        return made
+
+    def forget_before(self, cut: int) -> None:
+        """Let go of the Records built one by one for rows before ``cut`` (a request whose reply is at
+        ``cut`` or later stays: the two are built together). A Block linted by rows keeps them all."""
+        made = self._records
+        if type(made) is dict:
+            answered, n = self.answered, len(self)
+            for k in [k for k in made if k < cut and not (k + 1 < n and answered[k] and k + 1 >= cut)]:
+                del made[k]
+
+    def part(self, a: int, b: int) -> Block:
+        """Rows ``a``..``b`` as a Block of their own (a pair is not to be cut: the caller keeps a reply
+        with its request), keeping the Records already built of them, so each row stays one object."""
+        sub = Block(self.run, self.lo + a, self.lo + b, self.index0 + a, self.answered[a:b], self.models,
+                    self.default, self.vid_models)
+        made = self._records
+        if type(made) is list:
+            sub._records = made[a:b]
+        elif made:
+            sub._records = {k - a: r for k, r in made.items() if a <= k < b}
+        return sub
 
     def records(self) -> list[Record]:
         """The rows as the Records the tracker would have made (built once, then kept)."""
@@ -170,6 +173,22 @@ class Block:
                 _pair(rec, rep)
         return rec
 
+    def fresh_record(self, k: int) -> Record:
+        """Row ``k`` as a Record built anew as :meth:`records` builds it (paired with its request or reply,
+        also built anew), kept nowhere: what the row reads as, whatever the Records the Block keeps have
+        been given since (findings). A template's sample, or a row read for its event and model."""
+        run, kinds, answered = self.run, self.cols["kind"], self.answered
+
+        def build(j: int) -> Record:
+            return self._record(run.event(self.lo + j), int(kinds[j]), j)
+
+        rec = build(k)
+        if int(kinds[k]) == RETURN and k > 0 and answered[k - 1]:
+            _pair(build(k - 1), rec)
+        elif k + 1 < len(self) and answered[k]:
+            _pair(rec, build(k + 1))
+        return rec
+
     def _record(self, ev: Any, kind: int, k: int) -> Record:
         if kind == LONG:
             rec = Record(ev, self.index0 + k, self.default)
@@ -181,12 +200,38 @@ class Block:
 
 
 def _pair(req: Record, rep: Record) -> None:
-    """Link an answered request and its reply, as BusTracker._on_reply does."""
+    """Link an answered request and its reply, as the tracker links them."""
     req.status = ANSWERED
     rep.status = PAIRED
     req.reply = rep
     rep.request = req
     rep.latency = reply_latency(req.event, rep.event)
+
+
+class _AllRows(Mapping):
+    """Block.made_rows of a Block linted by rows: its list of Records as a mapping row -> Record."""
+
+    __slots__ = ("_list",)
+
+    def __init__(self, records: list[Record]) -> None:
+        self._list = records
+
+    def __getitem__(self, k: int) -> Record:
+        if not isinstance(k, (int, np.integer)) or not 0 <= k < len(self._list):
+            raise KeyError(k)
+        return self._list[k]
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(range(len(self._list)))
+
+    def __len__(self) -> int:
+        return len(self._list)
+
+    def values(self) -> list[Record]:  # type: ignore[override]
+        return self._list
+
+    def __sizeof__(self) -> int:  # what it holds is the list (a memory estimate weighs it)
+        return self._list.__sizeof__()
 
 
 def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
@@ -199,7 +244,7 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     is_short, is_long, is_return = kind == SHORT, kind == LONG, kind == RETURN
     end = address + dlen                 # a short packet's or a return's data
     long_end = address + length - 1      # each record of a long packet (after its VID)
-    ida = tracker._id_address
+    ida = tracker.id_address
     # Frames the columnar path leaves to the tracker, as each changes state in a way only it follows: a
     # broadcast write (every servo's shadow), a write of servo_id (table 4.6 No. 4: the servo moves),
     # data past the end of the map (clipped), and a return that may carry a model number (table 4.5).
@@ -232,9 +277,9 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     brk = np.flatnonzero(~fast)  # rows the tracker takes: each clean stretch ends at the next one
     blocks = False
     pos = 0
-    feed = tracker._feed
+    feed = tracker.feed_into
     while pos < n:
-        if tracker._pending is not None or not fast[pos]:
+        if tracker.waiting is not None or not fast[pos]:
             feed(run.event(pos), out)
             pos += 1
             continue
@@ -291,7 +336,7 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
     # (the same, as no model is learned here); a long packet's, the default.
     models = {i: servos[i].model if i in servos else tracker.model_of(i) for i in set(sid[is_short | is_return].tolist())}
     vid_models = None
-    if not tracker._uniform and vid_groups:
+    if not tracker.uniform and vid_groups:
         vid_models = {i: tracker.model_of(i) for g in vid_groups for i in np.unique(g[1]).tolist()}
         # Long packets of Length 1 carry VIDs only; their records still have a model (bus.Record.vid_models).
         for r in np.flatnonzero(is_long & (length == 1)).tolist():
@@ -306,7 +351,7 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
         servos[i].requests += int(req_counts[i])
     for i in np.flatnonzero(ret_counts).tolist():
         servos[i].returns += int(ret_counts[i])
-    blk = Block(run, lo, hi, tracker._index, answered, models, tracker.default, vid_models)
+    blk = Block(run, lo, hi, tracker.next_index, answered, models, tracker.default, vid_models)
     # Latencies of the paired returns, in order, per servo.
     got = blk.reply_latencies()
     if got is not None:
@@ -352,13 +397,12 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
         # last_t: the time of its last store, the last row of the sorted items (a return stores even
         # with no data; so does any write).
         st.last_t = None if t0 is None else float(t0[items[-1][0]])
-    tracker._index += n
-    tracker.fresh = False  # the segment has had its first packet
+    tracker.advance(n)  # the next record's index; the segment has had its first packet
     # The latest answered request, unless a request came after it (a later reply would be EXTRA to it).
     req_rows = np.flatnonzero(is_short | is_long)
     ans = np.flatnonzero(answered)
     if ans.size and (not req_rows.size or req_rows[-1] == ans[-1]):
-        tracker._last_request = blk.record(int(ans[-1]))
+        tracker.last_answered = blk.record(int(ans[-1]))
     elif req_rows.size:
-        tracker._last_request = None
+        tracker.last_answered = None
     return blk

@@ -127,7 +127,7 @@ class Decoder:
         if not self.columnar:
             return self.bus.feed_many(events, out)
         bus = self.bus
-        track = bus._feed
+        track = bus.feed_into
         for ev in events:
             if type(ev) is FrameRun:
                 out.blocks |= feed_run(bus, ev, out)  # True only when it made a Block

@@ -273,18 +273,54 @@ class BusTracker:
         self.fresh = True
         self._segment_t: float | None = None  # the segment's first time, once an event has one
         self._model_cache: dict[int, Model] = {}
-        self._uniform = self.uniform  # kept up to date by _learn, so a long packet costs no model lookups
+        self._uniform = self._all_default()  # kept up to date by _learn and _renumber: no model lookups
         # Where servo_id lives and what it may hold (table 4.6 No. 4: address 4, 1-127, the same in every
         # map): a write there moves the servo to its new ID at once.
         reg = self.default.register("servo_id")
         self._id_address = reg.address
         self._id_range = reg.range or (1, 127)
 
+    def _all_default(self) -> bool:
+        d = self.default
+        return all(m is d for m in self.configured.values()) and all(m is d for m in self.learned.values())
+
+    # ---- what pairing outside the tracker reads and moves (a Block of rows: rs30x_sniff.decode.blocks) ----
     @property
     def uniform(self) -> bool:
         """True while every servo has the default model (the common case: one model on the bus)."""
-        d = self.default
-        return all(m is d for m in self.configured.values()) and all(m is d for m in self.learned.values())
+        return self._uniform
+
+    @property
+    def id_address(self) -> int:
+        """The address of servo_id (table 4.6 No. 4): a write there moves the servo to its new ID."""
+        return self._id_address
+
+    @property
+    def waiting(self) -> Record | None:
+        """The request whose reply is due (the tracker holds it, and every record after it, until then)."""
+        return self._pending
+
+    @property
+    def next_index(self) -> int:
+        """The index the next record gets."""
+        return self._index
+
+    def advance(self, n: int) -> None:
+        """``n`` records were paired outside the tracker (a Block), with no request left waiting: the next
+        record's index is ``n`` further on, and the time segment has had its first packet."""
+        self._index += n
+        self.fresh = False
+
+    @property
+    def last_answered(self) -> Record | None:
+        """The latest request, if it got its reply: another reply now is EXTRA to it; None once a later
+        request comes (or at a seam). Set after requests paired outside the tracker (a Block) to the last
+        of them, answered, or to None when it asked for no reply."""
+        return self._last_request
+
+    @last_answered.setter
+    def last_answered(self, req: Record | None) -> None:
+        self._last_request = req
 
     def model_of(self, servo_id: int) -> Model:
         m = self._model_cache.get(servo_id)
@@ -308,17 +344,18 @@ class BusTracker:
     def feed(self, ev: AnyEvent) -> list[Record]:
         """Records released by one more event (none while a reply is still due)."""
         out: list[Record] = []
-        self._feed(ev, out)
+        self.feed_into(ev, out)
         return out
 
     def feed_many(self, events: list[AnyEvent], out: list[Record]) -> list[Record]:
         """Append the records released by ``events`` to ``out`` (the batch form the decoder uses)."""
-        step = self._feed
+        step = self.feed_into
         for ev in events:
             step(ev, out)
         return out
 
-    def _feed(self, ev: AnyEvent, out: list[Record]) -> None:
+    def feed_into(self, ev: AnyEvent, out: list[Record]) -> None:
+        """Append the records released by one more event to ``out`` (the form the decoder's loops call)."""
         t = type(ev)
         if t is ShortPacket or t is ReturnPacket:
             model = self._model_cache.get(ev[4]) or self.model_of(ev[4])
@@ -479,7 +516,7 @@ class BusTracker:
                 learned[new] = model
             st.model = model
             servos[new] = st
-        self._uniform = self.uniform
+        self._uniform = self._all_default()
 
     def _on_reply(self, rec: Record, pending: Record | None) -> None:
         ev = rec.event
@@ -520,4 +557,4 @@ class BusTracker:
                 self.learned[ev.id] = m
                 self._model_cache.pop(ev.id, None)
                 st.model = m
-                self._uniform = self.uniform
+                self._uniform = self._all_default()

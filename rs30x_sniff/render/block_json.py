@@ -44,8 +44,7 @@ def block_json_lines(blk: Any, only: set[int] | None = None, compact: bool = Fal
 def block_json_rows(blk: Any, only: set[int] | None = None, compact: bool = False, rows: Any = None,
                     end: str = "") -> list[str]:
     """The JSON text of each row (or of ``rows``), each followed by ``end``."""
-    recs = blk._records
-    if isinstance(recs, list) or blk.vid_models is not None:
+    if blk.linted_by_rows or blk.vid_models is not None:
         # Rows checked one by one (they may carry findings), or servos of mixed models: the records.
         recs = blk.records()
         chosen = recs if rows is None else [recs[k] for k in rows]

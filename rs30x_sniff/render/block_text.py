@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from typing import Any, Callable, Iterable
 
-from ..decode.blocks import Block, _pair
+from ..decode.blocks import Block
 from ..decode.pairing import Record
 from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
-from ..decode.frame_runs import RETURN
 from ..protocol.memmap import Field, Register, _ByRaw, _converter
 from .records import _shown, bad_sum, direction, field_text, kind_word, text_line, verbose_lines
 from ..protocol.wire import COMMAND_ADDRESS
@@ -75,8 +74,7 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
     Record or Field made; a row already built as a Record (the tracker and the linter keep one or two,
     which may yet be given findings) is written from that Record.
     """
-    recs = blk._records
-    if verbose or isinstance(recs, list):
+    if verbose or blk.linted_by_rows:
         # A full list: the linter went through the rows one by one, and they may carry findings. The
         # field tree (verbose) has no template either: both are written from the Records.
         return _records_text(blk, only, verbose, rows)
@@ -91,7 +89,7 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
         lats = blk.latencies().tolist()
     else:
         ts = lats = [None] * n
-    made = recs or {}
+    made = blk.made_rows
     only_key = None if only is None else frozenset(only)
     local: dict[tuple, _Shape] = {}  # this Block's shapes by their bytes (the models are the Block's)
     out = []
@@ -182,21 +180,6 @@ def _records_text(blk: Block, only: set[int] | None, verbose: bool, rows: Iterab
 
 
 # ---- compiling a shape --------------------------------------------------------------------------
-def _sample(blk: Block, k: int) -> Record:
-    """Row ``k`` as a Record built as Block.records builds it (paired), but kept out of the Block."""
-    run, kinds = blk.run, blk.cols["kind"]
-
-    def build(j: int) -> Record:
-        return blk._record(run.event(blk.lo + j), int(kinds[j]), j)
-
-    rec = build(k)
-    if int(kinds[k]) == RETURN and k > 0 and blk.answered[k - 1]:
-        _pair(build(k - 1), rec)
-    elif k + 1 < len(blk) and blk.answered[k]:
-        _pair(rec, build(k + 1))
-    return rec
-
-
 def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: frozenset | None,
            timed: bool) -> _Shape:
     """The compiled shape of row ``k``, from the cache of the model it is for (a long packet's: the
@@ -214,7 +197,7 @@ def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: froz
     shape = owner.cache.get(gkey)
     if shape is not None:
         return shape
-    sample = _sample(blk, k)
+    sample = blk.fresh_record(k)
     raw, fn = _compile(sample, only, timed)
     if fn is not None:
         # The template against the record path on its first row: what depends on the data comes from

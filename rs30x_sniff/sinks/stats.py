@@ -13,7 +13,6 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..decode.blocks import Block
-from ..decode.pairing import Record
 from ..protocol.events import Ack, Garbage, LongPacket, ReturnPacket, ShortPacket
 from ..decode.frame_runs import LONG, RETURN, SHORT
 from .health import _FLUSH_ROWS, Frames, HealthRecorder, servo_health, timer, what_happened
@@ -370,9 +369,9 @@ class CaptureStats(Sink):
             if blk.vid_models is None:
                 self._health_rows(blk, long_rows, health._long, None)
             else:  # servos of mixed models: each packet on its own, as the record path does
-                made = blk._records if isinstance(blk._records, dict) else {}
+                made = blk.made_rows
                 for k in long_rows.tolist():
-                    rec = made.get(k) or _row_record(blk, k)
+                    rec = made.get(k) or blk.fresh_record(k)
                     health.long_written(rec, rec.event)
         if counts[RETURN]:
             rc = np.bincount(sid[is_return], minlength=256)
@@ -716,11 +715,6 @@ def _buffered(run: Any, rows: np.ndarray, size: int) -> list[bytes]:
         blob = run.blob
         items += [blob[s:e] for s, e in zip(starts[~fits].tolist(), ends[~fits].tolist())]
     return items
-
-
-def _row_record(blk: Block, k: int) -> Record:
-    """Row ``k`` of a Block as a Record, built without keeping it (no pairing: only its model matters here)."""
-    return blk._record(blk.run.event(blk.lo + k), int(blk.cols["kind"][k]), k)
 
 
 class RecentLoad:

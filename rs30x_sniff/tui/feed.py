@@ -124,20 +124,9 @@ def split_block(blk: Block, k: int) -> tuple[list, list]:
         k += 1  # a reply goes with its request
     if k >= len(blk):
         return [blk], []
-    parts = [_sub_block(blk, 0, k), _sub_block(blk, k, len(blk))]
+    parts = [blk.part(0, k), blk.part(k, len(blk))]
     head, tail = [[p] if len(p) >= MIN_BLOCK else p.records() for p in parts]
     return head, tail
-
-
-def _sub_block(blk: Block, a: int, b: int) -> Block:
-    sub = Block(blk.run, blk.lo + a, blk.lo + b, blk.index0 + a, blk.answered[a:b], blk.models, blk.default,
-                blk.vid_models)
-    made = blk._records
-    if isinstance(made, list):
-        sub._records = made[a:b]
-    elif made:
-        sub._records = {k - a: r for k, r in made.items() if a <= k < b}
-    return sub
 
 
 class _Recording(Sink):

@@ -143,11 +143,10 @@ def run_nbytes(run: FrameRun) -> int:
 
 def built_nbytes(blk: Block) -> int:
     """Bytes of the Records a Block has built and keeps (a row shown, or every row the linter read)."""
-    made = blk._records
+    made = blk.made_rows
     if not made:
         return 0
-    recs = made if isinstance(made, list) else made.values()
-    return sum(record_size(r) for r in recs) + sys.getsizeof(made)
+    return sum(record_size(r) for r in made.values()) + sys.getsizeof(made)
 
 
 _NOT_READ = object()  # a Block whose plot points Store.add has not read ahead
@@ -582,11 +581,9 @@ class Store:
                 self.memory -= sum(record_size(r) for r in seg[:cut])
                 del seg[:cut]
                 starts[0] = first
-            elif isinstance(seg._records, dict):
-                # The Block stays whole, its first rows hidden; Records built of those go.
-                for k in [k for k in seg._records if k < cut and not (k + 1 < len(seg) and seg.answered[k]
-                                                                       and k + 1 >= cut)]:
-                    del seg._records[k]
+            else:
+                # The Block stays whole, its first rows hidden; Records built of those one by one go.
+                seg.forget_before(cut)
         self.first_seq = first
         if self.view is not None:
             del self.view[:bisect_left(self.view, self.first_seq)]
@@ -639,9 +636,9 @@ class Store:
             if type(seg) is list:
                 total += sys.getsizeof(seg)
                 continue
-            made = seg._records
+            made = seg.made_rows
             if made:
-                key = (type(made), len(made))
+                key = (seg.linted_by_rows, len(made))
                 hit = built.get(id(seg))
                 if hit is None or hit[0] is not seg or hit[1] != key:  # what it holds changed: weigh it again
                     hit = built[id(seg)] = (seg, key, built_nbytes(seg))
@@ -774,13 +771,13 @@ class Store:
             if s0 >= hi or s0 + len(seg) <= lo:
                 break
             a, b = max(lo, s0) - s0, min(hi, s0 + len(seg)) - s0
-            if type(seg) is list or isinstance(seg._records, list):
-                recs = seg if type(seg) is list else seg._records
+            if type(seg) is list or seg.linted_by_rows:
+                recs = seg if type(seg) is list else seg.records()
                 ks = range(a, b) if forward else range(b - 1, a - 1, -1)
-            elif seg._records:
+            elif seg.made_rows:
                 # A Block the linter passed whole has no finding of its own; one of the Records it keeps may
                 # have got one later.
-                recs = seg._records
+                recs = seg.made_rows
                 ks = sorted((k for k in recs if a <= k < b and recs[k].findings), reverse=not forward)
             else:
                 continue

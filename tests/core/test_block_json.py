@@ -36,7 +36,7 @@ def check_blocks(chunks, lint: bool, group: int = 400) -> int:
         for blk in step:
             if type(blk) is not Block:
                 continue
-            quiet = not isinstance(blk._records, list)
+            quiet = not blk.linted_by_rows
             rows = list(range(0, len(blk), 3))
             got = [(block_json_lines(blk, only, compact), block_json_lines(blk, only, compact, rows))
                    for only in ONLY for compact in (False, True)]

@@ -43,13 +43,13 @@ def check_step(step, rng):
     fresh = 0
     for blk in blocks:
         n = len(blk)
-        untouched = not isinstance(blk._records, list)
+        untouched = not blk.linted_by_rows
         asked = []
         for only in ONLY:
             asked.append((only, None, block_text(blk, only)))
             rows = sorted(rng.sample(range(n), rng.randrange(n + 1)))
             asked.append((only, rows, block_text(blk, only, rows=rows)))
-        assert untouched == (not isinstance(blk._records, list)), "block_text built every record"
+        assert untouched == (not blk.linted_by_rows), "block_text built every record"
         fresh += untouched
         for only, rows, text in asked:
             assert text == expected(blk, only, rows=rows), (only, rows)

@@ -30,8 +30,8 @@ def tracker_state(dec):
     bus = dec.bus
     servos = [(i, s.id, s.model.name, bytes(s.image), s.known, s.requests, s.returns, list(s.latencies), s.last_t)
               for i, s in bus.servos.items()]
-    last = bus._last_request
-    return servos, bus._index, {i: m.name for i, m in bus.learned.items()}, last and last.index
+    last = bus.last_answered
+    return servos, bus.next_index, {i: m.name for i, m in bus.learned.items()}, last and last.index
 
 
 def record_path(chunks, options=None, lint=False):

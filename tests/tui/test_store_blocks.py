@@ -152,7 +152,7 @@ def test_a_store_of_blocks_answers_as_a_store_of_records(name):
     assert (a.span, a.bus_load, a.average_load) == (b.span, b.bus_load, b.average_load)
     assert list(a.recent_load._items) == list(b.recent_load._items)
     # Filters and findings first: they make no Record a Block keeps (the linter's samples are kept).
-    built = [len(x._records or ()) for x in b._segs if type(x) is Block]
+    built = [len(x.made_rows) for x in b._segs if type(x) is Block]
     for text in FILTERS:
         flt = parse_filter(text)
         a.set_filter(flt)
@@ -160,7 +160,7 @@ def test_a_store_of_blocks_answers_as_a_store_of_records(name):
         while not b.filter_step(700):  # steps that end inside Blocks
             pass
         assert list(a.view) == list(b.view), text
-        assert [len(x._records or ()) for x in b._segs if type(x) is Block] == built
+        assert [len(x.made_rows) for x in b._segs if type(x) is Block] == built
         for sev in ("info", "warning", "error"):
             assert finding_walk(a, sev) == finding_walk(b, sev)
     a.set_filter(None)

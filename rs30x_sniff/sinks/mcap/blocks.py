@@ -48,7 +48,7 @@ def _tx_template(blk: Any, k: int, model: Any, key: tuple) -> tuple[str | None, 
 def block_messages(ch: Any, blk: Any, emit: Any) -> None:
     """Emit (channel, log_time, body) for each row of ``blk`` as ``ch.record`` would, in the same order:
     the packet, the state of each servo it sets, the transaction of a request that expects a reply."""
-    if isinstance(blk._records, list) or blk.vid_models is not None:
+    if blk.linted_by_rows or blk.vid_models is not None:
         for rec in blk.records():
             ch.record(rec)
         return
