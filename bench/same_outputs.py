@@ -32,7 +32,7 @@ def run(tree: Path, argv: list[str]) -> bytes:
 
 
 def mcap_messages(tree: Path, capture: Path, out: Path) -> bytes:
-    run(tree, ["convert", str(capture), "-o", str(out), "--force"])
+    run(tree, ["convert", str(capture), "-o", str(out), "--force"])  # capture: relative, as the messages name it
     if not out.exists():
         return b"(no file)"
     from mcap.reader import make_reader
@@ -62,8 +62,8 @@ def main() -> int:
                     if a != b:
                         differ += 1
                         print(f"differs: {' '.join(argv)}")
-                a = mcap_messages(ROOT, ROOT / rel, Path(tmp) / "a.mcap")
-                b = mcap_messages(other, other / rel, Path(tmp) / "b.mcap")
+                a = mcap_messages(ROOT, rel, Path(tmp) / "a.mcap")
+                b = mcap_messages(other, rel, Path(tmp) / "b.mcap")
                 if a != b:
                     differ += 1
                     print(f"differs: convert {rel} (MCAP messages)")
