@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ...protocol.memmap import default_registry
+from ...protocol.memmap import ModelError, default_registry
 from ...protocol.wire import encode_long, encode_read, encode_return, encode_short
 from ..registry import example, rule
 
@@ -106,7 +106,13 @@ def partial_register_write(lint, rec, plan, ids):
 
 
 def _known_models() -> str:
-    return ", ".join(f"0x{n:04X} {m.name}" for n, m in sorted(default_registry().by_number.items()))
+    try:
+        registry = default_registry()
+    except ModelError:
+        # A broken map (on RS30X_DECODERS, say) is the command's to report, in one line, when it loads
+        # the maps: the rules are declared when the package is imported, before any command runs.
+        return "the memory maps that load"
+    return ", ".join(f"0x{n:04X} {m.name}" for n, m in sorted(registry.by_number.items()))
 
 
 def _unknown_model_number_columns(said, view) -> bool:
