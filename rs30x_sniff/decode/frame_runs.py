@@ -36,6 +36,11 @@ class FrameRun:
     def bytes_array(self) -> np.ndarray:
         return np.frombuffer(self.blob, dtype=np.uint8)
 
+    @property
+    def header_made(self) -> dict[str, np.ndarray] | None:
+        """The header columns if header() has made them, else None (without making them)."""
+        return self._cols
+
     def header(self) -> dict[str, np.ndarray]:
         """The header bytes of every frame as columns (chapter 4, "Format of Packets"), and its kind."""
         cols = self._cols

@@ -140,14 +140,14 @@ class Record:
         return self._build_fields(self._values)
 
     def _build_fields(self, values: tuple | None) -> list[Field]:
-        lay, data = self._layout()
+        lay, data = self.data_layout()
         if lay is None:
             return []
         if isinstance(lay, list):
             return [x for (sub, d, vid) in lay for x in sub.fields(d, sub.values(d), vid)]
         return lay.fields(data, lay.values(data) if values is None else values, self.event.id)
 
-    def _layout(self):
+    def data_layout(self):
         """(layout, data) for the packet's data; for a long packet to servos of mixed models, a list."""
         ev = self.event
         t = type(ev)
@@ -166,7 +166,7 @@ class Record:
         return None, b""
 
     def _decode_values(self) -> tuple:
-        lay, data = self._layout()
+        lay, data = self.data_layout()
         if lay is None:
             return ()
         if isinstance(lay, list):
@@ -176,7 +176,7 @@ class Record:
     def named_values(self) -> list[tuple[Any, str, Any]]:
         """``(servo id, register name, value)`` of each whole, named register the packet carries, in
         field order (Layout.named_values): the fields' content without the Field objects."""
-        lay, data = self._layout()
+        lay, data = self.data_layout()
         if lay is None:
             return []
         if isinstance(lay, list):
@@ -186,7 +186,7 @@ class Record:
     def fields_json(self, only: set[int] | None = None, compact: bool = False) -> str:
         """The JSON text of the fields' objects (``render.field_json``), without the brackets, written
         from per-layout templates: no Field objects or dicts are built (``only``: those servo IDs)."""
-        lay, data = self._layout()
+        lay, data = self.data_layout()
         if lay is None:
             return ""
         if isinstance(lay, list):

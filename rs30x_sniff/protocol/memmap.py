@@ -311,12 +311,12 @@ class Layout:
     def _compile_json(self, compact: bool) -> tuple[tuple[str, ...], Any]:
         """fields_json's templates: one per part, and for the whole layout one ``%`` format with a
         generated function filling it in (the hex of the data sliced per field, and each value's text
-        looked up by its raw value: _value_text)."""
+        looked up by its raw value: value_text)."""
         tmpl = tuple(_field_template(reg, partial, compact) for _, _, reg, partial in self.parts)
         args = []
         env: dict[str, Any] = {}
         for j, (_, _, reg, partial) in enumerate(self.parts):
-            env[f"V{j}"] = _value_text(reg, partial)
+            env[f"V{j}"] = value_text(reg, partial)
         if not self.records:
             for j, (start, size, reg, partial) in enumerate(self.parts):
                 args += ["s", f"h[{2 * start}:{2 * (start + size)}]", f"V{j}[r[{j}]]"]
@@ -390,7 +390,7 @@ class Layout:
         return sep.join(out)
 
 
-class _ByRaw(dict):
+class ByRaw(dict):
     """Something made from a part's raw value by ``make`` on first sight and kept (the first ``limit``
     of them, when given: a 2-byte register has 65,536 raw values)."""
 
@@ -408,22 +408,22 @@ class _ByRaw(dict):
         return made
 
 
-def _converter(reg: Register, partial: str | None, wrap: str = "{}", env: dict | None = None) -> Any:
+def converter(reg: Register, partial: str | None, wrap: str = "{}", env: dict | None = None) -> Any:
     """``lambda x:`` the part's engineering value of raw value ``x`` (_conversion, the expression
     Layout.values computes), put in ``wrap`` at ``{}``; ``env``: names ``wrap`` uses."""
     env = {} if env is None else env
     return eval(f"lambda x: {wrap.format(_conversion(reg, partial, 'x', env, 0))}", env)  # noqa: S307 - from the validated map
 
 
-def _value_text(reg: Register, partial: str | None) -> _ByRaw:
+def value_text(reg: Register, partial: str | None) -> ByRaw:
     """The JSON text of a part's engineering value, by raw value: the register's conversion
     (_conversion) and then the JSON of its kind (_JSON_OF), as fields_json wrote them per value.
     Kept in the register's cache."""
     key = ("json", partial)
     table = reg.cache.get(key)
     if table is None:
-        table = reg.cache[key] = _ByRaw(
-            _converter(reg, partial, _JSON_OF[_value_kind(reg, partial)], {"J": _json_scalar}))
+        table = reg.cache[key] = ByRaw(
+            converter(reg, partial, _JSON_OF[_value_kind(reg, partial)], {"J": _json_scalar}))
     return table
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
 from ..decode.frame_runs import LONG
-from .records import _COMPACT, _NO_FIELDS, _SPACED, record_json, record_json_text
+from .records import COMPACT, NO_FIELDS, SPACED, record_json, record_json_text
 
 # What varies between rows of one shape (besides the fields). The templates are kept by the model
 # they are for (Model.keep): (format, slots, layout) of a Block's rows, (format, slots) of a Record's.
@@ -137,8 +137,8 @@ def json_template(obj: dict[str, Any], slots: tuple[str, ...], encode: Any, stri
 
 def _line_template(rec: Any, only: set[int] | None, compact: bool) -> tuple[str, tuple[str, ...]]:
     """record_json_text of ``rec`` as a ``%`` format: a %s for each of _SLOTS it has, and for the fields."""
-    empty = _NO_FIELDS[compact]
-    return json_template(record_json(rec, only, fields=False), _SLOTS, _COMPACT if compact else _SPACED,
+    empty = NO_FIELDS[compact]
+    return json_template(record_json(rec, only, fields=False), _SLOTS, COMPACT if compact else SPACED,
                          strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
 
 
@@ -148,7 +148,7 @@ def _template(blk: Any, k: int, model: Any, key: tuple, only: set[int] | None, c
     rec = blk.record(k)
     text, slots = _line_template(rec, only, compact)
     # The Block's servos share a model here (block_json_rows), so this is one Layout (or None).
-    return model.keep(key, (text, slots, rec._layout()[0]))
+    return model.keep(key, (text, slots, rec.data_layout()[0]))
 
 
 def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = False) -> str:

@@ -7,8 +7,8 @@ from typing import Any, Callable, Iterable
 from ..decode.blocks import Block
 from ..decode.pairing import Record
 from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
-from ..protocol.memmap import Field, Register, _ByRaw, _converter
-from .records import _shown, bad_sum, direction, field_text, kind_word, text_line, verbose_lines
+from ..protocol.memmap import ByRaw, Field, Register, converter
+from .records import bad_sum, direction, field_text, is_shown, kind_word, text_line, verbose_lines
 from ..protocol.wire import COMMAND_ADDRESS
 
 __all__ = ["block_text", "record_line"]
@@ -32,28 +32,28 @@ class _Shape:
 
 def _field_text(reg: Register, partial: str | None, sep: str) -> Callable[[int], str]:
     """raw value -> the text a field of this value adds to a line (``sep`` + ``label=value``, or "" when
-    render._shown hides it), by render's own field_text from a Field of that value.
+    render.is_shown hides it), by render's own field_text from a Field of that value.
 
-    The value is what Layout.values computes (the same generated expression, memmap._converter), and
+    The value is what Layout.values computes (the same generated expression, memmap.converter), and
     format_value reads nothing of a Field but its register, partial, raw value and value: so the text
     is the one the record path writes."""
-    convert = _converter(reg, partial)
+    convert = converter(reg, partial)
     address = reg.address if not partial else reg.address + (partial == "high")
 
     def text(x: int) -> str:
         f = Field(None, address, reg, b"", x, convert(x), partial)
-        return sep + field_text(f) if _shown(f) else ""
+        return sep + field_text(f) if is_shown(f) else ""
 
     return text
 
 
-def _texts(reg: Register, partial: str | None, sep: str) -> _ByRaw:
+def _texts(reg: Register, partial: str | None, sep: str) -> ByRaw:
     """A field's texts by raw value (_field_text), made on first use and kept in the register's cache;
     noise in a 2-byte field could fill 65536 of them: the first MAX_TEXTS are kept."""
     key = ("text", partial, sep)
     memo = reg.cache.get(key)
     if memo is None:
-        memo = reg.cache[key] = _ByRaw(_field_text(reg, partial, sep), MAX_TEXTS)
+        memo = reg.cache[key] = ByRaw(_field_text(reg, partial, sep), MAX_TEXTS)
     return memo
 
 
@@ -136,7 +136,7 @@ def record_line(rec: Record, only: set[int] | None = None) -> str:
     if (rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket) or not ev.checksum_ok
             or model is None):
         return text_line(rec, only) + "\n"
-    lay, data = rec._layout()
+    lay, data = rec.data_layout()
     # A long packet to servos of mixed models has a layout per servo: the shape is theirs together.
     layouts = (lay,) if type(lay) is not list else tuple([sub for sub, _, _ in lay])
     raw = ev[1]
@@ -220,7 +220,7 @@ def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable 
         return None, None
     pieces: list[tuple[str, str]] = []  # ("lit", text) or ("exp", f-string replacement field)
     env: dict[str, Any] = {"G": _join_shown}
-    tables: list[_ByRaw] = []  # each field's texts by raw value, M0, M1, ... in the generated code
+    tables: list[ByRaw] = []  # each field's texts by raw value, M0, M1, ... in the generated code
 
     def memo(reg: Register, partial: str | None, sep: str) -> str:
         name = f"M{len(tables)}"
@@ -234,7 +234,7 @@ def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable 
     if kind != "long":
         pieces.append(("lit", f" id={ev.id}"))
     raw: Callable | None = None
-    lay, data = rec._layout()
+    lay, data = rec.data_layout()
     if kind != "long":
         if lay is not None:
             raw = lay.unpack_raw

@@ -60,7 +60,7 @@ def format_value(f: Field, with_unit: bool = True) -> str:
     return text + unit if unit else text
 
 
-def _shown(f: Field) -> bool:
+def is_shown(f: Field) -> bool:
     # Reserved and undocumented bytes are noise in a one-line summary unless they carry something.
     return f.register.name is not None or f.raw_value != 0
 
@@ -99,12 +99,12 @@ def summary(rec: Record, *, bare: bool = False, keep: bool = True, only: set[int
     if t is LongPacket:
         by_id: dict[int, list[str]] = {}
         for f in fields:
-            if not _shown(f) or (only is not None and f.id not in only):
+            if not is_shown(f) or (only is not None and f.id not in only):
                 continue
             by_id.setdefault(f.id, []).append(field_text(f))
         parts += [f"{vid}:{','.join(items)}" for vid, items in by_id.items()]
     else:
-        parts += [field_text(f) for f in fields if _shown(f)]
+        parts += [field_text(f) for f in fields if is_shown(f)]
     if t is ShortPacket:
         names = rec.read_names
         if names and ev.read_range:
@@ -177,18 +177,18 @@ def request_flag_names(ev: ShortPacket | LongPacket) -> list[str]:
     return ["reserved_bit7"] if ev.flag & FLAG_RESERVED else []
 
 
-_NO_FIELDS = {False: '"fields": []', True: '"fields":[]'}
-_SPACED = json.JSONEncoder(check_circular=False).encode
-_COMPACT = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
+NO_FIELDS = {False: '"fields": []', True: '"fields":[]'}
+SPACED = json.JSONEncoder(check_circular=False).encode
+COMPACT = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 
 
 def record_json_text(rec: Record, only: set[int] | None = None, compact: bool = False) -> str:
     """``json.dumps(record_json(rec, only))`` (``compact``: with "," and ":" separators), the same text
     made faster: the fields come from per-layout templates (Record.fields_json), not Field objects."""
-    text = (_COMPACT if compact else _SPACED)(record_json(rec, only, fields=False))
+    text = (COMPACT if compact else SPACED)(record_json(rec, only, fields=False))
     fields = rec.fields_json(only, compact)
     if fields:
-        empty = _NO_FIELDS[compact]
+        empty = NO_FIELDS[compact]
         # "fields" is the first list in the object and its key comes before any string that could hold
         # the same characters (hex, names and numbers only): the first match is the right one.
         text = text.replace(empty, empty[:-1] + fields + "]", 1)

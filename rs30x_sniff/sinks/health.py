@@ -18,8 +18,9 @@ FLAG_NAMES = tuple(RETURN_FLAG_BITS.values())
 
 # Raw packets are kept per payload shape and reduced this many at a time: the frames become the rows
 # of a byte matrix and each register's column is read by numpy's min/max, so a return costs the stats
-# sink a list append instead of Python arithmetic per value.
-_FLUSH_ROWS = 4096
+# sink a list append instead of Python arithmetic per value. Public: CaptureStats' column form
+# (sinks/stats.py) fills the same buffers and flushes at the same count.
+FLUSH_ROWS = 4096
 _TYPECODES = {(1, False): "B", (1, True): "b", (2, False): "H", (2, True): "h"}
 _LITTLE = sys.byteorder == "little"
 # Times above this are seconds since 1970 (a logger's wall clock), not seconds since the capture began.
@@ -137,16 +138,22 @@ class ServoHealth:
 
 
 class HealthRecorder:
-    """Fed by CaptureStats per intact packet: keeps the raw packets, the flags, the findings per servo."""
+    """Fed by CaptureStats per intact packet: keeps the raw packets, the flags, the findings per servo.
+
+    The column form (CaptureStats over Blocks) uses the public buffer interface: the buffers
+    ``returns``, ``writes`` and ``long_writes`` (shape key -> [model, raw frames]), ``open_buffer``
+    to start one, ``flush_short`` / ``flush_long`` to reduce one (with a FrameRun's rows read in
+    place), at ``FLUSH_ROWS`` frames a buffer, as the record form does.
+    """
 
     def __init__(self) -> None:
         self.servos: dict[int, ServoHealth] = {}
         # Raw packets by shape, each [model, rows]: returns and short writes by (servo, address, data
         # length), long packets by (address, length, count). One model per buffer: a servo whose model
         # is learned midway starts a new one.
-        self._ret: dict[tuple, list] = {}
-        self._wr: dict[tuple, list] = {}
-        self._long: dict[tuple, list] = {}
+        self.returns: dict[tuple, list] = {}
+        self.writes: dict[tuple, list] = {}
+        self.long_writes: dict[tuple, list] = {}
         self.codes: dict[str, list] = {}       # code -> [count, first t, first offset, severity, name, ids]
 
     def servo(self, sid: int) -> ServoHealth:
@@ -161,13 +168,13 @@ class HealthRecorder:
         data = ev[9]
         if data:
             key = (sid, ev[6], len(data))
-            b = self._ret.get(key)
+            b = self.returns.get(key)
             if b is None or b[0] is not rec.model:
-                b = self._open(self._ret, key, rec.model)
+                b = self.open_buffer(self.returns, key, rec.model)
             rows = b[1]
             rows.append(ev[1])
-            if len(rows) >= _FLUSH_ROWS:
-                self._flush_short(key, b, True)
+            if len(rows) >= FLUSH_ROWS:
+                self.flush_short(key, b, True)
         flags = ev[5]
         if flags:
             self._flags(sid, flags, ev)
@@ -175,12 +182,12 @@ class HealthRecorder:
     def written(self, rec: Any, ev: Any, sid: int) -> None:
         """An intact short packet to ``sid`` carrying data."""
         key = (sid, ev[6], len(ev[9]))
-        b = self._wr.get(key)
+        b = self.writes.get(key)
         if b is None or b[0] is not rec.model:
-            b = self._open(self._wr, key, rec.model)
+            b = self.open_buffer(self.writes, key, rec.model)
         b[1].append(ev[1])
-        if len(b[1]) >= _FLUSH_ROWS:
-            self._flush_short(key, b, False)
+        if len(b[1]) >= FLUSH_ROWS:
+            self.flush_short(key, b, False)
 
     def long_written(self, rec: Any, ev: Any) -> None:
         """An intact long packet."""
@@ -193,20 +200,22 @@ class HealthRecorder:
                     self.servo(vid).take(reg, _column(data, off, len(data), reg))
             return
         key = (ev[5], ev[6], len(records))
-        b = self._long.get(key)
+        b = self.long_writes.get(key)
         if b is None or b[0] is not rec.model:
-            b = self._open(self._long, key, rec.model)
+            b = self.open_buffer(self.long_writes, key, rec.model)
         b[1].append(ev[1])
-        if len(b[1]) >= _FLUSH_ROWS:
-            self._flush_long(key, b)
+        if len(b[1]) >= FLUSH_ROWS:
+            self.flush_long(key, b)
 
-    def _open(self, bufs: dict, key: tuple, model: Any) -> list:
+    def open_buffer(self, bufs: dict, key: tuple, model: Any) -> list:
+        """A new [model, frames] buffer for ``key`` in ``bufs`` (one of returns, writes, long_writes);
+        the old one of a different model is reduced first."""
         old = bufs.get(key)
         if old is not None and old[1]:  # the servo's model changed: what came before keeps its own
-            if bufs is self._long:
-                self._flush_long(key, old)
+            if bufs is self.long_writes:
+                self.flush_long(key, old)
             else:
-                self._flush_short(key, old, bufs is self._ret)
+                self.flush_short(key, old, bufs is self.returns)
         b = bufs[key] = [model, []]
         return b
 
@@ -235,15 +244,15 @@ class HealthRecorder:
     # ---- reducing ----------------------------------------------------------------------------
     def flush(self) -> None:
         """Reduce every buffer (before the figures are read: the monitor asks every second)."""
-        for key, b in self._ret.items():
+        for key, b in self.returns.items():
             if b[1]:
-                self._flush_short(key, b, True)
-        for key, b in self._wr.items():
+                self.flush_short(key, b, True)
+        for key, b in self.writes.items():
             if b[1]:
-                self._flush_short(key, b, False)
-        for key, b in self._long.items():
+                self.flush_short(key, b, False)
+        for key, b in self.long_writes.items():
             if b[1]:
-                self._flush_long(key, b)
+                self.flush_long(key, b)
 
     def short_target(self, key: tuple, model: Any, present: bool) -> tuple[Any, list]:
         """The servo of a (servo, address, length) buffer and where its followed registers sit in the
@@ -254,8 +263,8 @@ class HealthRecorder:
             h.model = model
         return h, _where(model, PRESENT if present else WRITTEN, address, n)
 
-    def _flush_short(self, key: tuple, b: list, present: bool, run: Any = None,
-                     rows: np.ndarray | None = None) -> None:
+    def flush_short(self, key: tuple, b: list, present: bool, run: Any = None,
+                    rows: np.ndarray | None = None) -> None:
         """Returns (``present``) or short writes of one servo, address and length: raw frames whose
         data starts at byte 7 (header, ID, flags, address, length, count); the buffered ones, then
         ``rows`` of FrameRun ``run`` (if any), read in place."""
@@ -268,9 +277,9 @@ class HealthRecorder:
             for reg, off in where:
                 _take(h, reg, _register_column(mat, 7 + off, reg))
 
-    def _flush_long(self, key: tuple, b: list, run: Any = None, rows: np.ndarray | None = None) -> None:
+    def flush_long(self, key: tuple, b: list, run: Any = None, rows: np.ndarray | None = None) -> None:
         """Long packets of one shape: each of ``count`` records is a VID and ``length - 1`` bytes (the
-        buffered frames, then ``rows`` of ``run``, as _flush_short)."""
+        buffered frames, then ``rows`` of ``run``, as flush_short)."""
         raws, b[1] = b[1], []
         model = b[0]
         address, length, count = key

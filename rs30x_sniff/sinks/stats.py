@@ -15,7 +15,7 @@ import numpy as np
 from ..decode.blocks import Block
 from ..protocol.events import Ack, Garbage, LongPacket, ReturnPacket, ShortPacket
 from ..decode.frame_runs import LONG, RETURN, SHORT
-from .health import _FLUSH_ROWS, Frames, HealthRecorder, servo_health, timer, what_happened
+from .health import FLUSH_ROWS, Frames, HealthRecorder, servo_health, timer, what_happened
 from .pipeline import Sink
 from ..decode.decoder import Step
 from ..decode.framing import SEAM_BACK_S
@@ -359,7 +359,7 @@ class CaptureStats(Sink):
                         st.last_read_t = la
             writes = np.flatnonzero(to_servo & (dlen > 0))
             if writes.size:
-                self._health_rows(blk, writes, health._wr, False)
+                self._health_rows(blk, writes, health.writes, False)
         if counts[LONG]:
             self.by_op["long-write"] += counts[LONG]
             for _, vids in longs:
@@ -367,7 +367,7 @@ class CaptureStats(Sink):
                 for i in np.flatnonzero(vc).tolist():
                     servos[i].long_writes += int(vc[i])
             if blk.vid_models is None:
-                self._health_rows(blk, long_rows, health._long, None)
+                self._health_rows(blk, long_rows, health.long_writes, None)
             else:  # servos of mixed models: each packet on its own, as the record path does
                 made = blk.made_rows
                 for k in long_rows.tolist():
@@ -379,7 +379,7 @@ class CaptureStats(Sink):
                 servos[i].returns += int(rc[i])
             with_data = np.flatnonzero(is_return & (dlen > 0))
             if with_data.size:
-                self._health_rows(blk, with_data, health._ret, True)
+                self._health_rows(blk, with_data, health.returns, True)
             flagged = np.flatnonzero(is_return & (flag != 0))
             if flagged.size:
                 self._flags(blk, flagged)
@@ -429,7 +429,7 @@ class CaptureStats(Sink):
     def _health_rows(self, blk: Block, rows: np.ndarray, bufs: dict, present: bool | None) -> None:
         """Rows of the Block into the health recorder's buffers, as returned() / written() /
         long_written() put them (``present`` True, False, None): by shape, each shape in the order
-        its first row came, flushed every _FLUSH_ROWS rows of a shape as they are."""
+        its first row came, flushed every FLUSH_ROWS rows of a shape as they are."""
         cols, run = blk.cols, blk.run
         address = cols["address"][rows].astype(np.int64)
         if present is None:  # long packets: (address, length, records)
@@ -454,18 +454,18 @@ class CaptureStats(Sink):
             model = blk.default if present is None else models[key_t[0]]
             b = bufs.get(key_t)
             if b is None or b[0] is not model:
-                b = health._open(bufs, key_t, model)
+                b = health.open_buffer(bufs, key_t, model)
             i = g0
             while True:
-                room = _FLUSH_ROWS - len(b[1])
+                room = FLUSH_ROWS - len(b[1])
                 if g1 - i < room:  # the rest waits in the buffer, as raw frames
                     b[1] += _buffered(run, grouped[i:g1], _frame_size(key_t, present))
                     break
                 # These rows fill the buffer: the record path's flush, their bytes read in place.
                 if present is None:
-                    health._flush_long(key_t, b, run, grouped[i:i + room])
+                    health.flush_long(key_t, b, run, grouped[i:i + room])
                 else:
-                    health._flush_short(key_t, b, present, run, grouped[i:i + room])
+                    health.flush_short(key_t, b, present, run, grouped[i:i + room])
                 i += room
                 if i == g1:
                     break

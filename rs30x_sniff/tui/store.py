@@ -135,7 +135,7 @@ def run_nbytes(run: FrameRun) -> int:
     for a in (run.starts, run.ends, run.t0, run.t1):
         if a is not None:
             n += a.nbytes + 112
-    for a in (run._cols or {}).values():
+    for a in (run.header_made or {}).values():
         if a.base is None:
             n += a.nbytes + 112
     return n

@@ -158,7 +158,7 @@ def test_ranges_match_every_decoded_field(sims):
 
 def test_asking_midway_changes_nothing(sims, monkeypatch):
     """The monitor reads as_dict() twice a second: partial reductions must add up to one pass's."""
-    monkeypatch.setattr(health_module, "_FLUSH_ROWS", 7)  # and small batches, as on a long capture
+    monkeypatch.setattr(health_module, "FLUSH_ROWS", 7)  # and small batches, as on a long capture
     recs = list(decode_records(_chunks(sims["overheat"])))
     once = CaptureStats(115200)
     for r in recs:

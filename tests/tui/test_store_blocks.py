@@ -299,8 +299,8 @@ def test_capture_stats_flush_health_buffers_as_the_record_path(monkeypatch, rows
     import rs30x_sniff.sinks.health
     import rs30x_sniff.sinks.stats
 
-    monkeypatch.setattr(rs30x_sniff.sinks.health, "_FLUSH_ROWS", rows)
-    monkeypatch.setattr(rs30x_sniff.sinks.stats, "_FLUSH_ROWS", rows)
+    monkeypatch.setattr(rs30x_sniff.sinks.health, "FLUSH_ROWS", rows)
+    monkeypatch.setattr(rs30x_sniff.sinks.stats, "FLUSH_ROWS", rows)
     for name, opts in (("bench", DecodeOptions()), ("overheat", DecodeOptions()),
                        ("bench", DecodeOptions(models={4: "RS304MD"}))):
         chunks = capture(name)

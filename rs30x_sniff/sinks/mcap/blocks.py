@@ -9,7 +9,7 @@ from typing import Any
 from ...render.block_json import block_json_rows, json_template
 from ...decode.frame_runs import LONG
 from ...protocol.mcap_names import PACKETS_TOPIC, TRANSACTIONS_TOPIC, log_time_ns
-from ...protocol.memmap import Layout, _value_text
+from ...protocol.memmap import Layout, value_text
 from .transactions import transaction_json
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
@@ -27,9 +27,9 @@ def _named_plan(layout: Layout) -> tuple:
     n = len(layout.parts)
     named = [(j, reg) for j, (_, _, reg, partial) in enumerate(layout.parts) if reg.name is not None and not partial]
     if not layout.records:
-        plan = ((None, tuple((j, reg.name, f'"{reg.name}":', _value_text(reg, None)) for j, reg in named)),)
+        plan = ((None, tuple((j, reg.name, f'"{reg.name}":', value_text(reg, None)) for j, reg in named)),)
     else:
-        plan = tuple((r * (n + 1), tuple((r * (n + 1) + 1 + j, reg.name, f'"{reg.name}":', _value_text(reg, None))
+        plan = tuple((r * (n + 1), tuple((r * (n + 1) + 1 + j, reg.name, f'"{reg.name}":', value_text(reg, None))
                                          for j, reg in named)) for r in range(layout.records))
     layout.cache["mcap states"] = plan
     return plan
@@ -61,13 +61,13 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
     lat = blk.latencies().tolist() if timed else None
     answered = blk.answered.tolist()
     packets = block_json_rows(blk, None, compact=True)
-    time_of = ch._time
-    cid_packets = ch._channel(PACKETS_TOPIC, "rs30x.Packet")
+    time_of = ch.time_of
+    cid_packets = ch.channel(PACKETS_TOPIC, "rs30x.Packet")
     cid_tx = None
-    servos = ch._servos
+    servos = ch.servos
     models, known = servos.models, servos.known
-    slot = ch._state_slot
-    state_models = ch._models
+    slot = ch.state_slot
+    state_models = ch.model_names
     blk_models, default = blk.models, blk.default
     for k, (s, e, kind) in enumerate(zip(starts, ends, kinds)):
         offset = base + s
@@ -130,5 +130,5 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
                     else:
                         vals.append(repr(lat[k + 1]))
                 if cid_tx is None:
-                    cid_tx = ch._channel(TRANSACTIONS_TOPIC, "rs30x.Transaction")
+                    cid_tx = ch.channel(TRANSACTIONS_TOPIC, "rs30x.Transaction")
                 emit(cid_tx, log_time, (fmt % tuple(vals)).encode())

@@ -69,7 +69,7 @@ class FoxgloveSink(JsonChannels):
         # Advertised now, not at their first message: a client subscribes on an advertisement, so a
         # channel made lazily would lose its first message (the first finding) to every client.
         for topic, schema_name in FIXED_CHANNELS:
-            self._channel(topic, schema_name)
+            self.channel(topic, schema_name)
 
     @property
     def ws_url(self) -> str:
@@ -81,7 +81,7 @@ class FoxgloveSink(JsonChannels):
         return self.server.app_url()
 
     # ---- JsonChannels --------------------------------------------------------------------------
-    def _channel(self, topic: str, schema_name: str) -> Any:
+    def channel(self, topic: str, schema_name: str) -> Any:
         ch = self._channels.get(topic)
         if ch is None:
             schema = foxglove.Schema(name=schema_name, encoding="jsonschema", data=schema_bytes(schema_name))

@@ -43,7 +43,7 @@ _log_time = itemgetter(0)  # a held message's (log_time, channel, data)
 
 class JsonChannels:
     """The channels' messages, built once for every sink that publishes them (an MCAP file, a Foxglove
-    WebSocket server): a subclass says how a channel is opened (``_channel``) and a message written
+    WebSocket server): a subclass says how a channel is opened (``channel``) and a message written
     (``_write``), so both carry the same bodies with the same log times.
 
     A file takes every message. A live server sets ``_every_message`` to False and answers ``_live``:
@@ -51,6 +51,9 @@ class JsonChannels:
     costs the decoding and little more. What a later message depends on (the stream offset of the raw
     bytes, each servo's registers) is kept either way, so a client that subscribes late gets the same
     bodies a file holds from then on.
+
+    The column form (sinks/mcap/blocks.py) writes the same messages through the public names:
+    ``channel``, ``time_of``, ``servos`` (ServoStates), ``model_names`` and ``state_slot``.
     """
 
     _every_message = True
@@ -62,8 +65,8 @@ class JsonChannels:
         self._byte_time = byte_time(baud)
         self._origin = start_time or 0.0
         self._raw_offset = 0                   # stream offset of the next raw byte
-        self._servos = ServoStates(models)
-        self._models = self._servos.models     # servo -> model name, for the metadata too
+        self.servos = ServoStates(models)
+        self.model_names = self.servos.models     # servo -> model name, for the metadata too
         self._states: dict[int, dict[str, str]] = {}  # servo -> register name -> '"name":value'
         self._held: dict[int, dict[str, Any]] = {}    # servo -> register values not yet in _states
         self._state_channels: dict[int, Any] = {}
@@ -79,7 +82,7 @@ class JsonChannels:
         else:
             made.append((log_time, cid, data))
 
-    def _channel(self, topic: str, schema_name: str) -> Any:
+    def channel(self, topic: str, schema_name: str) -> Any:
         """The handle ``_write`` takes for ``topic`` (registered on first use)."""
         raise NotImplementedError
 
@@ -90,7 +93,9 @@ class JsonChannels:
         """Whether a message on ``cid`` would reach anyone (asked only when not ``_every_message``)."""
         return True
 
-    def _time(self, t: float | None, offset: int) -> float:
+    def time_of(self, t: float | None, offset: int) -> float:
+        """A message's time in seconds (log_time_ns makes its log time) from capture time ``t`` or, without
+        one, the stream ``offset``."""
         # A capture without timestamps: the time the byte would have reached the wire at full line rate.
         # --start-time anchors either kind to the wall clock (``start_time`` seconds since the epoch).
         return self._origin + (t if t is not None else offset * self._byte_time)
@@ -110,39 +115,39 @@ class JsonChannels:
             return
         offset = self._raw_offset
         self._raw_offset += len(data)
-        cid = self._channel(RAW_TOPIC, RAW_SCHEMA)
+        cid = self.channel(RAW_TOPIC, RAW_SCHEMA)
         if not (self._every_message or self._live(cid)):
             return
         ts = "null" if t is None else repr(float(t))
         marks = (f',"sender":"{sender}"' if sender else "") + (f',"error":"{error}"' if error else "")
         body = (f'{{"offset":{offset},"t":{ts},"length":{len(data)},"data":"'
                 f'{base64.b64encode(data).decode("ascii")}"{marks}}}').encode()
-        self._emit(cid, log_time_ns(self._time(t, offset)), body)
+        self._emit(cid, log_time_ns(self.time_of(t, offset)), body)
 
     def record(self, rec: Any) -> None:
         """A decoded record: its /rs30x/packets message, the state of every servo it changes, and
         its /rs30x/transactions message if it is a request that asked for a reply."""
         ev = rec.event
-        log_time = log_time_ns(self._time(ev.t_start, ev.offset))
+        log_time = log_time_ns(self.time_of(ev.t_start, ev.offset))
         every = self._every_message
-        cid = self._channel(PACKETS_TOPIC, PACKET_SCHEMA)
+        cid = self.channel(PACKETS_TOPIC, PACKET_SCHEMA)
         if every or self._live(cid):
             self._emit(cid, log_time, record_json_line(rec, compact=True).encode())
         if type(ev) is Garbage:
             return
-        changed = self._servos.changes(rec)
+        changed = self.servos.changes(rec)
         if changed:
             self._update_state(rec, changed, log_time)
         if rec.expects is not None:
-            cid = self._channel(TRANSACTIONS_TOPIC, TRANSACTION_SCHEMA)
+            cid = self.channel(TRANSACTIONS_TOPIC, TRANSACTION_SCHEMA)
             if every or self._live(cid):
                 self._emit(cid, log_time, _encode(transaction_json(rec)).encode())
 
-    def _state_slot(self, tid: int) -> tuple[Any, dict[str, str]]:
+    def state_slot(self, tid: int) -> tuple[Any, dict[str, str]]:
         """Servo ``tid``'s state channel and its fragments ('"name":value' by name), made on first use."""
         cid = self._state_channels.get(tid)
         if cid is None:
-            cid = self._state_channels[tid] = self._channel(STATE_TOPIC.format(id=tid), SERVO_STATE_SCHEMA)
+            cid = self._state_channels[tid] = self.channel(STATE_TOPIC.format(id=tid), SERVO_STATE_SCHEMA)
         st = self._states.get(tid)
         if st is None:
             st = self._states[tid] = {}
@@ -155,7 +160,7 @@ class JsonChannels:
         # when someone does: its state stays whole without a value encoded for nobody.
         every = self._every_message
         live = []
-        slot = self._state_slot
+        slot = self.state_slot
         for tid, pairs in changed.items():
             cid, st = slot(tid)
             if every or self._live(cid):
@@ -176,18 +181,18 @@ class JsonChannels:
         ev = rec.event
         tail = f',"t":{"null" if ev.t_start is None else repr(ev.t_start)},"offset":{ev.offset},'
         fallback = rec.model.name if rec.model is not None else ""
-        models = self._models
+        models = self.model_names
         for tid, cid, st in live:
             body = f'{{"id":{tid},"model":"{models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
             self._emit(cid, log_time, body.encode())
 
     def findings(self, findings: Iterable[Any]) -> None:
         """Lint findings as foxglove.Log messages on /rs30x/diagnostics."""
-        cid = self._channel(DIAGNOSTICS_TOPIC, LOG_SCHEMA)
+        cid = self.channel(DIAGNOSTICS_TOPIC, LOG_SCHEMA)
         if not (self._every_message or self._live(cid)):
             return
         for f in findings:
-            t = self._time(f.t, f.offset)
+            t = self.time_of(f.t, f.offset)
             ns = log_time_ns(t)
             msg = {"timestamp": {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000},
                    "level": _LOG_LEVEL.get(f.severity, 0),
@@ -310,7 +315,7 @@ class McapSink(JsonChannels):
         self.stats = CaptureStats(baud)  # what passes through the drive loop, summed as `info` sums it
         meta = {"source": source, "baud": str(baud), "time_base": time_base, "tool": "rs30x-sniff",
                 "start_time": "" if start_time is None else repr(start_time),
-                "tool_version": __version__, "models": _models_text(self._models)}
+                "tool_version": __version__, "models": _models_text(self.model_names)}
         meta.update(extra_metadata or {})
         self._sdk(self._writer.write_metadata, METADATA_NAME, meta)
 
@@ -362,7 +367,7 @@ class McapSink(JsonChannels):
         return self._finalized
 
     # ---- channels -----------------------------------------------------------------------------
-    def _channel(self, topic: str, schema_name: str) -> Any:
+    def channel(self, topic: str, schema_name: str) -> Any:
         ch = self._channels.get(topic)
         if ch is None:
             data = schema_bytes(schema_name)
@@ -434,7 +439,7 @@ class McapSink(JsonChannels):
         finally:
             self._finished = True
             try:
-                self._sdk(self._writer.write_metadata, MODELS_METADATA_NAME, {"models": _models_text(self._models)})
+                self._sdk(self._writer.write_metadata, MODELS_METADATA_NAME, {"models": _models_text(self.model_names)})
                 if self.stats.bytes_in:
                     self.stats.close()
                     self._sdk(self._writer.write_metadata, STATS_METADATA_NAME,
