@@ -11,7 +11,7 @@ from typing import Any, Callable, Iterator
 from ..decode.blocks import MIN_BLOCK, Block
 from ..decode.pairing import Record
 from ..sources.captures import CaptureError
-from ..sinks.pipeline import GROUP_BYTES, Pipeline, Sink
+from ..sinks.pipeline import GROUP_BYTES, Pipeline, Sink, columnar_for
 from ..decode.decoder import DecodeOptions, Decoder, Step
 from ..sinks.stats import CaptureStats
 from .sources import Source
@@ -172,7 +172,7 @@ class Feeder:
         # A file is decoded columnar (rs30x_sniff.decode.blocks): clean stretches come as Blocks, which the
         # screen keeps as columns and makes Records of only for the rows it shows; a live source
         # (port, simulator, replay) goes record by record as it comes.
-        self.loading = getattr(source, "kind", None) == "file"
+        self.loading = columnar_for(source)  # a file loads on the columnar path; a port, replay or simulator live
         self.decoder = Decoder(options, linter=linter, columnar=self.loading)
         self._collect = _Collect(CaptureStats(options.baud), lambda: self.decoder.bytes_in,
                                  self._step if self.loading else None)

@@ -35,6 +35,8 @@ class Source(Protocol):
     name: str        # what the header shows
     kind: str        # "file", "replay", "port", "simulator"
     time_base: str   # for the MCAP sink: "capture", "synthetic" or "wall"
+    # live (a class attribute, False when absent): paced as it happens (a port, a replay, the simulator),
+    # so decoded record by record; a file loads on the columnar path (sinks.pipeline.columnar_for).
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]: ...
 
@@ -136,6 +138,7 @@ class ReplaySource(FileSource):
     """A capture file played at its own pace (``speed`` times faster), as if it were live."""
 
     kind = "replay"
+    live = True  # paced at the capture's own speed: decoded record by record, as a port
     reads_ahead = False
 
     def __init__(self, path: str, fmt: str | None = None, *, speed: float = 1.0, baud: int = DEFAULT_BAUD,
@@ -157,13 +160,14 @@ class PortSource:
     """A serial port through the passive tap (which never writes to the bus)."""
 
     kind = "port"
+    live = True  # decoded record by record (sinks.pipeline.columnar_for)
     time_base = "wall"
 
     def __init__(self, port: str, baud: int) -> None:
         from ..sources.serial_tap import LiveSource  # pyserial is needed only for live capture
 
         self.name = port
-        self.live = LiveSource(port, baud, announce=False)
+        self.tap = LiveSource(port, baud, announce=False)
         # Open the port now, so a missing one is a one-line error rather than a blank screen. Started
         # off the main thread, the tap installs no signal handlers: the screen owns Ctrl-C, and the
         # handlers could not be restored from the capture thread at the end.
@@ -171,7 +175,7 @@ class PortSource:
 
         def start() -> None:
             try:
-                self.live.start()
+                self.tap.start()
             except BaseException as e:  # noqa: BLE001 - handed back to the caller below
                 failure.append(e)
 
@@ -182,7 +186,7 @@ class PortSource:
             raise failure[0]
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
-        live = self.live
+        live = self.tap
         while not stop.is_set() and not live.ended:
             yield from live.poll(POLL_SECONDS)
             yield b"", None  # let the feeder post and take commands while the bus is idle
@@ -190,13 +194,14 @@ class PortSource:
             raise CaptureError(f"{self.name}: port lost ({live.message})")
 
     def close(self) -> None:
-        self.live.close()
+        self.tap.close()
 
 
 class SimulatorSource:
     """The built-in simulator running a scenario in this process, paced in real time (``speed`` x)."""
 
     kind = "simulator"
+    live = True  # paced in real time, as a port
     time_base = "capture"
 
     def __init__(self, scenario: str, baud: int, *, speed: float = 1.0, duration: float = SIMULATE_SECONDS,

@@ -47,6 +47,7 @@ class GatedSource:
     """A live-looking source that pauses before the chunks at ``stops`` until ``gate`` is set."""
 
     name, kind, time_base = "gated", "port", "monotonic"
+    live = True
 
     def __init__(self, chunks, gate, stops=(), rearm: bool = False):
         self._chunks, self.gate, self.stops, self.rearm = chunks, gate, set(stops), rearm

@@ -348,7 +348,7 @@ def test_a_live_source_stays_record_by_record():
     from rs30x_sniff.tui.sources import ChunkSource
 
     port = ChunkSource("port", hexapod_frames(2000))
-    port.kind = "port"  # chunks as a serial port hands them out
+    port.kind, port.live = "port", True  # chunks as a serial port hands them out
     batches = []
     Feeder(port, DecodeOptions(), batches.append).run()
     items = [x for b in batches for x in b.records]
