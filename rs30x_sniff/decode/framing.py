@@ -159,9 +159,13 @@ class FrameDecoder:
             return SEAM_GAP
         return None
 
-    def _cut_segment(self, kind: str, t: float) -> list[AnyEvent]:
-        """End the current time segment before a chunk stamped ``t``: what is pending becomes events
-        (a frame the seam cuts is CAPTURE_END), and the clock starts afresh with the next chunk."""
+    def _cut_at_seam(self, t: float) -> list[AnyEvent]:
+        """If a chunk stamped ``t`` opens a seam, end the current time segment before it: what is pending
+        becomes events (a frame the seam cuts is CAPTURE_END), and the clock starts afresh with that
+        chunk. The events ended (none without a seam)."""
+        kind = self._seam_kind(t)
+        if kind is None:
+            return []
         out = self._parse(final=True, ended=True)
         self.seams.append(Seam(self.offset, kind, self.end_time, t))
         self._last_t = self._chunk_t = self._start_t = None
@@ -176,12 +180,9 @@ class FrameDecoder:
             raise RuntimeError("feed() after close()")
         if not data:
             return []
-        if t is not None and self._chunk_t is not None and self._seam_kind(t) is not None:
-            out = self._cut_segment(self._seam_kind(t), t)
-            self._add(data, t)
-            return out + self._parse(final=False)
+        out = self._cut_at_seam(t) if t is not None and self._chunk_t is not None else None
         self._add(data, t)
-        return self._parse(final=False)
+        return out + self._parse(final=False) if out else self._parse(final=False)
 
     def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> list:
         """Add several chunks, then decode once: the events (and, in run mode, FrameRuns) they decide.
@@ -203,9 +204,7 @@ class FrameDecoder:
         if not (len(chunks) > 8 and self._add_many(chunks, datas, lens)):
             for data, t in chunks:
                 if t is not None and self._chunk_t is not None:
-                    kind = self._seam_kind(t)
-                    if kind is not None:
-                        out += self._cut_segment(kind, t)
+                    out += self._cut_at_seam(t)
                 self._add(data, t)
         return out + self._parse(final=False) if out else self._parse(final=False)
 
@@ -251,9 +250,7 @@ class FrameDecoder:
             return []
         out = self._parse(final=True)  # leaves the buffer empty
         if t is not None and self._chunk_t is not None:
-            kind = self._seam_kind(t)
-            if kind is not None:
-                out += self._cut_segment(kind, t)
+            out += self._cut_at_seam(t)
         self._add(data, t)
         self._start = 0
         while self._start < len(data):

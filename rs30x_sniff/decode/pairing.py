@@ -419,12 +419,10 @@ class BusTracker:
         p = self._pending
         if p is None:
             return
+        self._resolve_missing(out)
         t1 = p.event[3]
-        if end_t is not None and t1 is not None and end_t - t1 > self.reply_timeout:
-            self._resolve_missing(out)
-        else:
-            self._resolve_missing(out)
-            p.status = UNKNOWN
+        if end_t is None or t1 is None or end_t - t1 <= self.reply_timeout:
+            p.status = UNKNOWN  # its reply time had not run out: it may have come after the capture
 
     def _first_reply(self, rec: Record) -> None:
         """The segment's first packet is a reply: to a request before the capture, if it came in time."""

@@ -145,8 +145,7 @@ class CaptureStats(Sink):
         self._win_start: float | None = None    # the current bus-load window (see _LOAD_WINDOW)
         self._win_end = float("-inf")
         self._win_bytes = 0
-        self._peak: tuple[float, float] | None = None  # (load, window start) of the busiest full window
-        self._windows: list[tuple[float, float]] = []  # (load, start) of every closed window
+        self._windows: list[tuple[float, float]] = []  # (load, start) of every closed window, in time order
         # Where a live reader fell behind: (t, seconds, bytes) of bytes timed at the line rate, not as
         # they came (rs30x_sniff.sources.serial_tap); no load is measured over them. The source's own list.
         self.stalls: list[tuple[float, float, int]] = []
@@ -529,16 +528,20 @@ class CaptureStats(Sink):
             st.end_segment()
 
     def _close_window(self, last: float) -> None:
-        """The last window of a segment counts over its own span once that is half a window (shorter,
-        one packet would look like a full bus)."""
-        if self._win_start is None:
-            return
-        span = last - self._win_start
-        if span >= _LOAD_WINDOW / 2:
-            load = min(1.0, self._win_bytes * byte_time(self.baud) / min(span, _LOAD_WINDOW))
+        """A segment's last window, closed at its last byte ``last``."""
+        load = self._open_window_load(last)
+        if load is not None:
             self._windows.append((load, self._win_start))
-            if self._peak is None or load > self._peak[0]:
-                self._peak = (load, self._win_start)
+
+    def _open_window_load(self, last: float | None) -> float | None:
+        """The load of the window still open, up to ``last``: counted over its own span once that is half
+        a window (shorter, one packet would look like a full bus); None before that."""
+        if self._win_start is None:
+            return None
+        span = (last or self._win_start) - self._win_start
+        if span < _LOAD_WINDOW / 2:
+            return None
+        return min(1.0, self._win_bytes * byte_time(self.baud) / min(span, _LOAD_WINDOW))
 
     def _roll(self, ts: float) -> None:
         """Close the bus-load window(s) before ``ts`` and open the one holding it."""
@@ -547,8 +550,6 @@ class CaptureStats(Sink):
         else:
             load = min(1.0, self._win_bytes * byte_time(self.baud) / _LOAD_WINDOW)
             self._windows.append((load, self._win_start))
-            if self._peak is None or load > self._peak[0]:
-                self._peak = (load, self._win_start)
             self._win_start += (ts - self._win_start) // _LOAD_WINDOW * _LOAD_WINDOW
         self._win_end = self._win_start + _LOAD_WINDOW
         self._win_bytes = 0
@@ -593,14 +594,12 @@ class CaptureStats(Sink):
         """
         if not self.timed or self.timing_unsupported or self.duration < _LOAD_WINDOW:
             return None
-        best = self._peak if not self.stalls else max(
-            (w for w in self._windows if not self._stalled(w[1])), default=None)
-        if self._win_start is not None and not self._stalled(self._win_start):
-            span = (self.last_t or self._win_start) - self._win_start
-            if span >= _LOAD_WINDOW / 2:
-                load = min(1.0, self._win_bytes * byte_time(self.baud) / min(span, _LOAD_WINDOW))
-                if best is None or load > best[0]:
-                    best = (load, self._win_start)
+        # The first of the busiest windows, none measured over a reader's stall.
+        best = max((w for w in self._windows if not (self.stalls and self._stalled(w[1]))),
+                   key=lambda w: w[0], default=None)
+        load = self._open_window_load(self.last_t)
+        if load is not None and not self._stalled(self._win_start) and (best is None or load > best[0]):
+            best = (load, self._win_start)
         avg = self.bus_load
         if avg is not None and self.first_t is not None and (best is None or avg > best[0]):
             best = (avg, self.first_t)
