@@ -471,7 +471,9 @@ def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[s
         rest = items[_MAX_LINES - 1:]
         items = items[:_MAX_LINES - 1]
         say(rest[0]["severity"], None, f"and {len(rest)} more: see the findings and the health table")
-    if not items:
+    if not items and not stats.bytes:
+        say("warning", None, "nothing to tell: the capture holds no data")  # empty is no clean bill of health
+    elif not items:
         answered = sum(st.returns + st.acks + st.nacks for st in servos.values())
         say("info", None, f"nothing wrong seen: {_plural(len(servos), 'servo')}, {answered} replies, none missing, "
             "no status flags, no damaged packets")

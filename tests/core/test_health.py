@@ -211,3 +211,12 @@ def test_frames_in_one_bytes_object_count_and_join_as_a_row_each():
     assert health_module._joined(rows, size) == (a + b + c + d, size)
     odd = b"\x09" * (size + 1)  # a frame of another size is left out; the others keep their order
     assert health_module._joined([a, odd, *items, d], size) == (a + b + c + d, size)
+
+
+def test_an_empty_capture_is_no_clean_bill_of_health(capsys, tmp_path):
+    empty = tmp_path / "empty.thex"
+    empty.write_text("")
+    info = _info(capsys, empty)
+    said = [w["text"] for w in info["what_happened"]]
+    assert said == ["nothing to tell: the capture holds no data"]
+    assert info["what_happened"][0]["severity"] == "warning"
