@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+
 import io
 import math
 import os
@@ -10,6 +11,7 @@ import stat
 import sys
 from array import array
 from bisect import bisect_right
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, Callable, Iterable, Iterator
@@ -572,8 +574,11 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | No
 
 def _sampled_unit(sample: list[_SampledLine]) -> TimeUnit:
     """The unit the sampled lines' times are in (their resolution as written keeps rounding from
-    counting as gaps or overlaps)."""
-    step = max(timeunit.resolution(line[2].decode("ascii")) for line in sample)
+    counting as gaps or overlaps). The resolution most lines are written in, the coarser on a tie: one
+    odd line (the tail of a line cut by `tail -c`, whose first hex byte reads as a whole number) must
+    not make the whole capture look written in whole seconds."""
+    step = max(Counter(timeunit.resolution(line[2].decode("ascii")) for line in sample).most_common(),
+               key=lambda kv: (kv[1], kv[0]))[0]
     return timeunit.detect_unit([(line[0], line[1]) for line in sample], step=step)
 
 

@@ -198,3 +198,16 @@ def test_another_tools_absurd_time_is_an_input_error(tmp_path):
         list(read_capture(str(table)))
     assert "\n" not in str(e.value) and str(e.value).startswith(f"{table}: the time 1e+300 s")
     assert "after the year 2100" in str(e.value)
+
+
+def test_a_text_capture_cut_mid_line_is_still_read_in_seconds(tmp_path):
+    # `tail -c` of a timestamped capture: its first line is the tail of a line, whose first hex byte
+    # ("01") reads as a whole-number time. That one line must not make the capture's times look whole.
+    session = Path(__file__).resolve().parents[2] / "captures" / "session-mixed.thex"
+    text = session.read_bytes()[2000:20000]
+    path = tmp_path / "cut.thex"
+    path.write_bytes(text[:text.rindex(b"\n") + 1])
+    reader = read_capture(str(path))
+    times = [t for _, t in reader]
+    assert reader.time_unit.unit == "s"
+    assert 1.0 <= times[1] < 2.0  # seconds of the session, not milliseconds
