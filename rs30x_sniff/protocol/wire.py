@@ -11,7 +11,19 @@ REQUEST_HEADER = b"\xfa\xaf"
 RETURN_HEADER = b"\xfd\xdf"
 ACK = 0x07
 NACK = 0x08
-HEADER_SIZE = 7  # header(2) ID flag address length count
+# The packet layout (manual, "Format of Packets"): header(2) ID Flag Address Length Count, then the
+# data, then one Sum byte. A return packet has the same layout, its Flag byte holding the status flags.
+AT_ID = 2
+AT_FLAG = 3
+AT_ADDRESS = 4
+AT_LENGTH = 5
+AT_COUNT = 6
+HEADER_SIZE = 7  # the bytes before the data: header(2) ID flag address length count
+AT_DATA = HEADER_SIZE
+SUM_SIZE = 1     # the XOR Sum after the data
+FRAME_OVERHEAD = HEADER_SIZE + SUM_SIZE  # a frame's length beyond its data
+REQUEST_FIRST = REQUEST_HEADER[0]  # 0xFA: the byte a request starts with
+RETURN_FIRST = RETURN_HEADER[0]    # 0xFD: the byte a return packet starts with
 BROADCAST_ID = 0xFF
 LONG_PACKET_ID = 0x00
 # A flash / reboot / initialize command is sent to Address FF with Length 0 and Count 0 (table 4.2 notes).

@@ -21,7 +21,7 @@ from rs30x_sniff.sources.captures import write_capture
 from rs30x_sniff.sim import run
 from rs30x_sniff.sim.scenarios import SCENARIOS
 
-from ..core.gait_capture import gait
+from ..sources.gait_capture import gait
 
 EPOCH = 1_732_550_000  # 2024-11-25 15:53:20 UTC
 

@@ -13,7 +13,7 @@ from rs30x_sniff.decode import blocks as blocks_module
 from rs30x_sniff.lint import batch
 from rs30x_sniff.lint.registry import RULES, Registry, Rule, frame, rule
 from rs30x_sniff.protocol.wire import RETURN_HEADER, byte_time, encode_long, encode_read, encode_return, encode_short
-from tests.core.test_columnar import columnar_path, record_key, record_path
+from tests.decode.test_columnar import columnar_path, record_key, record_path
 
 BT = byte_time(115200)
 SERVOS = (1, 2, 3, 4)

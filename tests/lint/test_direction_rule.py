@@ -13,7 +13,7 @@ from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.sinks.pipeline import drive
 from rs30x_sniff.protocol.wire import ACK, encode_read, encode_return, encode_short
 
-from ..io import serial_log_writers as w
+from ..sources import serial_log_writers as w
 
 READ = encode_read(1, 0x2A, 2)
 RET = encode_return(1, 0x2A, b"\x84\x03")

@@ -209,7 +209,7 @@ def test_a_source_that_fails_to_close_still_delivers_the_last_batch():
 
 def test_a_damaged_mcap_says_so_on_the_screen_not_behind_it(tmp_path, capsys):
     """Cut mid-chunk, the file is read up to the damage; the warning reaches the screen as a note."""
-    from tests.io.conftest import frames, make_mcap
+    from tests.sources.conftest import frames, make_mcap
 
     path = make_mcap(tmp_path / "cut.mcap", frames(200))
     data = path.read_bytes()
@@ -253,7 +253,7 @@ def test_a_child_read_error_ends_the_capture_with_one_line(read_ahead_all, tmp_p
 
 
 def test_a_child_reads_a_damaged_mcap_and_the_note_comes_once(read_ahead_all, tmp_path, capsys):
-    from tests.io.conftest import frames, make_mcap
+    from tests.sources.conftest import frames, make_mcap
 
     path = make_mcap(tmp_path / "cut.mcap", frames(200))
     data = path.read_bytes()

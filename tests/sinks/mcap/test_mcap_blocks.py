@@ -18,7 +18,7 @@ from rs30x_sniff.lint import Linter
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.sinks.pipeline import drive
 from rs30x_sniff.sim import scenarios
-from tests.core.test_columnar import traffic
+from tests.decode.test_columnar import traffic
 
 
 def convert(chunks, columnar: bool, options=None) -> tuple[list, list]:

@@ -8,7 +8,7 @@ from rs30x_sniff.decode import framing
 from rs30x_sniff.decode.framing_kernel import scan_regular_arrays
 from rs30x_sniff.protocol.wire import encode_long, encode_read, encode_return, encode_short
 from tests.conftest import assert_same_events, decode_chunks, split_timed
-from tests.core.test_properties import frames
+from tests.decode.test_properties import frames
 
 SETTINGS = settings(max_examples=200, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])

@@ -16,9 +16,9 @@ from rs30x_sniff.lint import Linter
 from rs30x_sniff.decode.decoder import Decoder
 from rs30x_sniff.render.records import record_json_text
 from rs30x_sniff.sim import scenarios
-from tests.core.test_block_text import odd_traffic
-from tests.core.test_columnar import traffic
-from tests.core.test_properties import frames
+from tests.render.test_block_text import odd_traffic
+from tests.decode.test_columnar import traffic
+from tests.decode.test_properties import frames
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 from traffic import hexapod_frames  # noqa: E402

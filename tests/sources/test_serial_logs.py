@@ -57,7 +57,7 @@ def per_byte(chunks, baud: int):
 
 
 # ---- the samples ----------------------------------------------------------------------------------
-# The simulated hexapod's first 0.1 s (tests/io/serial_log_writers.py): each servo's model read and
+# The simulated hexapod's first 0.1 s (tests/sources/serial_log_writers.py): each servo's model read and
 # return, then a torque-on and a goal long packet.
 GOLDEN = [(kind, sid) for k in range(1, 19) for kind, sid in (("short", k), ("return", k))] + [("long", 0), ("long", 0)]
 

@@ -5,7 +5,7 @@ interceptty's dumpbuff, jpnevulator's read mode as it prints, slsnif's outputDat
 apart from the readers in rs30x_sniff.sources.serial_logs, so a round trip checks one against the other.
 
 Run as a program it makes the samples in captures/foreign (see serial-logs.md there):
-``python -m tests.io.serial_log_writers DIR [spy socat jpnevulator interceptty slsnif]``.
+``python -m tests.sources.serial_log_writers DIR [spy socat jpnevulator interceptty slsnif]``.
 """
 
 from __future__ import annotations

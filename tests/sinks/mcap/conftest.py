@@ -12,7 +12,7 @@ from rs30x_sniff.sinks.mcap.writer import McapSink
 from rs30x_sniff.sinks.pipeline import drive
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 CAPTURES = sorted((ROOT / "captures").glob("*.hex"))
 sys.path.insert(0, str(ROOT / "bench"))
 

@@ -16,8 +16,8 @@ from rs30x_sniff.render.records import text_line, verbose_lines
 from rs30x_sniff.sim import scenarios
 from rs30x_sniff.protocol.memmap import default_registry
 from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
-from tests.core.test_columnar import traffic
-from tests.core.test_properties import frames
+from tests.decode.test_columnar import traffic
+from tests.decode.test_properties import frames
 
 SETTINGS = settings(max_examples=60, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])

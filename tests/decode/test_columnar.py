@@ -12,7 +12,7 @@ from rs30x_sniff.lint import Linter
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.sim import scenarios
 from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
-from tests.core.test_properties import frames
+from tests.decode.test_properties import frames
 
 SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 BT = byte_time(115200)

@@ -10,7 +10,7 @@ from rs30x_sniff.protocol.chunks import Marked, marks
 from rs30x_sniff.cli import main
 from rs30x_sniff.sources.captures import read_capture
 
-FOREIGN = Path(__file__).resolve().parents[2] / "captures" / "foreign"
+FOREIGN = Path(__file__).resolve().parents[3] / "captures" / "foreign"
 
 
 def _codes(capsys, path) -> list[str]:

@@ -1,6 +1,6 @@
 """Writes captured bytes as Saleae Logic Async Serial exports (Logic 2 tables, Logic 1.x files), for tests and samples.
 
-    python -m tests.io.saleae_writer IN.thex -o OUT.csv --format logic2 [--radix hex] [--names TX,RX]
+    python -m tests.sources.saleae_writer IN.thex -o OUT.csv --format logic2 [--radix hex] [--names TX,RX]
         [--name "Async Serial"] [--iso 2026-11-22T14:14:50+00:00] [--flag 12:framing ...] [--echo]
         [--sample-rate 12.5e6]
 
@@ -131,7 +131,7 @@ def write_logic1(out: TextIO, rows: list[tuple[float, int, str]], *, radix: str 
 def main(argv: list[str] | None = None) -> int:
     from rs30x_sniff.sources.captures import read_capture
 
-    p = argparse.ArgumentParser(prog="python -m tests.io.saleae_writer", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m tests.sources.saleae_writer", description=__doc__.split("\n")[0])
     p.add_argument("input", help="a capture (timestamped hex from `rs30x-sniff simulate`)")
     p.add_argument("-o", "--output", required=True)
     p.add_argument("--format", choices=("logic2", "logic1"), default="logic2")
