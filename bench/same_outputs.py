@@ -3,7 +3,8 @@
     python bench/same_outputs.py REF        # this tree against git REF (checked out in a temporary worktree)
 
 Runs `decode` (text and jsonl), `lint --format json`, `info --format json` and `table --of` every table on
-each capture under captures/, and `convert`'s MCAP messages, in both trees, and prints each difference.
+each capture under captures/ and on each simulator scenario (written by `simulate` in both trees, which must
+agree too), and `convert`'s MCAP messages, in both trees, and prints each difference.
 Exit code 1 when anything differs.
 """
 
@@ -31,6 +32,28 @@ def run(tree: Path, argv: list[str]) -> bytes:
         f"\n--- exit {done.returncode}".encode()
 
 
+def scenarios(tree: Path) -> list[str]:
+    done = subprocess.run([sys.executable, "-c", "from rs30x_sniff.sim import SCENARIOS; print(*SCENARIOS)"],
+                          cwd=tree, env=dict(os.environ, PYTHONPATH=str(tree)), capture_output=True, text=True,
+                          check=True)
+    return done.stdout.split()
+
+
+def simulated(tmp: Path, other: Path) -> tuple[list[Path], int]:
+    """Each scenario as a timestamped capture under ``tmp`` (written by this tree), and how many differ from the
+    other tree's."""
+    out, differ = [], 0
+    for name in scenarios(ROOT):
+        mine, theirs = tmp / f"sim-{name}.thex", tmp / f"sim-{name}-ref.thex"
+        run(ROOT, ["simulate", "--scenario", name, "--seed", "7", "-o", str(mine), "--force"])
+        run(other, ["simulate", "--scenario", name, "--seed", "7", "-o", str(theirs), "--force"])
+        if not mine.exists() or not theirs.exists() or mine.read_bytes() != theirs.read_bytes():
+            differ += 1
+            print(f"differs: simulate --scenario {name}")
+        out.append(mine)
+    return out, differ
+
+
 def mcap_messages(tree: Path, capture: Path, out: Path) -> bytes:
     run(tree, ["convert", str(capture), "-o", str(out), "--force"])  # capture: relative, as the messages name it
     if not out.exists():
@@ -51,8 +74,9 @@ def main() -> int:
         subprocess.run(["git", "worktree", "add", "--detach", str(other), args.ref], cwd=ROOT, check=True,
                        capture_output=True)
         try:
-            for cap in captures():
-                rel = cap.relative_to(ROOT)
+            sims, differ = simulated(Path(tmp), other)
+            for cap in captures() + sims:
+                rel = cap.relative_to(ROOT) if cap.is_relative_to(ROOT) else cap
                 jobs = [["decode", str(rel)], ["decode", str(rel), "--format", "jsonl"],
                         ["lint", str(rel), "--format", "json", "--isolated", "--fail-on", "never"],
                         ["info", str(rel), "--format", "json", "--isolated"],
