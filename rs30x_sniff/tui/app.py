@@ -29,7 +29,8 @@ from .header import SessionInfo, StatusHeader
 from .help import HelpScreen
 from .panes import FindingsPane, PlotPane, ServosPane
 from .rows import clean
-from .store import DEFAULT_HISTORY, PLOT_REGISTERS, Store
+from .plot_series import PLOT_REGISTERS
+from .store import DEFAULT_HISTORY, Store
 from .timeline import Timeline
 
 FILTER_STEP = 20_000  # records a filter scan checks between screen updates

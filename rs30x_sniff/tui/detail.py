@@ -14,10 +14,11 @@ from textual.widgets.tree import TreeNode
 
 from ..decode.pairing import Record
 from ..protocol.events import Garbage, LongPacket, ReturnPacket, ShortPacket
+from ..protocol.wire import AT_ADDRESS, AT_COUNT, AT_DATA, AT_FLAG, AT_ID, AT_LENGTH, HEADER_SIZE, SUM_SIZE
 from ..render.records import format_value, kind_word
 from .rows import SEVERITY_STYLES, clean, kind_style, short_summary
 
-HEADER_NAMES = ("header", "header", "id", "flag", "address", "length", "count")
+VID_SIZE = 1  # a long packet's record: its VID byte, then the data ("Length = ... + 1(byte of VID)")
 HEX_PER_LINE = 16
 
 
@@ -27,12 +28,12 @@ def field_spans(rec: Record) -> list[tuple[int, int]]:
     fields = rec.fields
     t = type(ev)
     if t is ShortPacket or t is ReturnPacket:
-        return [(7 + f.address - ev.address, 7 + f.address - ev.address + len(f.raw)) for f in fields]
+        return [(AT_DATA + f.address - ev.address, AT_DATA + f.address - ev.address + len(f.raw)) for f in fields]
     if t is LongPacket and ev.count and fields:
         per = len(fields) // ev.count or 1  # every record of a long packet splits into the same fields
         out = []
         for i, f in enumerate(fields):
-            start = 7 + (i // per) * ev.length + 1 + f.address - ev.address
+            start = AT_DATA + (i // per) * ev.length + VID_SIZE + f.address - ev.address
             out.append((start, start + len(f.raw)))
         return out
     return [(0, 0)] * len(fields)
@@ -47,11 +48,11 @@ def hex_dump(raw: bytes, span: tuple[int, int] | None = None) -> Text:
         text.append(f"{line:04X} ", "grey50")
         for i in range(line, min(line + HEX_PER_LINE, len(raw))):
             style = ""
-            if i < 2:
+            if i < AT_ID:  # the header bytes
                 style = "grey62"
             elif span is not None and span[0] <= i < span[1]:
                 style = "reverse bold"
-            elif i == len(raw) - 1 and len(raw) > 7:
+            elif i == len(raw) - SUM_SIZE and len(raw) > HEADER_SIZE:
                 style = "grey62"
             text.append(f"{raw[i]:02X}", style)
             if i + 1 < min(line + HEX_PER_LINE, len(raw)):
@@ -129,7 +130,7 @@ class DetailPane(Vertical):
     def _add_header(self, root: TreeNode, rec: Record) -> None:
         ev = rec.event
         t = type(ev)
-        node = root.add(Text("header", "bold"), data=(0, min(7, len(ev.raw))), expand=False)
+        node = root.add(Text("header", "bold"), data=(0, min(HEADER_SIZE, len(ev.raw))), expand=False)
         if t is Garbage:
             node.add_leaf(Text(f"skipped: {ev.reason}"), data=(0, len(ev.raw)))
             return
@@ -139,13 +140,14 @@ class DetailPane(Vertical):
             node.allow_expand = False
             return
         flag = ev.flags if t is ReturnPacket else ev.flag
-        items = [("header", 0, 2, ev.raw[:2].hex(" ").upper()),
-                 ("id", 2, 3, str(ev.raw[2])),
-                 ("flags" if t is ReturnPacket else "flag", 3, 4, f"0x{flag:02X}" + self._flag_text(rec)),
-                 ("address", 4, 5, str(ev.address)),
-                 ("length", 5, 6, str(ev.length)),
-                 ("count", 6, 7, str(ev.count)),
-                 ("sum", len(ev.raw) - 1, len(ev.raw),
+        items = [("header", 0, AT_ID, ev.raw[:AT_ID].hex(" ").upper()),
+                 ("id", AT_ID, AT_FLAG, str(ev.raw[AT_ID])),
+                 ("flags" if t is ReturnPacket else "flag", AT_FLAG, AT_ADDRESS,
+                  f"0x{flag:02X}" + self._flag_text(rec)),
+                 ("address", AT_ADDRESS, AT_LENGTH, str(ev.address)),
+                 ("length", AT_LENGTH, AT_COUNT, str(ev.length)),
+                 ("count", AT_COUNT, AT_DATA, str(ev.count)),
+                 ("sum", len(ev.raw) - SUM_SIZE, len(ev.raw),
                   f"0x{ev.raw[-1]:02X}" + ("" if ev.checksum_ok else " (mismatch)"))]
         for name, a, b, value in items:
             label = Text(f"{name:<10} {ev.raw[a:b].hex(' ').upper():<6} ")

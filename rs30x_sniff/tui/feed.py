@@ -15,7 +15,7 @@ from ..sinks.pipeline import GROUP_BYTES, Pipeline, Sink, columnar_for
 from ..decode.decoder import DecodeOptions, Decoder, Step
 from ..sinks.stats import CaptureStats
 from .sources import Source
-from .store import ServoRow, servo_snapshot
+from .servos import ServoRow, servo_snapshot
 
 POST_INTERVAL = 0.25    # seconds between batches: a few screen updates a second are plenty
 MAX_BATCH = 50_000      # records per batch, so one batch never stalls the screen for long

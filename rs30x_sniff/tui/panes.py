@@ -14,7 +14,8 @@ from textual.widgets import DataTable, Label, Static
 
 from .rows import SEVERITY_MARKS, SEVERITY_STYLES, clean
 from .plot import COLOURS, Window, render
-from .store import SERVO_COLUMNS, ServoRow, Store
+from .servos import SERVO_COLUMNS, ServoRow
+from .store import Store
 
 FLASH_SECONDS = 1.0  # how long a changed value stays highlighted
 FINDINGS_SHOWN = 1000  # the pane lists the newest ones; the header counts them all

@@ -12,7 +12,9 @@ import pytest
 from rs30x_sniff.sinks.stats import CaptureStats
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.filters import parse_filter
-from rs30x_sniff.tui.store import Store, register_value, servo_snapshot
+from rs30x_sniff.tui.plot_points import register_value
+from rs30x_sniff.tui.servos import servo_snapshot
+from rs30x_sniff.tui.store import Store
 from rs30x_sniff.protocol.wire import encode_return, encode_short
 
 from .helpers import FakeFinding, manual_records, records_of

@@ -15,7 +15,8 @@ from rs30x_sniff.sim import scenarios
 from rs30x_sniff.sinks.stats import CaptureStats
 from rs30x_sniff.tui.feed import split_block
 from rs30x_sniff.filters import parse_filter
-from rs30x_sniff.tui.store import PLOT_POINTS, PLOT_REGISTERS, Store
+from rs30x_sniff.tui.plot_series import PLOT_POINTS, PLOT_REGISTERS
+from rs30x_sniff.tui.store import Store
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from bench.traffic import hexapod_frames  # noqa: E402
@@ -144,7 +145,7 @@ BLOCKED = [n for n in CAPTURES if n not in NO_BLOCKS]
 @pytest.mark.parametrize("name", BLOCKED)
 def test_a_store_of_blocks_answers_as_a_store_of_records(name):
     a, b = stores(name)
-    assert any(type(x) is Block for x in b._segs)
+    assert any(type(x) is Block for x in b.held.segments)
     assert (len(a), a.first_seq, a.end_seq) == (len(b), b.first_seq, b.end_seq)
     sa, sb = a.stats, b.stats
     assert (sa.records, sa.kinds, sa.missing, sa.severities, sa.first_t, sa.last_t) == \
@@ -152,7 +153,7 @@ def test_a_store_of_blocks_answers_as_a_store_of_records(name):
     assert (a.span, a.bus_load, a.average_load) == (b.span, b.bus_load, b.average_load)
     assert list(a.recent_load._items) == list(b.recent_load._items)
     # Filters and findings first: they make no Record a Block keeps (the linter's samples are kept).
-    built = [len(x.made_rows) for x in b._segs if type(x) is Block]
+    built = [len(x.made_rows) for x in b.held.segments if type(x) is Block]
     for text in FILTERS:
         flt = parse_filter(text)
         a.set_filter(flt)
@@ -160,7 +161,7 @@ def test_a_store_of_blocks_answers_as_a_store_of_records(name):
         while not b.filter_step(700):  # steps that end inside Blocks
             pass
         assert list(a.view) == list(b.view), text
-        assert [len(x.made_rows) for x in b._segs if type(x) is Block] == built
+        assert [len(x.made_rows) for x in b.held.segments if type(x) is Block] == built
         for sev in ("info", "warning", "error"):
             assert finding_walk(a, sev) == finding_walk(b, sev)
     a.set_filter(None)

@@ -52,7 +52,7 @@ async def test_keys_and_views_on_a_file_of_blocks(tmp_path):
     async with app.run_test(size=SIZE) as pilot:
         await wait_done(pilot, app)
         store = app.store
-        assert any(type(s) is Block for s in store._segs)
+        assert any(type(s) is Block for s in store.held.segments)
         assert len(store) == len(recs) and store.stats.records == len(recs)
         tl = app.query_one("#timeline", Timeline)
         assert tl.row_count == len(recs) and tl.cursor_seq == len(recs) - 1
