@@ -1,15 +1,15 @@
-"""Per-servo health (register ranges, status flags, findings) and the plain-language "what happened" summary."""
+"""Per-servo health: the register ranges, status flags and findings its packets show (summary.py tells them)."""
 
 from __future__ import annotations
 
 import sys
 from collections import Counter
-from datetime import datetime, timezone
 from typing import Any, Iterable
 
 import numpy as np
 
-from ..protocol.wire import RETURN_FLAG_BITS
+from ..protocol.events import ADDRESS, DATA, FLAG, LONG_ADDRESS, LONG_LENGTH, LONG_RECORDS, OFFSET, RAW, T_START
+from ..protocol.wire import AT_DATA, FRAME_OVERHEAD, RETURN_FLAG_BITS
 
 # Registers whose range a servo's returns show, and the ones the host's writes set (table 4.6).
 PRESENT = ("present_position", "present_speed", "present_current", "present_temperature", "present_voltage")
@@ -18,17 +18,11 @@ FLAG_NAMES = tuple(RETURN_FLAG_BITS.values())
 
 # Raw packets are kept per payload shape and reduced this many at a time: the frames become the rows
 # of a byte matrix and each register's column is read by numpy's min/max, so a return costs the stats
-# sink a list append instead of Python arithmetic per value. Public: CaptureStats' column form
-# (sinks/stats.py) fills the same buffers and flushes at the same count.
+# sink a list append instead of Python arithmetic per value. The column form (HealthRecorder's *_rows)
+# fills the same buffers and flushes at the same count.
 FLUSH_ROWS = 4096
 _TYPECODES = {(1, False): "B", (1, True): "b", (2, False): "H", (2, True): "h"}
 _LITTLE = sys.byteorder == "little"
-# Times above this are seconds since 1970 (a logger's wall clock), not seconds since the capture began.
-EPOCH_MIN = 1e9
-# The findings the summary tells through the figures (flags, missing replies, bad bytes), not as rule lines.
-_TOLD = frozenset({"S001", "S002", "S003", "S004", "Q009", "B002", "F001", "F002"})
-_MAX_LINES = 8
-_SEV_RANK = {"error": 0, "warning": 1, "info": 2}
 
 
 def _where(model: Any, names: tuple[str, ...], address: int, n: int) -> list[tuple[Any, int]]:
@@ -59,7 +53,7 @@ def _column(block: bytes, off: int, stride: int, reg: Any) -> memoryview:
 class Frames(bytes):
     """Several frames of a buffer's size in one bytes object, followed in the buffer by an empty
     bytes for each frame after its first: the buffer still holds one item per row, so it is flushed
-    after the same rows (a Block's rows, rs30x_sniff.sinks.stats, are buffered so without a bytes object each)."""
+    after the same rows (a Block's rows, HealthRecorder's column form, are buffered so without a bytes object each)."""
 
     __slots__ = ()
 
@@ -68,6 +62,24 @@ class Frames(bytes):
         """The buffer items of ``block``, whole frames of ``size`` bytes."""
         n = len(block) // size
         return [cls(block), *(b"",) * (n - 1)] if n else []
+
+
+def _frame_size(key: tuple, present: bool | None) -> int:
+    """The frame size a buffer's key describes: (servo, address, data length) of a short packet or
+    return, (address, length, records) of a long packet."""
+    return FRAME_OVERHEAD + (key[1] * key[2] if present is None else key[2])
+
+
+def _buffered(run: Any, rows: np.ndarray, size: int) -> list[bytes]:
+    """Buffer items for ``rows`` of ``run``: the frames of ``size`` bytes as one Frames, and the
+    others (left out at the flush, counted until then) as their own bytes, one item a row."""
+    starts, ends = run.starts[rows], run.ends[rows]
+    fits = ends - starts == size
+    items = Frames.rows(run.bytes_array[starts[fits][:, None] + np.arange(size)].tobytes(), size)
+    if not fits.all():
+        blob = run.blob
+        items += [blob[s:e] for s, e in zip(starts[~fits].tolist(), ends[~fits].tolist())]
+    return items
 
 
 def _joined(rows: list[bytes], size: int) -> tuple[bytes, int]:
@@ -138,12 +150,12 @@ class ServoHealth:
 
 
 class HealthRecorder:
-    """Fed by CaptureStats per intact packet: keeps the raw packets, the flags, the findings per servo.
+    """Fed by CaptureStats per intact packet (the record form) or per Block's rows (the column form, the
+    ``*_rows`` methods): keeps the raw packets, the flags, the findings per servo.
 
-    The column form (CaptureStats over Blocks) uses the public buffer interface: the buffers
-    ``returns``, ``writes`` and ``long_writes`` (shape key -> [model, raw frames]), ``open_buffer``
-    to start one, ``flush_short`` / ``flush_long`` to reduce one (with a FrameRun's rows read in
-    place), at ``FLUSH_ROWS`` frames a buffer, as the record form does.
+    Both forms fill the same buffers ``returns``, ``writes`` and ``long_writes`` (shape key -> [model,
+    raw frames]), ``open_buffer`` to start one, ``flush_short`` / ``flush_long`` to reduce one (with a
+    FrameRun's rows read in place), at ``FLUSH_ROWS`` frames a buffer.
     """
 
     def __init__(self) -> None:
@@ -162,50 +174,138 @@ class HealthRecorder:
             h = self.servos[sid] = ServoHealth()
         return h
 
-    # ---- feeding (per record: keep it cheap) -------------------------------------------------
+    # ---- the record form (per record: keep it cheap) -----------------------------------------
     def returned(self, rec: Any, ev: Any, sid: int) -> None:
         """An intact return packet from ``sid``."""
-        data = ev[9]
+        data = ev[DATA]
         if data:
-            key = (sid, ev[6], len(data))
+            key = (sid, ev[ADDRESS], len(data))
             b = self.returns.get(key)
             if b is None or b[0] is not rec.model:
                 b = self.open_buffer(self.returns, key, rec.model)
             rows = b[1]
-            rows.append(ev[1])
+            rows.append(ev[RAW])
             if len(rows) >= FLUSH_ROWS:
                 self.flush_short(key, b, True)
-        flags = ev[5]
+        flags = ev[FLAG]
         if flags:
             self._flags(sid, flags, ev)
 
     def written(self, rec: Any, ev: Any, sid: int) -> None:
         """An intact short packet to ``sid`` carrying data."""
-        key = (sid, ev[6], len(ev[9]))
+        key = (sid, ev[ADDRESS], len(ev[DATA]))
         b = self.writes.get(key)
         if b is None or b[0] is not rec.model:
             b = self.open_buffer(self.writes, key, rec.model)
-        b[1].append(ev[1])
+        b[1].append(ev[RAW])
         if len(b[1]) >= FLUSH_ROWS:
             self.flush_short(key, b, False)
 
     def long_written(self, rec: Any, ev: Any) -> None:
         """An intact long packet."""
-        records = ev[8]
+        records = ev[LONG_RECORDS]
         vm = rec.vid_models
         if vm is not None:
             # Servos of mixed models in one packet: each record on its own, in its servo's model.
             for m, (vid, data) in zip(vm, records):
-                for reg, off in _where(m, WRITTEN, ev[5], len(data)):
+                for reg, off in _where(m, WRITTEN, ev[LONG_ADDRESS], len(data)):
                     self.servo(vid).take(reg, _column(data, off, len(data), reg))
             return
-        key = (ev[5], ev[6], len(records))
+        key = (ev[LONG_ADDRESS], ev[LONG_LENGTH], len(records))
         b = self.long_writes.get(key)
         if b is None or b[0] is not rec.model:
             b = self.open_buffer(self.long_writes, key, rec.model)
-        b[1].append(ev[1])
+        b[1].append(ev[RAW])
         if len(b[1]) >= FLUSH_ROWS:
             self.flush_long(key, b)
+
+    # ---- the column form (a Block's rows: rs30x_sniff.decode.blocks) --------------------------
+    def returned_rows(self, blk: Any, rows: np.ndarray) -> None:
+        """Returns of the Block (``rows``): :meth:`returned` of each."""
+        cols = blk.cols
+        with_data = rows[cols["data_len"][rows] > 0]
+        if with_data.size:
+            self._buffer_rows(blk, with_data, self.returns, True)
+        flagged = rows[cols["flag"][rows] != 0]
+        if flagged.size:
+            self._flag_rows(blk, flagged)
+
+    def written_rows(self, blk: Any, rows: np.ndarray) -> None:
+        """Short packets of the Block to one servo carrying data (``rows``): :meth:`written` of each."""
+        self._buffer_rows(blk, rows, self.writes, False)
+
+    def long_written_rows(self, blk: Any, rows: np.ndarray) -> None:
+        """Long packets of the Block (``rows``): :meth:`long_written` of each."""
+        if blk.vid_models is None:
+            self._buffer_rows(blk, rows, self.long_writes, None)
+            return
+        made = blk.made_rows  # servos of mixed models: each packet on its own, as the record form does
+        for k in rows.tolist():
+            rec = made.get(k) or blk.fresh_record(k)
+            self.long_written(rec, rec.event)
+
+    def _buffer_rows(self, blk: Any, rows: np.ndarray, bufs: dict, present: bool | None) -> None:
+        """Rows of the Block into ``bufs``, as returned() / written() / long_written() put them
+        (``present`` True, False, None): by shape, each shape in the order its first row came, flushed
+        every FLUSH_ROWS rows of a shape as they are."""
+        cols, run = blk.cols, blk.run
+        address = cols["address"][rows].astype(np.int64)
+        if present is None:  # long packets: (address, length, records)
+            length = cols["length"][rows].astype(np.int64)
+            dl = cols["data_len"][rows].astype(np.int64)
+            nrec = np.where(length > 0, -(-dl // np.maximum(length, 1)), 0)
+            keys = (address * 256 + length) * (1 << 20) + nrec
+        else:  # returns and short writes: (servo, address, data length)
+            keys = (cols["id"][rows].astype(np.int64) * 256 + address) * (1 << 20) + cols["data_len"][rows]
+        order = np.argsort(keys, kind="stable")
+        sk = keys[order]
+        cut = np.flatnonzero(sk[1:] != sk[:-1]) + 1
+        bounds = [0, *cut.tolist(), len(sk)]
+        heads = bounds[:-1]
+        groups = sorted(zip(order[heads].tolist(), heads, bounds[1:], sk[heads].tolist()))  # by first row
+        grouped = rows[order] + blk.lo  # rows of the run, shape by shape
+        models = blk.models
+        for _, g0, g1, key in groups:
+            rest, third = divmod(key, 1 << 20)
+            key_t = (rest >> 8, rest & 255, third)
+            model = blk.default if present is None else models[key_t[0]]
+            b = bufs.get(key_t)
+            if b is None or b[0] is not model:
+                b = self.open_buffer(bufs, key_t, model)
+            i = g0
+            while True:
+                room = FLUSH_ROWS - len(b[1])
+                if g1 - i < room:  # the rest waits in the buffer, as raw frames
+                    b[1] += _buffered(run, grouped[i:g1], _frame_size(key_t, present))
+                    break
+                # These rows fill the buffer: the record form's flush, their bytes read in place.
+                if present is None:
+                    self.flush_long(key_t, b, run, grouped[i:i + room])
+                else:
+                    self.flush_short(key_t, b, present, run, grouped[i:i + room])
+                i += room
+                if i == g1:
+                    break
+
+    def _flag_rows(self, blk: Any, rows: np.ndarray) -> None:
+        """Status flags of a Block's returns (rows), counted per servo and flag with the first seen."""
+        cols = blk.cols
+        flags, ids = cols["flag"][rows], cols["id"][rows]
+        t0 = blk.t0
+        offsets = blk.offsets[rows]
+        for i in np.unique(ids).tolist():
+            mine = ids == i
+            h = self.servos.get(i) or self.servo(i)
+            for bit, name in RETURN_FLAG_BITS.items():
+                hit = np.flatnonzero(mine & ((flags & bit) != 0))
+                if not hit.size:
+                    continue
+                seen = h.flags.get(name)
+                if seen is None:
+                    k = int(hit[0])
+                    h.flags[name] = [len(hit), None if t0 is None else float(t0[rows[k]]), int(offsets[k])]
+                else:
+                    seen[0] += len(hit)
 
     def open_buffer(self, bufs: dict, key: tuple, model: Any) -> list:
         """A new [model, frames] buffer for ``key`` in ``bufs`` (one of returns, writes, long_writes);
@@ -225,7 +325,7 @@ class HealthRecorder:
             if flags & bit:
                 seen = h.flags.get(name)
                 if seen is None:
-                    h.flags[name] = [1, ev[2], ev[0]]
+                    h.flags[name] = [1, ev[T_START], ev[OFFSET]]
                 else:
                     seen[0] += 1
 
@@ -266,16 +366,16 @@ class HealthRecorder:
     def flush_short(self, key: tuple, b: list, present: bool, run: Any = None,
                     rows: np.ndarray | None = None) -> None:
         """Returns (``present``) or short writes of one servo, address and length: raw frames whose
-        data starts at byte 7 (header, ID, flags, address, length, count); the buffered ones, then
+        data starts at AT_DATA (header, ID, flags, address, length, count); the buffered ones, then
         ``rows`` of FrameRun ``run`` (if any), read in place."""
         raws, b[1] = b[1], []
         h, where = self.short_target(key, b[0], present)
         if not where:
             return
-        mat = _frames(raws, run, rows, 8 + key[2])
+        mat = _frames(raws, run, rows, FRAME_OVERHEAD + key[2])
         if len(mat):
             for reg, off in where:
-                _take(h, reg, _register_column(mat, 7 + off, reg))
+                _take(h, reg, _register_column(mat, AT_DATA + off, reg))
 
     def flush_long(self, key: tuple, b: list, run: Any = None, rows: np.ndarray | None = None) -> None:
         """Long packets of one shape: each of ``count`` records is a VID and ``length - 1`` bytes (the
@@ -286,11 +386,11 @@ class HealthRecorder:
         where = _where(model, WRITTEN, address, length - 1)
         if not where or length < 2:
             return
-        mat = _frames(raws, run, rows, 8 + length * count)
+        mat = _frames(raws, run, rows, FRAME_OVERHEAD + length * count)
         if not len(mat):
             return
         for j in range(count):
-            base = 7 + j * length
+            base = AT_DATA + j * length
             vids = mat[:, base]
             one = vids.min() == vids.max()
             for reg, off in where:
@@ -307,189 +407,3 @@ class HealthRecorder:
         if h.model is None:  # a servo only ever written to: the model its writes were decoded as
             h.model = model
         return h
-
-
-# ---- output ------------------------------------------------------------------------------------
-def servo_health(h: ServoHealth | None, when: Any) -> dict[str, Any]:
-    """One servo's health as JSON-ready data; ``when(t, offset)`` gives (t, wall)."""
-    regs: dict[str, Any] = {}
-    m = h.model if h is not None else None
-    if h is not None:
-        for name in (*PRESENT, *WRITTEN):
-            if name not in h.lo:
-                continue
-            reg = (m or _any_model()).register(name)
-            a, b = reg.convert(h.lo[name]), reg.convert(h.hi[name])
-            regs[name] = {"min": min(a, b), "max": max(a, b), "unit": reg.unit, "count": h.samples[name]}
-    flags = {}
-    if h is not None:
-        for name in FLAG_NAMES:
-            seen = h.flags.get(name)
-            if seen is not None:
-                t, wall = when(seen[1], seen[2])
-                flags[name] = {"count": seen[0], "first_t": t, "first_wall": wall}
-    return {"model": None if m is None else m.name, "registers": regs, "flags": flags,
-            "findings": dict(sorted(h.findings.items())) if h is not None else {}}
-
-
-def _any_model() -> Any:
-    from ..protocol.memmap import default_registry
-    return default_registry().default
-
-
-def timer(first_t: float | None, timed: bool, byte_s: float, anchor: float | None = None):
-    """``when(t, offset)`` -> (capture time, ISO wall clock or None): the times ``lint`` and ``decode``
-    print, and the wall clock where the capture has one (epoch times, or ``anchor``: the epoch time of
-    capture time 0); an untimed capture is measured in line time, as its duration is."""
-    epoch = anchor if anchor is not None else (0.0 if timed and first_t is not None and first_t > EPOCH_MIN else None)
-
-    def when(t: float | None, offset: int) -> tuple[float | None, str | None]:
-        if timed and t is not None and first_t is not None:
-            wall = None
-            if epoch is not None:
-                try:
-                    wall = (datetime.fromtimestamp(epoch + t, tz=timezone.utc).isoformat(timespec="milliseconds")
-                            .replace("+00:00", "Z"))
-                except (OverflowError, OSError, ValueError):
-                    wall = None  # no calendar date: the capture time alone
-            return round(t, 6), wall
-        if not timed:
-            return round(offset * byte_s, 6), None
-        return None, None
-    return when
-
-
-def _at(t: float | None, wall: str | None) -> str:
-    if t is None:
-        return ""
-    return f" at {t:.2f} s" + (f" [{wall.replace('T', ' ').replace('Z', ' UTC')}]" if wall else "")
-
-
-def _times(n: int) -> str:
-    return {1: "once", 2: "twice"}.get(n, f"{n} times")
-
-
-def _ids(ids: list[int]) -> str:
-    return ", ".join(map(str, ids[:6])) + (", ..." if len(ids) > 6 else "")
-
-
-def _plural(n: int, word: str) -> str:
-    return f"{n} {word}" + ("" if n == 1 else "s")
-
-
-def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[str, Any]]:
-    """A handful of plain-language lines, most severe first: what a capture says went wrong."""
-    items: list[dict[str, Any]] = []
-
-    def say(sev: str, sid: int | None, text: str, tw: tuple = (None, None)) -> None:
-        items.append({"severity": sev, "id": sid, "text": text, "t": tw[0], "wall": tw[1]})
-
-    rec: HealthRecorder = stats.health
-    servos = stats.servos
-    refused: list[tuple[int, dict]] = []
-    # Status flags the servos themselves reported (table 4.4): the hardware's own word on what happened.
-    for sid in sorted(health, key=int):
-        hv = health[sid]
-        flags, regs, found = hv["flags"], hv["registers"], hv["findings"]
-        peak = regs.get("present_temperature")
-        peak_s = f"peak {peak['max']:g} {peak['unit'] or ''}".rstrip() if peak else ""
-        lim = flags.get("temperature_limit")
-        if lim:
-            al = flags.get("temperature_alarm")
-            why = ", ".join(x for x in (f"alarm from {al['first_t']:.2f} s" if al and al["first_t"] is not None
-                                        else "", peak_s) if x)
-            text = f"ID {sid} reached its temperature limit{_at(lim['first_t'], lim['first_wall'])}" + \
-                (f" ({why})" if why else "")
-            q = found.get("Q009", 0)
-            text += (f" and was switched back on {_times(q)} (Q009)" if q else " and cut its torque")
-            say("error", int(sid), text, (lim["first_t"], lim["first_wall"]))
-        elif "temperature_alarm" in flags:
-            al = flags["temperature_alarm"]
-            say("warning", int(sid), f"ID {sid} came within 10 degC of its temperature limit"
-                f"{_at(al['first_t'], al['first_wall'])}" + (f" ({peak_s})" if peak_s else ""),
-                (al["first_t"], al["first_wall"]))
-        fe = flags.get("flash_write_error")
-        if fe:
-            say("error", int(sid), f"ID {sid} reported a failed flash ROM write{_at(fe['first_t'], fe['first_wall'])}",
-                (fe["first_t"], fe["first_wall"]))
-        re_ = flags.get("received_packet_error")
-        if re_:
-            refused.append((int(sid), re_))
-    # Packets the servos could not accept: one line, however many servos said so (one bad host, usually).
-    if refused:
-        n = sum(v["count"] for _, v in refused)
-        first = min((v for _, v in refused), key=lambda v: (v["first_t"] is None, v["first_t"] or 0))
-        ids = [sid for sid, _ in refused]
-        who = f"ID {ids[0]}" if len(ids) == 1 else "IDs " + _ids(ids)
-        say("warning", ids[0] if len(ids) == 1 else None,
-            f"{who} flagged {_plural(n, 'packet')} {'it' if len(ids) == 1 else 'they'} could not accept "
-            f"(status bit 1), first"
-            f"{_at(first['first_t'], first['first_wall'])}", (first["first_t"], first["first_wall"]))
-    # Replies that never came.
-    for sid, st in sorted(servos.items()):
-        if not st.missing:
-            continue
-        tw = when(*st.first_missing) if st.first_missing else (None, None)
-        if st.returns + st.acks + st.nacks == 0:
-            say("error", sid, f"ID {sid} never answered: {_plural(st.missing, 'request')} missing", tw)
-        else:
-            asked = st.missing + st.answered  # requests that asked for a reply, not the replies heard
-            say("error", sid, f"ID {sid} left {st.missing} of {asked} requests unanswered, first{_at(*tw)}", tw)
-    # Damaged traffic.
-    if stats.bad_checksums:
-        by_kind: dict[str, list] = {}
-        for (kind, sid), n in stats.bad_by.items():
-            k = by_kind.setdefault(kind, [0, set()])
-            k[0] += n
-            if sid is not None:
-                k[1].add(sid)
-        words = {"return": ("return", " from "), "short": ("request", " to "), "long": ("long packet", "")}
-        parts = []
-        for kind, (n, ids) in sorted(by_kind.items(), key=lambda kv: -kv[1][0]):
-            word, prep = words.get(kind, (kind, ""))
-            parts.append(_plural(n, word) + (f"{prep}ID{'s' if len(ids) > 1 else ''} {_ids(sorted(ids))}"
-                                            if prep and ids else ""))
-        sole = by_kind.get("return", [0, set()])[1]
-        sid = next(iter(sole)) if len(by_kind) == 1 and len(sole) == 1 else None
-        say("error", sid, "; ".join(parts) + " with a bad checksum", when(*stats.first_bad))
-    if stats.garbage_bytes:
-        say("warning", None, f"{_plural(stats.garbage_bytes, 'byte')} of garbage (no intact frame)",
-            when(*stats.first_garbage))
-    # What the linter found that the lines above do not already tell.
-    for code, (n, t, off, sev, name, ids) in sorted(rec.codes.items(), key=lambda kv: (_SEV_RANK.get(kv[1][3], 3),
-                                                                                       -kv[1][0])):
-        if code in _TOLD or sev == "info":
-            continue
-        who = ""
-        if ids:
-            who = (" from ID " if len(ids) == 1 else " from IDs ") + _ids(sorted(ids))
-        tw = when(t, off)
-        sole = next(iter(ids)) if len(ids) == 1 else None
-        say(sev, sole, f"{code} {name}: {_times(n)}{who}, first{_at(*tw)}", tw)
-    items.sort(key=lambda it: _SEV_RANK[it["severity"]])  # stable: the order above ranks within a severity
-    if len(items) > _MAX_LINES:
-        rest = items[_MAX_LINES - 1:]
-        items = items[:_MAX_LINES - 1]
-        say(rest[0]["severity"], None, f"and {len(rest)} more: see the findings and the health table")
-    if not items and not stats.bytes:
-        say("warning", None, "nothing to tell: the capture holds no data")  # empty is no clean bill of health
-    elif not items:
-        answered = sum(st.returns + st.acks + st.nacks for st in servos.values())
-        say("info", None, f"nothing wrong seen: {_plural(len(servos), 'servo')}, {answered} replies, none missing, "
-            "no status flags, no damaged packets")
-    # The bus load, last: a figure to know whether or not anything went wrong.
-    peak = stats.load_peak
-    if peak is not None:
-        load, start = peak
-        tw = when(start, 0)
-        sev = "warning" if load >= 0.95 else "info"
-        line = {"severity": sev, "id": None, "t": tw[0], "wall": tw[1],
-                "text": f"the bus load peaked at {load * 100:.0f} % in the second from {tw[0]:.2f} s, "
-                        f"{(stats.bus_load or 0) * 100:.0f} % on average"
-                        + ("; little room for more traffic" if sev == "warning" else "")}
-        if sev == "warning":
-            k = next((i for i, it in enumerate(items) if it["severity"] == "info"), len(items))
-            items.insert(k, line)
-        else:
-            items.append(line)
-    return items

@@ -11,6 +11,7 @@ from ..decode.blocks import Block
 from ..decode.pairing import Record
 from ..decode.frame_runs import LONG
 from ..filters import Filter
+from ..protocol.wire import AT_DATA, AT_ID, AT_LENGTH, SUM_SIZE
 from .pipeline import Sink
 from ..decode.decoder import Step
 from ..render.records import text_line, verbose_lines
@@ -23,10 +24,11 @@ def block_rows_involving(blk: Block, ids: set[int]) -> list[int]:
     out = []
     for k, (s, e, kind) in enumerate(zip(run.starts[blk.lo:blk.hi].tolist(), run.ends[blk.lo:blk.hi].tolist(),
                                          blk.cols["kind"].tolist())):
-        if kind == LONG:
-            if blob[s + 5] and not ids.isdisjoint(blob[s + 7:e - 1:blob[s + 5]]):
+        if kind == LONG:  # each record's VID, every Length bytes of the data
+            step = blob[s + AT_LENGTH]
+            if step and not ids.isdisjoint(blob[s + AT_DATA:e - SUM_SIZE:step]):
                 out.append(k)
-        elif blob[s + 2] in ids:
+        elif blob[s + AT_ID] in ids:
             out.append(k)
     return out
 

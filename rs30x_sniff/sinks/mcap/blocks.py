@@ -10,6 +10,8 @@ from ...render.block_json import block_json_rows, json_template
 from ...decode.frame_runs import LONG
 from ...protocol.mcap_names import PACKETS_TOPIC, TRANSACTIONS_TOPIC, log_time_ns
 from ...protocol.memmap import Layout, value_text
+from ...protocol.wire import (
+    AT_ADDRESS, AT_COUNT, AT_DATA, AT_ID, AT_LENGTH, BROADCAST_ID, FRAME_OVERHEAD, HEADER_SIZE, SUM_SIZE)
 from .transactions import transaction_json
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
@@ -77,20 +79,21 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
         raw = blob[s:e]
         if kind == LONG:
             model = default
-            layout = model.long_layout(raw[4], raw[5], raw[6]) if raw[5] and e - s > 8 else None
+            layout = (model.long_layout(raw[AT_ADDRESS], raw[AT_LENGTH], raw[AT_COUNT])
+                      if raw[AT_LENGTH] and e - s > FRAME_OVERHEAD else None)
         else:
-            sid = raw[2]
+            sid = raw[AT_ID]
             model = blk_models[sid]
-            if sid != 255:
+            if sid != BROADCAST_ID:
                 models[sid] = model.name  # ServoStates.changes: the model name the servo's records used
-            layout = model.layout(raw[4], e - s - 8) if e - s > 8 else None
+            layout = model.layout(raw[AT_ADDRESS], e - s - FRAME_OVERHEAD) if e - s > FRAME_OVERHEAD else None
         if layout is not None:
-            values = layout.unpack_raw(raw[7:-1])
+            values = layout.unpack_raw(raw[AT_DATA:-SUM_SIZE])
             changed: dict[int, list[tuple[str, str]]] = {}
             for vid_at, parts in _named_plan(layout):
                 if not parts:
                     continue
-                tid = raw[2] if vid_at is None else values[vid_at]
+                tid = raw[AT_ID] if vid_at is None else values[vid_at]
                 pairs = changed.get(tid)
                 if pairs is None:
                     pairs = changed[tid] = []
@@ -107,7 +110,7 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
                     body = f'{{"id":{tid},"model":"{state_models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
                     emit(cid, log_time, body.encode())
         if answered[k]:
-            key = ("mcap transaction", raw[:7], e - s, timed)
+            key = ("mcap transaction", raw[:HEADER_SIZE], e - s, timed)
             tpl = model.cache.get(key)
             if tpl is None:
                 tpl = _tx_template(blk, k, model, key)
