@@ -53,11 +53,14 @@ from typing import Any, BinaryIO, Iterable, Iterator
 
 from ..protocol.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO, Marked
 from .timebase import FIRST
-from ..protocol.wire import BAUD_RATES, BITS_PER_BYTE
+from ..protocol.wire import BAUD_RATES, BITS_PER_BYTE, REQUEST_HEADER, RETURN_HEADER
 from .captures import CaptureError
 from .foreign import ForeignFormat, ReadContext, register
 
 LOGIC2, LOGIC1 = "saleae", "saleae-v1"
+# The two bytes of each header as consecutive rows carry them (one value a row): (0xFA, 0xAF), (0xFD, 0xDF).
+_REQUEST_PAIR = tuple(REQUEST_HEADER)
+_RETURN_PAIR = tuple(RETURN_HEADER)
 
 _LOGIC2_COLUMNS = ("name", "type", "start_time", "duration", "data")
 _LOGIC2_OPTIONAL = ("error",)
@@ -486,9 +489,9 @@ class _Senders:
         name, v = row[2], row[1]
         prev = self._last.get(name)
         self._last[name] = v if row[3] is None else -1
-        if prev == 0xFA and v == 0xAF:
+        if (prev, v) == _REQUEST_PAIR:
             self._requests[name] = self._requests.get(name, 0) + 1
-        elif prev == 0xFD and v == 0xDF:
+        elif (prev, v) == _RETURN_PAIR:
             self._returns[name] = self._returns.get(name, 0) + 1
 
     def _by_names(self) -> dict[str, str | None] | None:

@@ -67,34 +67,34 @@ class HeldBytes:
     asked (:meth:`built`), as they come at any time (a row shown, a finding's sample)."""
 
     def __init__(self) -> None:
-        self.held = 0  # bytes of the held Records, Blocks and runs
+        self.total = 0  # bytes of the held Records, Blocks and runs
         self._runs: dict[FrameRun, list] = {}  # a run -> [held Blocks of it, its bytes]
         self._built: dict[Block, tuple] = {}   # a Block -> (what it keeps, bytes of that)
 
     def add_records(self, records: Iterable[Record]) -> None:
-        self.held += sum(map(record_size, records))
+        self.total += sum(map(record_size, records))
 
     def drop_records(self, records: Iterable[Record]) -> None:
-        self.held -= sum(map(record_size, records))
+        self.total -= sum(map(record_size, records))
 
     def add_block(self, blk: Block) -> None:
-        self.held += block_nbytes(blk)
+        self.total += block_nbytes(blk)
         held = self._runs.get(blk.run)
         if held is None:
             size = run_nbytes(blk.run)
             self._runs[blk.run] = [1, size]
-            self.held += size
+            self.total += size
         else:
             held[0] += 1
 
     def drop_block(self, blk: Block) -> None:
-        self.held -= block_nbytes(blk)
+        self.total -= block_nbytes(blk)
         self._built.pop(blk, None)
         held = self._runs[blk.run]
         held[0] -= 1
         if not held[0]:
             del self._runs[blk.run]
-            self.held -= held[1]
+            self.total -= held[1]
 
     def built(self, blocks: Iterable[Block]) -> int:
         """Bytes of the Records the held ``blocks`` keep, each Block weighed again only when what it

@@ -25,7 +25,7 @@ class Store:
 
     It puts together: :attr:`held` (the rows, rs30x_sniff.tui.history: lists of Records and Blocks, a
     Block's row made a Record only when asked for), :attr:`stats` and the bus load (tui.figures, from a
-    Block's columns too), :attr:`bytes` (what the rows weigh, tui.memory), :attr:`shown` (the filtered
+    Block's columns too), :attr:`held_bytes` (what the rows weigh, tui.memory), :attr:`shown` (the filtered
     view, tui.view) and :attr:`plotted` (the plot's series, tui.plot_series).
     """
 
@@ -43,7 +43,7 @@ class Store:
     def clear(self) -> None:
         """Forget every record, finding and count (the source keeps running)."""
         self.held = History()
-        self.bytes = HeldBytes()  # bytes of the held Records, Blocks and runs, and of what Blocks build
+        self.held_bytes = HeldBytes()  # what the held Records, Blocks and runs weigh, and what Blocks build
         self.stats = Stats()
         self.findings: deque = deque(maxlen=self.history)
         self.findings_total = 0
@@ -70,7 +70,7 @@ class Store:
     @property
     def memory(self) -> int:
         """Bytes of the held Records, Blocks and runs (not of Records Blocks build later)."""
-        return self.bytes.held
+        return self.held_bytes.total
 
     def get(self, seq: int) -> Record | None:
         return self.held.get(seq)
@@ -117,7 +117,7 @@ class Store:
 
     def _add_records(self, records: list[Record], loads: list) -> None:
         self.stats.count_records(records, loads)
-        self.bytes.add_records(records)
+        self.held_bytes.add_records(records)
         if self.plotted.series:
             self.plotted.add_records(records)
         if self.shown.matching_new_rows:
@@ -134,14 +134,14 @@ class Store:
         if self.shown.matching_new_rows:
             self.shown.add(self.end_seq, blk.rows(0, len(blk)))
         self.held.append_block(blk)
-        self.bytes.add_block(blk)
+        self.held_bytes.add_block(blk)
 
     def _drop(self, seg: Segment) -> None:
         """The memory figure without rows that leave the history (a segment, or Records cut from one)."""
         if type(seg) is list:
-            self.bytes.drop_records(seg)
+            self.held_bytes.drop_records(seg)
         else:
-            self.bytes.drop_block(seg)
+            self.held_bytes.drop_block(seg)
 
     def _evict(self) -> None:
         excess = len(self) - self.history
@@ -174,7 +174,7 @@ class Store:
     def memory_estimate(self) -> int:
         """Bytes the held history costs, roughly (records, events, byte strings, Blocks and their runs,
         the Records Blocks have built, the lists themselves)."""
-        return (self.bytes.held + self.held.list_nbytes() + self.bytes.built(self.held.blocks())
+        return (self.held_bytes.total + self.held.list_nbytes() + self.held_bytes.built(self.held.blocks())
                 + self.shown.nbytes)
 
     def poll_rate(self, row: ServoRow) -> float | None:

@@ -7,7 +7,7 @@ import pytest
 from rs30x_sniff.tui import history as history_module
 from rs30x_sniff.tui.history import History
 
-from .helpers import manual_records
+from .helpers import FakeFinding, manual_records
 
 
 @pytest.fixture
@@ -42,9 +42,21 @@ def test_trim_tells_what_leaves(small_chunks):
     assert held.seq_of_offset(recs[2].offset) is None
 
 
-def test_finding_seq_asks_what_is_shown():
+def every(seq: int) -> bool:
+    return True
+
+
+def test_finding_seq_asks_what_is_shown(small_chunks):
     recs = manual_records()
+    for k, severity in ((4, "error"), (11, "warning"), (20, "info")):
+        recs[k].findings.append(FakeFinding("X", "x", severity, "m", recs[k].offset))
     held = History()
     held.append_records(recs)
-    assert held.finding_seq(None, True, "info", lambda seq: True) is None  # no linter: no findings
-    assert History().finding_seq(None, True, "info", lambda seq: True) is None
+    assert held.finding_seq(None, True, "info", every) == 4
+    assert held.finding_seq(4, True, "info", every) == 11
+    assert held.finding_seq(None, False, "info", every) == 20
+    assert held.finding_seq(None, True, "warning", lambda seq: seq != 4) == 11
+    assert held.finding_seq(11, True, "warning", every) is None
+    held.trim(12, lambda seg: None)
+    assert held.finding_seq(None, False, "warning", every) is None
+    assert History().finding_seq(None, True, "info", every) is None

@@ -28,11 +28,11 @@ def test_a_run_shared_by_two_blocks_counts_once():
     weighed = HeldBytes()
     weighed.add_block(head)
     weighed.add_block(tail)
-    assert weighed.held == block_nbytes(head) + block_nbytes(tail) + run_nbytes(blk.run)
+    assert weighed.total == block_nbytes(head) + block_nbytes(tail) + run_nbytes(blk.run)
     weighed.drop_block(head)
-    assert weighed.held == block_nbytes(tail) + run_nbytes(blk.run)
+    assert weighed.total == block_nbytes(tail) + run_nbytes(blk.run)
     weighed.drop_block(tail)
-    assert weighed.held == 0
+    assert weighed.total == 0
 
 
 def test_built_rows_are_weighed_again_when_they_change():
@@ -46,7 +46,7 @@ def test_built_rows_are_weighed_again_when_they_change():
     blk.record(10)
     assert weighed.built([blk]) == built_nbytes(blk) > one
     weighed.drop_block(blk)
-    assert weighed.held == 0
+    assert weighed.total == 0
 
 
 def test_records_in_and_out():
@@ -54,6 +54,6 @@ def test_records_in_and_out():
     recs = [r for d, t in hexapod_frames(50) for r in dec.feed(d, t)]
     weighed = HeldBytes()
     weighed.add_records(recs)
-    assert weighed.held == sum(map(record_size, recs))
+    assert weighed.total == sum(map(record_size, recs))
     weighed.drop_records(recs[:10])
-    assert weighed.held == sum(map(record_size, recs[10:]))
+    assert weighed.total == sum(map(record_size, recs[10:]))
