@@ -12,8 +12,9 @@ Each rule declares its column form itself (``@rule(..., column=...)``, rs30x_sni
   column function would see, takes the record path);
 - "header": a pure function of a packet's header, its model and (for a reply) its request's header:
   each distinct header is checked once with the rule's own check on a sample record, and remembered;
-- a function quiet(view) beside the rule (F004, F007, F009, B006, M003, M005, Q004, Q006, Q007), written
-  on the :class:`BlockView`'s columns with the same arithmetic, in the same order, as the rule's check.
+- a function quiet(view) beside the rule, written on the :class:`BlockView`'s columns with the same
+  arithmetic, in the same order, as the rule's check.
+Which rule has which form is said by the rules alone (``Rule.column``); this module keeps no list of them.
 """
 
 from __future__ import annotations
@@ -24,7 +25,9 @@ from typing import Any, Callable, NamedTuple
 import numpy as np
 
 from ..decode.frame_runs import LONG, RETURN, SHORT
-from ..protocol.wire import BROADCAST_ID, COMMAND_BITS
+from ..protocol.events import RAW
+from ..protocol.wire import AT_DATA, BROADCAST_ID, COMMAND_BITS, HEADER_SIZE, SUM_SIZE
+from .registry import follows_cut
 
 UNKNOWN = -(1 << 40)  # an unknown shadow value in an int64 column (BlockView.shadows)
 
@@ -125,10 +128,8 @@ class BlockLinter:
             return False  # flash / reboot / initialize: command rules and their state (P008, P009, Q001-Q004)
         if (is_return & (flag != 0)).any():
             return False  # a status flag: P013, S001-S004, and the temperature lock Q009 reads
-        prev = lint.prev
-        if prev is not None and prev.event.kind == "garbage" and prev.event[4] == "truncated" \
-                and prev.event.end_offset == int(blk.offsets[0]):
-            return False  # B007: the first row starts where a cut-short frame ended
+        if follows_cut(lint.prev, int(blk.offsets[0])):
+            return False  # B007 ("after-cut"): the first row starts where a cut-short frame ended
         if blk.vid_models is not None:
             return False  # servos of mixed models in long packets: per-record plans
         # Q008: the servo IDs the bus has seen, with these.
@@ -139,7 +140,7 @@ class BlockLinter:
         for key in np.unique(length[long_rows] * 256 + blk.cols["count"][long_rows]).tolist():
             rows = long_rows[length[long_rows] * 256 + blk.cols["count"][long_rows] == key]
             ln, cnt = key // 256, key % 256
-            vid_groups.append((rows, a[(starts[rows] + 7)[:, None] + np.arange(cnt) * ln], ln))
+            vid_groups.append((rows, a[(starts[rows] + AT_DATA)[:, None] + np.arange(cnt) * ln], ln))
         ids = set(np.unique(sid[(is_short & (sid != BROADCAST_ID)) | is_return]).tolist())
         for _, vids, _ in vid_groups:
             ids.update(np.unique(vids).tolist())
@@ -208,10 +209,10 @@ def _headers_quiet(lint: Any, memo: dict, blk: Any, run: tuple, vid_groups: list
     for k in samples:
         rec = blk.record(k)
         ev = rec.event
-        raw = ev[1]
-        asked = rec.request.event[1] if rec.request is not None else b""
-        key = (raw[:7], len(raw), id(rec.model), raw[7:-1:ev.length or 1] if ev.kind == "long" else b"",
-               asked[:7], len(asked))
+        raw = ev[RAW]
+        asked = rec.request.event[RAW] if rec.request is not None else b""
+        key = (raw[:HEADER_SIZE], len(raw), id(rec.model),
+               raw[AT_DATA:-SUM_SIZE:ev.length or 1] if ev.kind == "long" else b"", asked[:HEADER_SIZE], len(asked))
         quiet = memo.get(key)
         if quiet is None:
             if header_rules is None:
@@ -244,7 +245,7 @@ def _header_sample_quiet(lint: Any, header_rules: list, rec: Any, ev: Any) -> bo
     for r in header_rules:
         if kind in r.kinds and r.when is None:
             r.check_for(kind)(probe, rec, ev)
-    data = ev[1][7:-1]
+    data = ev[RAW][AT_DATA:-SUM_SIZE]
     if kind != "return" and data and rec.model is not None:
         n = len(data) if kind == "short" else ev.length - 1
         if n > 0:
@@ -282,7 +283,7 @@ def _writes(view: BlockView, run: tuple, vid_groups: list) -> list[int] | None:
     for key in np.unique(skey).tolist():
         for model, r2 in _by_model(blk, short_rows[skey == key], sid):
             groups.append((model, key // 4096, key % 4096, r2, np.zeros(len(r2), np.int64), sid[r2],
-                           starts[r2] + 7, "write"))
+                           starts[r2] + AT_DATA, "write"))
     for rows, vids, ln in vid_groups:
         if ln < 2:
             continue
@@ -291,7 +292,7 @@ def _writes(view: BlockView, run: tuple, vid_groups: list) -> list[int] | None:
             r2 = rows[address[rows] == ad]
             v2 = vids[address[rows] == ad]
             groups.append((blk.default, ad, ln - 1, np.repeat(r2, cnt), np.tile(np.arange(1, cnt + 1), len(r2)),
-                           v2.ravel(), (starts[r2][:, None] + 8 + np.arange(cnt) * ln).ravel(), "write"))
+                           v2.ravel(), (starts[r2][:, None] + AT_DATA + 1 + np.arange(cnt) * ln).ravel(), "write"))
     ret_rows = np.flatnonzero(view.is_return)
     rkey = address[ret_rows] * 4096 + dlen[ret_rows]
     mentions.append((ret_rows.astype(np.int64) * 512, sid[ret_rows].astype(np.int64)))
@@ -301,7 +302,7 @@ def _writes(view: BlockView, run: tuple, vid_groups: list) -> list[int] | None:
             continue
         for model, r2 in _by_model(blk, rows, sid):
             groups.append((model, key // 4096, key % 4096, r2, np.zeros(len(r2), np.int64), sid[r2],
-                           starts[r2] + 7, "return"))
+                           starts[r2] + AT_DATA, "return"))
     for model, ad, n, rows, subs, sids, at, what in groups:
         if model is None:
             continue

@@ -6,8 +6,9 @@ from types import MethodType
 from typing import Any, Callable
 
 from ..decode.pairing import MISSING, Record
+from ..protocol.events import OFFSET, RAW, T_START
 from ..protocol.wire import (
-    BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, byte_time)
+    AT_DATA, BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, SUM_SIZE, byte_time)
 from .batch import BlockLinter
 from .config import LintConfig
 from .registry import KINDS, RULES, WHEN, Finding, Rule
@@ -106,8 +107,8 @@ class Linter:
     def emit(self, code: str, rec: Record, message: str, sid: Any = _AUTO) -> Finding:
         """Report a finding of rule ``code`` on ``rec`` (appended to ``rec.findings``)."""
         ev = rec.event
-        f = Finding(code, RULES[code].name, self._sev[code], message, ev[0], ev[2],
-                    rec.id if sid is _AUTO else sid, ev[1])
+        f = Finding(code, RULES[code].name, self._sev[code], message, ev[OFFSET], ev[T_START],
+                    rec.id if sid is _AUTO else sid, ev[RAW])
         rec.findings.append(f)
         self.findings.append(f)
         self._new.append(f)
@@ -126,7 +127,7 @@ class Linter:
         new = self._new = []
         ev = rec.event
         if self.timed is None:
-            self._setup(ev[2] is not None)
+            self._setup(ev[T_START] is not None)
         self.records += 1
         on = self._on
         kind = ev.kind
@@ -205,7 +206,7 @@ class Linter:
         ids = self.ids
         if kind == "long":
             if ev.length:
-                vids = ev.raw[7:-1:ev.length]  # every record starts with its VID
+                vids = ev.raw[AT_DATA:-SUM_SIZE:ev.length]  # every record starts with its VID
                 if vids not in self._vid_sets:
                     self._vid_sets.add(vids)
                     ids.update(vids)
@@ -278,7 +279,7 @@ class Linter:
             fn(self, rec, plan, vids)
         checks = plan.target_checks
         shadow = self.shadow
-        data = ev.raw[7:-1]
+        data = ev.raw[AT_DATA:-SUM_SIZE]
         if vid_models is None and len(data) == ev.length * ev.count:
             flat = plan.unpack_long(ev.count)(data)
             stride = len(plan.parts) + 1

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
 from ..decode.pairing import ANSWERED, PAIRED
+from ..protocol.events import FLAG, OFFSET, REASON, TRUNCATED
 from ..protocol.wire import REQUEST_HEADER, checksum
 
 SEVERITIES = ("info", "warning", "error")
@@ -52,12 +53,17 @@ COLUMN_DECLARATIONS = ("header", "silent")
 # Preconditions a rule may declare with when=: the linter tests each once per record (for the kinds that
 # have rules waiting on it) and calls the rule only when it holds, so the common healthy record costs few
 # calls. Each takes (lint, rec, ev) like a check.
-def _after_cut(lint, rec, ev) -> bool:
-    prev = lint.prev
+def follows_cut(prev, offset: int) -> bool:
+    """Whether a frame at stream ``offset`` starts right where the record ``prev`` (None: nothing before),
+    a cut-short frame, ended: the test of "after-cut" (B007), for a record and for a Block's first row."""
     if prev is None:
         return False
     pe = prev.event
-    return pe.kind == "garbage" and pe[4] == "truncated" and pe.end_offset == ev[0]
+    return pe.kind == "garbage" and pe[REASON] == TRUNCATED and pe.end_offset == offset
+
+
+def _after_cut(lint, rec, ev) -> bool:
+    return follows_cut(lint.prev, ev[OFFSET])
 
 
 def _unpaired(lint, rec, ev) -> bool:
@@ -66,7 +72,7 @@ def _unpaired(lint, rec, ev) -> bool:
 
 
 def _flagged(lint, rec, ev) -> bool:
-    return ev[5] != 0
+    return ev[FLAG] != 0
 
 
 def _crowded(lint, rec, ev) -> bool:

@@ -19,6 +19,7 @@ from typing import BinaryIO, Callable, Iterable, Iterator
 from . import timeunit
 from ..protocol.chunks import Marked
 from ..protocol.mcap_names import MCAP_MAGIC
+from ..protocol.wire import REQUEST_HEADER, RETURN_HEADER
 from .timeunit import TimeUnit
 from . import foreign
 from .base import CaptureError, CaptureWarning, open_capture, stderr_warning
@@ -189,7 +190,7 @@ def _detect(path: str, opened: _Opened) -> str:
     if ext in _TEXT_EXTENSIONS or (not _NOT_TEXT.search(head) and _first_line_kind(head)):
         # A text capture with a bad token: read it as its first data line says, so the error names the line.
         return _first_line_kind(head) or HEX
-    if b"\xfa\xaf" in head or b"\xfd\xdf" in head or not opened.seekable:
+    if REQUEST_HEADER in head or RETURN_HEADER in head or not opened.seekable:
         # stdin was always raw bytes, and a pipe's head may be one short read: not text is binary.
         return BINARY
     raise CaptureError(f"{path}: unknown capture format (use --input-format {'|'.join(input_formats())})")

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from ...decode.pairing import EXTRA, MISSING, PAIRED, UNSOLICITED
-from ...protocol.wire import ACK, BROADCAST_ID, NACK, encode_read, encode_return, encode_short
+from ...protocol.events import OFFSET, RAW, T_END, T_START
+from ...protocol.wire import ACK, BROADCAST_ID, FRAME_OVERHEAD, NACK, encode_read, encode_return, encode_short
 from ..batch import UNKNOWN
-from ..registry import example, rule
+from ..registry import example, follows_cut, rule
 
 _READ = encode_read(1, 0x2A, 2)              # present_position of ID 1
 _RET = encode_return(1, 0x2A, bytes.fromhex("8403"))
@@ -34,7 +35,7 @@ def reply_due(lint, req) -> float:
     sh = lint.servos.get(ev.id)
     rd = sh.return_delay if sh is not None and sh.return_delay is not None else 0
     rr = ev.read_range
-    size = 1 if rr is None else 8 + rr[1]
+    size = 1 if rr is None else FRAME_OVERHEAD + rr[1]
     due = expected_latency(rd) + size * lint.byte_time + lint.config.latency_margin
     return min(due, lint.config.reply_timeout)
 
@@ -65,10 +66,10 @@ def request_before_return(lint, rec, ev):
     p = lint.missing
     if p is None or p.resolved_by is not rec or not p.event.checksum_ok:
         return
-    t1 = p.event[3]
-    if t1 is None or ev[2] is None:
+    t1 = p.event[T_END]
+    if t1 is None or ev[T_START] is None:
         return
-    gap = ev[2] - t1
+    gap = ev[T_START] - t1
     if gap <= reply_due(lint, p):
         # A gap the clock puts at or below zero is no duration to print (F005/F006 say why).
         when = f"{gap * 1e3:.3f} ms after" if gap > 0 else "right after"
@@ -94,10 +95,10 @@ def missing_return(lint, rec, ev):
         return
     by = rec.resolved_by
     if by is not None:
-        if by.event[0] > ev.end_offset:
+        if by.event[OFFSET] > ev.end_offset:
             return  # bytes came back in the reply's place: the framing and collision rules describe them
-        if lint.timed and by.is_request and by.event[2] is not None and ev[3] is not None \
-                and by.event[2] - ev[3] <= reply_due(lint, rec):
+        if lint.timed and by.is_request and by.event[T_START] is not None and ev[T_END] is not None \
+                and by.event[T_START] - ev[T_END] <= reply_due(lint, rec):
             return  # the host did not wait: B001
     lint.emit("B002", rec, f"ID {ev.id} did not answer; the request asked for {_asked(rec)}")
 
@@ -121,9 +122,9 @@ def unsolicited_return(lint, rec, ev):
     who = f" from ID {ev.id}" if ev.kind == "return" else ""
     late = ""
     p = lint.missing
-    if p is not None and ev[2] is not None and p.event[3] is not None and (ev.kind != "return" or p.id == ev.id) \
-            and ev[2] > p.event[3]:
-        late = f"; {(ev[2] - p.event[3]) * 1e3:.3f} ms after request @{p.offset}, past the reply timeout"
+    if p is not None and ev[T_START] is not None and p.event[T_END] is not None \
+            and (ev.kind != "return" or p.id == ev.id) and ev[T_START] > p.event[T_END]:
+        late = f"; {(ev[T_START] - p.event[T_END]) * 1e3:.3f} ms after request @{p.offset}, past the reply timeout"
     lint.emit("B003", rec, f"{ev.kind.upper() if ev.kind != 'return' else 'return'}{who} that no request asked for{late}")
 
 
@@ -236,15 +237,13 @@ servos with one ID, or a second host. Both frames are damaged; the one that surv
 {example(encode_short(1, 0x09, 0, b"", length=0, count=1)[:6] + _RET, note="a poll of ID 1 cut off by a return that started inside it:")}
 """, kinds=("packet", "corrupt"), when="after-cut", column="silent")
 def bus_collision(lint, rec, ev):
-    prev = lint.prev
-    if prev is None:
+    if not follows_cut(lint.prev, ev[OFFSET]):
         return
-    pe = prev.event
-    if pe.kind != "garbage" or pe[4] != "truncated" or pe.end_offset != ev[0]:
+    pe = lint.prev.event
+    if pe[T_END] is not None and ev[T_START] is not None \
+            and ev[T_START] - pe[T_END] > lint.config.gap_bytes * lint.byte_time:
         return
-    if pe[3] is not None and ev[2] is not None and ev[2] - pe[3] > lint.config.gap_bytes * lint.byte_time:
-        return
-    lint.emit("B007", rec, f"frame starts inside the {len(pe[1])}-byte frame cut short at @{pe[0]}")
+    lint.emit("B007", rec, f"frame starts inside the {len(pe[RAW])}-byte frame cut short at @{pe[OFFSET]}")
 
 
 @rule("B008", "nack", "warning", "A servo answered NACK.", f"""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ...protocol.chunks import HOST, SERVO
+from ...protocol.events import OFFSET, T_START
 from ..registry import rule
 
 _EXPECTED = {"short": HOST, "long": HOST, "return": SERVO, "ack": SERVO, "nack": SERVO}
@@ -60,7 +61,7 @@ def sender_mismatch(st, lint, rec, ev):
         senders = decide(st, lint)
     if senders is None:
         return
-    offset = ev[0]
+    offset = ev[OFFSET]
     sent = senders.at(offset)
     if sent is None:
         return
@@ -69,7 +70,7 @@ def sender_mismatch(st, lint, rec, ev):
     if sent != _EXPECTED[kind]:
         st.wrong += 1
         if st.first is None:
-            st.first = (offset, ev[2], rec.id, kind, sent)
+            st.first = (offset, ev[T_START], rec.id, kind, sent)
 
 
 def decide(st, lint):

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from ...protocol.chunks import UART_ERRORS
-from ...protocol.events import CAPTURE_EDGES, TRUNCATED
-from ...protocol.wire import encode_short
+from ...protocol.events import CAPTURE_EDGES, RAW, REASON, T_END, T_START, TRUNCATED
+from ...protocol.wire import AT_ID, SUM_SIZE, encode_short
 from ..registry import example, rule
 
 _GOAL = encode_short(1, 0, 0x1E, b"\x84\x03")  # goal_position 90.0 deg on ID 1
@@ -25,7 +25,8 @@ a weak pull-up, a long cable, or two talkers at once.
 {example(_GOAL[:-1] + bytes((_GOAL[-1] ^ 0x01,)), note="goal_position 90.0 deg with the Sum off by one bit:")}
 """, kinds=("corrupt",), column="silent")
 def checksum_mismatch(lint, rec, ev):
-    lint.emit("F001", rec, f"Sum is 0x{ev.raw[-1]:02X} but the bytes from ID on XOR to 0x{_xor(ev.raw[2:-1]):02X}")
+    raw = ev.raw
+    lint.emit("F001", rec, f"Sum is 0x{raw[-1]:02X} but the bytes from ID on XOR to 0x{_xor(raw[AT_ID:-SUM_SIZE]):02X}")
 
 
 def _xor(data: bytes) -> int:
@@ -79,7 +80,8 @@ was pre-empted, or filled a transmit buffer.
 """, kinds=("garbage",), column="silent")
 def truncated_frame(lint, rec, ev):
     if ev.reason == "truncated":
-        lint.emit("F003", rec, f"frame cut short after {len(ev.raw)} byte(s)", sid=ev.raw[2] if len(ev.raw) > 2 else None)
+        raw = ev.raw
+        lint.emit("F003", rec, f"frame cut short after {len(raw)} byte(s)", sid=raw[AT_ID] if len(raw) > AT_ID else None)
 
 
 def _inter_byte_gap_columns(view) -> bool:
@@ -107,11 +109,11 @@ or merging it with the next one.
 {example((0.0, _GOAL[:5]), (0.001, _GOAL[5:]), note="a goal_position write with 1 ms of silence after its fifth byte:")}
 """, kinds=("packet", "corrupt"), needs_time=True, column=_inter_byte_gap_columns)
 def inter_byte_gap(lint, rec, ev):
-    t0, t1 = ev[2], ev[3]
+    t0, t1 = ev[T_START], ev[T_END]
     if t0 is None or t1 is None:
         return
     bt = lint.byte_time
-    idle = (t1 - t0) - len(ev[1]) * bt
+    idle = (t1 - t0) - len(ev[RAW]) * bt
     if idle > lint.config.inter_byte_gap * bt:
         lint.emit("F004", rec, f"{idle * 1e3:.3f} ms ({idle / bt:.1f} byte times) of idle line inside the frame")
 
@@ -169,12 +171,12 @@ def wrong_baud_rate(st, lint, rec, ev):
     if st.last != n - 1:
         st.run.reset()
     st.last = n
-    t0 = ev[2]
+    t0 = ev[T_START]
     if t0 is not None:
-        st.times.chunk(ev[1], t0)
+        st.times.chunk(ev[RAW], t0)
     # One cut frame is F003's (or the capture's edge), not a stretch at another rate: its bytes do not
     # count, though it does not end the stretch either.
-    if ev.kind != "garbage" or ev[4] in _ONE_FRAME or not st.run.garbage(len(ev[1]), t0, ev[3]):
+    if ev.kind != "garbage" or ev[REASON] in _ONE_FRAME or not st.run.garbage(len(ev[RAW]), t0, ev[T_END]):
         return
     from ...decode.autobaud import wrong_baud_message
 
@@ -185,6 +187,6 @@ def wrong_baud_rate(st, lint, rec, ev):
 @wrong_baud_rate.on("packet", "ack", "nack")
 def _wrong_baud_valid_frame(st, lint, rec, ev):
     # A valid frame ends the stretch; its time still helps the estimate of the line's rate.
-    t0 = ev[2]
+    t0 = ev[T_START]
     if t0 is not None:
-        st.times.chunk(ev[1], t0)
+        st.times.chunk(ev[RAW], t0)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...protocol.events import T_END, T_START
 from ...protocol.wire import (
     BROADCAST_ID, FLAG_REBOOT as _REBOOT, FLAG_WRITE_FLASH as _FLASH, RETURN_TEMPERATURE_LIMIT, encode_command,
     encode_long, encode_return, encode_short)
@@ -76,7 +77,7 @@ def _baud_change_flashed_or_rebooted(pending, lint, rec, ev):
 def _left_pending(lint, rec, end_t) -> bool:
     """Whether a step still due at the end of input (or of a time segment, ending at ``end_t``) is
     missing rather than cut off: the capture ran on for ENDED_SOON after the write that needed it."""
-    t1 = rec.event[3]
+    t1 = rec.event[T_END]
     return not (lint.timed and end_t is not None and t1 is not None and end_t - t1 < ENDED_SOON)
 
 
@@ -165,18 +166,18 @@ def reboot_too_soon_after_flash(flashed, lint, rec, ev):
     flag, sid = ev.flag, ev.id
     if flag & _FLASH and not flag & _REBOOT:
         reply = rec.reply
-        if reply is not None and reply.kind == "ack" and reply.event[3] is not None:
-            ready = reply.event[3]
-        elif ev[3] is not None:
-            ready = ev[3] + lint.config.flash_write_time
+        if reply is not None and reply.kind == "ack" and reply.event[T_END] is not None:
+            ready = reply.event[T_END]
+        elif ev[T_END] is not None:
+            ready = ev[T_END] + lint.config.flash_write_time
         else:
             return
-        flashed[sid] = (ready, ev[3], rec.offset)
-    elif flag & _REBOOT and not flag & _FLASH and ev[2] is not None:
+        flashed[sid] = (ready, ev[T_END], rec.offset)
+    elif flag & _REBOOT and not flag & _FLASH and ev[T_START] is not None:
         for key in (sid, BROADCAST_ID):
             entry = flashed.get(key)
-            if entry is not None and ev[2] < entry[0]:
-                dt = ev[2] - (entry[1] or 0)
+            if entry is not None and ev[T_START] < entry[0]:
+                dt = ev[T_START] - (entry[1] or 0)
                 when = f"{dt * 1e3:.1f} ms after" if dt > 0 else "right after"  # never a held clock's 0 or less
                 lint.emit("Q003", rec, f"reboot {when} the flash write @{entry[2]}; "
                                        f"allow {lint.config.flash_write_time * 1e3:.0f} ms (or wait for its ACK)")
