@@ -1,1 +1,1 @@
-"""The terminal UI of `rs30x-sniff monitor` (Textual); ``store``, ``filter`` and ``feed`` need no Textual."""
+"""The terminal UI of `rs30x-sniff monitor` (Textual); `store` and its parts, `feed` and `plot` need no Textual."""

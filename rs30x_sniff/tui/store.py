@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from array import array
 from collections import Counter, deque
 from typing import Any, Iterable
 
@@ -188,7 +189,7 @@ class Store:
         return self.shown.filter
 
     @property
-    def view(self):
+    def view(self) -> array | None:
         """The seqs that pass the filter (an array), or None when there is no filter."""
         return self.shown.seqs
 
