@@ -158,7 +158,7 @@ def test_replay_plays_a_timestamped_capture_at_its_own_pace(tmp_path):
     chunks = list(src.chunks(threading.Event()))
     took = time.monotonic() - start
     assert [t for _, t in chunks] == [0.0, 0.1, 0.2, 0.3, 0.4]
-    assert 0.09 <= took < 0.5  # 0.4 s of capture at 4x: a tenth of a second
+    assert took >= 0.09  # 0.4 s of capture at 4x: it waited a tenth of a second (the pacing itself: above)
 
 
 def test_a_stop_interrupts_a_replay(tmp_path):
