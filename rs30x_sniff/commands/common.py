@@ -209,7 +209,7 @@ def _mcap_layer(path: str) -> dict[str, Any]:
 def _timestamps_layer(path: str, time_unit: str | None = None) -> dict[str, Any]:
     """The rate a timestamped capture's back-to-back chunks show, the rates its spacing rules out, and
     the unit of its times when the content tells one other than seconds (its first lines are read)."""
-    from ..decode.autobaud import estimate_baud, estimate_from_spacings, rate_fit
+    from ..protocol.baud import estimate_baud, estimate_from_spacings, rate_fit
 
     sample = read_capture(path, TIMESTAMPED, warn=None, options={"time_unit": time_unit, "locate": False})
     try:
@@ -293,7 +293,7 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
 def _contradicted(path: str | None, settings: Settings, estimate: Any, fit: Any) -> Settings:
     """``settings`` with ``timing_unsupported`` set, and a warning on stderr, when the capture's timestamps
     contradict the rate it is decoded at: chunks would overlap at it, or back-to-back bytes name another."""
-    from ..decode.autobaud import contradicts
+    from ..protocol.baud import contradicts
 
     baud = settings.baud
     if fit is not None and fit.rules_out(baud):

@@ -1,11 +1,12 @@
 """Columnar pairing: a FrameRun's clean transactions as one Block, the tracker's state moved in bulk.
 
 The BusTracker pairs record by record (rs30x_sniff.decode.pairing). Most of a healthy capture is simpler than
-that: each request that asks for a reply is followed at once by a return, no servo changes its ID or
-reports its model, nothing is broadcast. Such stretches of a FrameRun become a :class:`Block` (rows as
-columns, no Python object per frame), and the tracker's state (servo shadows, counters, latencies,
-record index) is advanced with array operations. Every other frame goes through the tracker as an
-event, in wire order, so the records either way are the same: :meth:`Block.records` builds them
+that: each request that asks for a reply is followed at once by a return, and no frame is one of the
+tracker's special cases (no servo changes its ID or reports its model, nothing is broadcast:
+BusTracker.rows_needing_tracker says which are). Such stretches of a FrameRun become a :class:`Block`
+(rows as columns, no Python object per frame), and the tracker's state (servo shadows, counters,
+latencies, record index) is advanced with array operations. Every other frame goes through the tracker
+as an event, in wire order, so the records either way are the same: :meth:`Block.records` builds them
 exactly as the tracker would have.
 """
 
@@ -18,7 +19,8 @@ import numpy as np
 
 from .pairing import ANSWERED, PAIRED, BusTracker, Record, reply_latency
 from .frame_runs import LONG, RETURN, SHORT, FrameRun
-from ..protocol.wire import BROADCAST_ID, FLAG_WANTS_REPLY
+from ..protocol.events import ID, LONG_RECORDS
+from ..protocol.wire import AT_DATA, BROADCAST_ID, FLAG_WANTS_REPLY
 
 _WANTS_REPLY = np.array(FLAG_WANTS_REPLY, dtype=bool)
 # A clean stretch shorter than this goes through the tracker record by record (a block costs ~100 us).
@@ -194,9 +196,9 @@ class Block:
             rec = Record(ev, self.index0 + k, self.default)
             vm = self.vid_models
             if vm is not None:
-                rec.vid_models = tuple([vm[r[0]] for r in ev.records])
+                rec.vid_models = tuple([vm[r[0]] for r in ev[LONG_RECORDS]])  # r[0]: the record's VID
             return rec
-        return Record(ev, self.index0 + k, self.models[ev[4]])
+        return Record(ev, self.index0 + k, self.models[ev[ID]])
 
 
 def _pair(req: Record, rep: Record) -> None:
@@ -239,25 +241,11 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     tracker, one by one) for the rest, in wire order. True when some Block was appended."""
     h = run.header()
     n = len(run)
-    kind, sid, flag, dlen = h["kind"], h["id"], h["flag"], h["data_len"]
-    address, length = h["address"].astype(np.int64), h["length"].astype(np.int64)
-    is_short, is_long, is_return = kind == SHORT, kind == LONG, kind == RETURN
-    end = address + dlen                 # a short packet's or a return's data
-    long_end = address + length - 1      # each record of a long packet (after its VID)
-    ida = tracker.id_address
-    # Frames the columnar path leaves to the tracker, as each changes state in a way only it follows: a
-    # broadcast write (every servo's shadow), a write of servo_id (table 4.6 No. 4: the servo moves),
-    # data past the end of the map (clipped), and a return that may carry a model number (table 4.5).
-    slow = is_short & (dlen > 0) & ((sid == BROADCAST_ID) | ((address <= ida) & (ida < end)) | (end > 256))
-    slow |= is_long & (length > 1) & (((address <= ida) & (ida < long_end)) | (long_end > 256))
-    slow |= is_return & (end > 256)
-    if tracker.configured:
-        configured = np.zeros(256, dtype=bool)
-        configured[list(tracker.configured)] = True
-        learns = ~configured[sid]
-    else:
-        learns = np.ones(n, dtype=bool)
-    slow |= is_return & (address == 0) & (dlen >= 2) & learns
+    kind, flag = h["kind"], h["flag"]
+    is_short, is_return = kind == SHORT, kind == RETURN
+    # Frames the columnar path leaves to the tracker: the special cases, each changing the tracker's
+    # state in a way only it follows (broadcast writes, servo_id writes, data past the map, model numbers).
+    slow = tracker.rows_needing_tracker(h)
     # Pairing: a request asking for a reply must be followed at once, within the timeout, by a return
     # the columnar path takes; a return must follow such a request.
     wants = is_short & _WANTS_REPLY[flag]
@@ -320,7 +308,7 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
         for key in np.unique(keys).tolist():
             rows = long_rows[keys == key]
             ln, cnt = key // 256, key % 256
-            vids = a[(starts[rows] + 7)[:, None] + np.arange(cnt) * ln]  # every record starts with its VID
+            vids = a[(starts[rows] + AT_DATA)[:, None] + np.arange(cnt) * ln]  # each record starts with its VID
             vid_groups.append((rows, vids, ln))
             mention_rows.append(np.repeat(rows, cnt))
             mention_ids.append(vids.ravel().astype(np.int64))
@@ -336,11 +324,13 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
     # (the same, as no model is learned here); a long packet's, the default.
     models = {i: servos[i].model if i in servos else tracker.model_of(i) for i in set(sid[is_short | is_return].tolist())}
     vid_models = None
-    if not tracker.uniform and vid_groups:
+    if not tracker.uniform and is_long.any():
+        # Then every long packet's record has its VIDs' models, as the tracker gives them: a tuple (empty
+        # for Length 0), never None.
         vid_models = {i: tracker.model_of(i) for g in vid_groups for i in np.unique(g[1]).tolist()}
         # Long packets of Length 1 carry VIDs only; their records still have a model (bus.Record.vid_models).
         for r in np.flatnonzero(is_long & (length == 1)).tolist():
-            s0 = int(starts[r]) + 7
+            s0 = int(starts[r]) + AT_DATA
             for v in a[s0:s0 + int(count[r])].tolist():
                 if v not in vid_models:
                     vid_models[v] = tracker.model_of(v)
@@ -371,7 +361,7 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
             ad, nb = key // 4096, key % 4096
             for i in np.flatnonzero(last >= 0).tolist():
                 r = int(last[i])
-                stores.setdefault(i, []).append((r, int(starts[r]) + 7, ad, nb))
+                stores.setdefault(i, []).append((r, int(starts[r]) + AT_DATA, ad, nb))
     for group_rows, group_vids, ln in vid_groups:
         cnt = group_vids.shape[1]
         # Each address of these long packets on its own: the last write there to each servo wins.
@@ -383,7 +373,8 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
             np.maximum.at(last, vids.ravel(), seq)
             for i in np.flatnonzero(last >= 0).tolist():
                 r, k = divmod(int(last[i]), 256)
-                stores.setdefault(i, []).append((r, int(starts[r]) + 7 + k * int(ln) + 1, ad, int(ln) - 1))
+                # Record k's data: after the VID that starts it.
+                stores.setdefault(i, []).append((r, int(starts[r]) + AT_DATA + k * int(ln) + 1, ad, int(ln) - 1))
     blob = run.blob
     for i, items in stores.items():
         st = servos[i]

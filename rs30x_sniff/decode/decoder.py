@@ -8,6 +8,7 @@ from typing import Any, Iterable, Iterator
 from .blocks import Block, feed_run
 from .pairing import DEFAULT_REPLY_TIMEOUT, BusTracker, Record
 from ..protocol.chunks import Marked, SenderMap
+from ..protocol.events import OFFSET
 from .frame_runs import FrameRun
 from .framing import DEFAULT_GAP_BYTES, FrameDecoder
 from ..protocol.memmap import ModelRegistry, default_registry
@@ -66,6 +67,36 @@ class Step(list):
             else:
                 out.append(x)
         return out
+
+
+class Sink:
+    """Where decoded traffic goes (text, JSON lines, a lint report, MCAP, statistics, the monitor): what
+    takes the Steps a :class:`Decoder` gives. Declared here, beside the Step, so that a piece of the decode
+    stage can be one (rs30x_sniff.decode.autobaud's rate watches); the drive loop that feeds sinks is
+    rs30x_sniff.sinks.pipeline, which hands this class on to the sinks of every later stage.
+
+    The drive loop calls ``chunk`` with the raw bytes before they are decoded (so nothing read is lost
+    to a decoding error; ``sender`` and ``error`` are what the capture said of them, rs30x_sniff.protocol.chunks),
+    ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing for a moment, and
+    ``close`` once at the end. Every method is optional.
+
+    A sink with ``takes_blocks`` True is handed a columnar decoder's steps as they are (Records and
+    Blocks, rs30x_sniff.decode.blocks); any other sink gets them with every Block's rows as Records.
+    """
+
+    takes_blocks = False
+
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
+        pass
+
+    def batch(self, step: Step) -> None:
+        pass
+
+    def idle(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
 
 
 class Decoder:
@@ -200,4 +231,4 @@ class Decoder:
 
 def _offset_of(item: Any) -> int:
     """Stream offset of an event's first byte, or a FrameRun's."""
-    return item.base if type(item) is FrameRun else item[0]
+    return item.base if type(item) is FrameRun else item[OFFSET]

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..protocol.events import AnyEvent, frame_event
+from ..protocol.wire import (
+    AT_ADDRESS, AT_COUNT, AT_FLAG, AT_ID, AT_LENGTH, FRAME_OVERHEAD, LONG_PACKET_ID, RETURN_FIRST)
 
 # What a row of a run (or a Block) is: a column of these codes, not an event object.
 SHORT, LONG, RETURN = 0, 1, 2
@@ -47,11 +49,12 @@ class FrameRun:
         if cols is None:
             a = self.bytes_array
             s = self.starts
-            sid = a[s + 2]
-            is_return = a[s] == 0xFD
-            kind = np.where(is_return, RETURN, np.where(sid == 0, LONG, SHORT)).astype(np.uint8)
-            cols = self._cols = {"kind": kind, "id": sid, "flag": a[s + 3], "address": a[s + 4],
-                                 "length": a[s + 5], "count": a[s + 6], "data_len": self.ends - s - 8}
+            sid = a[s + AT_ID]
+            is_return = a[s] == RETURN_FIRST
+            kind = np.where(is_return, RETURN, np.where(sid == LONG_PACKET_ID, LONG, SHORT)).astype(np.uint8)
+            cols = self._cols = {"kind": kind, "id": sid, "flag": a[s + AT_FLAG], "address": a[s + AT_ADDRESS],
+                                 "length": a[s + AT_LENGTH], "count": a[s + AT_COUNT],
+                                 "data_len": self.ends - s - FRAME_OVERHEAD}
         return cols
 
     def event(self, k: int) -> AnyEvent:

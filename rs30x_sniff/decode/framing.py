@@ -7,16 +7,19 @@ from dataclasses import dataclass
 from functools import reduce
 from operator import xor
 
-from ..protocol.events import (
-    BAD_HEADER, CAPTURE_END, CAPTURE_START, NOISE, TRUNCATED, Ack, AnyEvent, Garbage, Nack, ShortPacket,
-    frame_event)
 import numpy as np
 
 from .frame_runs import FrameRun
 from .framing_kernel import scan_regular_arrays
-from ..protocol.wire import ACK, DEFAULT_BAUD, FLAG_WANTS_ACK, NACK, byte_time
+from ..protocol.events import (
+    BAD_HEADER, CAPTURE_END, CAPTURE_START, FLAG, NOISE, TRUNCATED, Ack, AnyEvent, Garbage, Nack, ShortPacket,
+    frame_event)
+from ..protocol.wire import (
+    ACK, AT_COUNT, AT_FLAG, AT_ID, AT_LENGTH, DEFAULT_BAUD, FLAG_WANTS_ACK, FRAME_OVERHEAD, HEADER_SIZE,
+    LONG_PACKET_ID, NACK, REQUEST_FIRST, REQUEST_HEADER, RETURN_FIRST, RETURN_HEADER, SUM_SIZE, byte_time)
 
-_FA, _AF, _FD, _DF = 0xFA, 0xAF, 0xFD, 0xDF
+_FA, _AF = REQUEST_HEADER  # FA AF: a request (short or long packet)
+_FD, _DF = RETURN_HEADER   # FD DF: a return packet
 
 # A header claiming more data than this is noise, not a frame: the whole memory map is 140 bytes,
 # and even a long packet to 24 servos of 30 registers each stays under 800.
@@ -82,7 +85,8 @@ class TimeFault:
 # Garbage reasons that, before a segment's first frame, mean the capture cut a frame (CAPTURE_START);
 # bytes the capturing UART flagged keep their own reason.
 _CUT_BY_START = (NOISE, TRUNCATED, BAD_HEADER)
-_HEADERS = (b"\xfa\xaf", b"\xfd\xdf")
+_HEADERS = (REQUEST_HEADER, RETURN_HEADER)
+_SYNC = len(REQUEST_HEADER)  # the two header bytes a frame starts with
 
 # Results of FrameDecoder._frame_end besides an end index.
 _WAIT = -1      # cannot decide yet: more bytes are needed
@@ -128,7 +132,7 @@ class FrameDecoder:
         # any frame: then it is what it looks like.
         self._lead = True
         self._seg_start = 0
-        self._lead_max = 8 + max_data
+        self._lead_max = FRAME_OVERHEAD + max_data
         self._final = False
         self.closed = False
         # The numpy kernel (rs30x_sniff.decode.framing_kernel) for long clean runs; kernel=False is the plain
@@ -350,17 +354,17 @@ class FrameDecoder:
         base = self._base
         if self._breaks:
             # An idle gap inside the header cuts the frame before its length means anything.
-            cut = self._next_break(base + i, base + min(i + 7, n))
+            cut = self._next_break(base + i, base + min(i + HEADER_SIZE, n))
             if cut is not None:
                 return _CUT - (cut - base)
-        if i + 7 > n:
+        if i + HEADER_SIZE > n:
             return _CUT - n if final else _WAIT
-        length = buf[i + 5]
+        length = buf[i + AT_LENGTH]
         # Data bytes = Length x Count for requests, Length for returns ("Format of Packets").
-        data_len = length * buf[i + 6] if first == _FA else length
+        data_len = length * buf[i + AT_COUNT] if first == _FA else length
         if data_len > self.max_data:
             return _BAD
-        end = i + 8 + data_len
+        end = i + FRAME_OVERHEAD + data_len
         if self._breaks:
             cut = self._next_break(base + i, base + min(end, n))
             if cut is not None:
@@ -375,15 +379,16 @@ class FrameDecoder:
         if end < 0:
             return _WAIT if end == _WAIT else _NOT_SYNC
         buf = self._buf
-        return end if reduce(xor, buf[i + 2:end - 1], 0) == buf[end - 1] else _NOT_SYNC
+        last = end - SUM_SIZE
+        return end if reduce(xor, buf[i + AT_ID:last], 0) == buf[last] else _NOT_SYNC
 
     def _find_intact_inside(self, i: int, end: int, final: bool) -> int:
         """Index of the first intact frame starting in (i, end); _NOT_SYNC if none; _WAIT if undecidable."""
         buf = self._buf
         j = i + 1
         while True:
-            a = buf.find(b"\xfa\xaf", j, end + 1)
-            b = buf.find(b"\xfd\xdf", j, end + 1)
+            a = buf.find(REQUEST_HEADER, j, end + 1)
+            b = buf.find(RETURN_HEADER, j, end + 1)
             if a >= end:
                 a = -1
             if b >= end:
@@ -418,6 +423,8 @@ class FrameDecoder:
         self._final = final
         i = self._scan
         kernel = self.kernel
+        # The packet layout (protocol.wire) as locals: the loop below is the hottest code of the product.
+        at_id, at_length, at_count, header_size, overhead = AT_ID, AT_LENGTH, AT_COUNT, HEADER_SIZE, FRAME_OVERHEAD
         while i < n:
             # [start, i) is garbage already: handed out in pieces (the leading tail of a frame whole).
             while i - self._start >= GARBAGE_PIECE and not (self._lead and self._leading(i)):
@@ -448,11 +455,12 @@ class FrameDecoder:
                     continue
             if c == _FA or c == _FD:
                 # Fast path: an intact frame right here, with no idle gap to consider.
-                if not br and i + 7 <= n and buf[i + 1] == (_AF if c == _FA else _DF):
-                    length = buf[i + 5]
-                    end = i + 8 + (length * buf[i + 6] if c == _FA else length)
-                    if end <= n and end - i - 8 <= self.max_data \
-                            and reduce(xor, buf[i + 2:end - 1], 0) == buf[end - 1]:
+                if not br and i + header_size <= n and buf[i + 1] == (_AF if c == _FA else _DF):
+                    length = buf[i + at_length]
+                    size = length * buf[i + at_count] if c == _FA else length
+                    end = i + overhead + size
+                    last = end - 1  # the Sum (SUM_SIZE)
+                    if end <= n and size <= self.max_data and reduce(xor, buf[i + at_id:last], 0) == buf[last]:
                         if i > start:
                             self._emit_garbage(out, i)
                         self._emit_frame(out, end, True)
@@ -466,7 +474,7 @@ class FrameDecoder:
                         self._garbage_reason = BAD_HEADER
                     i += 1
                     continue
-                ok = end >= 0 and reduce(xor, buf[i + 2:end - 1], 0) == buf[end - 1]
+                ok = end >= 0 and reduce(xor, buf[i + at_id:end - SUM_SIZE], 0) == buf[end - SUM_SIZE]
                 if not ok:
                     stop = end if end >= 0 else _CUT - end
                     q = self._find_intact_inside(i, stop, final)
@@ -486,8 +494,8 @@ class FrameDecoder:
                 i = end
                 continue
             # Not a sync byte: skip ahead to the next possible one (or the next idle gap).
-            a = buf.find(b"\xfa", i + 1)
-            b = buf.find(b"\xfd", i + 1)
+            a = buf.find(REQUEST_FIRST, i + 1)
+            b = buf.find(RETURN_FIRST, i + 1)
             nxt = n if a < 0 else a
             if 0 <= b < nxt:
                 nxt = b
@@ -539,7 +547,7 @@ class FrameDecoder:
     def _emit_garbage(self, out: list[AnyEvent], end: int) -> None:
         reason = self._garbage_reason
         if self._lead and reason in _CUT_BY_START:
-            if self._base + self._start == self._seg_start and self._buf[self._start:self._start + 2] in _HEADERS:
+            if self._base + self._start == self._seg_start and self._buf[self._start:self._start + _SYNC] in _HEADERS:
                 self._lead = False  # the segment starts with a header: no frame was cut by its start
             elif not (self._final and end == len(self._buf)):
                 # Before the segment's first frame: the tail of a frame that began before the capture
@@ -557,7 +565,7 @@ class FrameDecoder:
         ev = frame_event(off, raw, t0, t1, ok)
         out.append(ev)
         # Only the byte right after a request in return mode 0001 may be its ACK/NACK (table 4.3).
-        self._ack_pending = type(ev) is ShortPacket and FLAG_WANTS_ACK[raw[3]]
+        self._ack_pending = type(ev) is ShortPacket and FLAG_WANTS_ACK[raw[AT_FLAG]]
 
     def _run_kernel(self, out: list[AnyEvent], i: int) -> int:
         """At a clean boundary (nothing pending, no idle gap, no ACK due): emit the run of back-to-back
@@ -594,7 +602,8 @@ class FrameDecoder:
         if times is not None:
             out.append(FrameRun(base, blob, starts, ends, *times))
             s = int(starts[-1])
-            self._ack_pending = blob[s] == _FA and blob[s + 2] != 0 and FLAG_WANTS_ACK[blob[s + 3]]
+            self._ack_pending = (blob[s] == _FA and blob[s + AT_ID] != LONG_PACKET_ID
+                                 and FLAG_WANTS_ACK[blob[s + AT_FLAG]])
             return i + covered
         starts, ends = starts.tolist(), ends.tolist()
         timed = bool(self._chunk_offsets)
@@ -608,7 +617,7 @@ class FrameDecoder:
                 t0, t1 = times(off, base + e)
             append(event(off, blob[s:e], t0, t1, True))
         last = out[-1]
-        self._ack_pending = type(last) is ShortPacket and FLAG_WANTS_ACK[last[5]]
+        self._ack_pending = type(last) is ShortPacket and FLAG_WANTS_ACK[last[FLAG]]
         return i + covered
 
     def _run_times(self, base: int, starts: np.ndarray, ends: np.ndarray):

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..protocol.wire import HEADER_SIZE, REQUEST_HEADER, RETURN_HEADER
+from ..protocol.wire import (
+    AT_COUNT, AT_ID, AT_LENGTH, FRAME_OVERHEAD, HEADER_SIZE, REQUEST_HEADER, RETURN_HEADER, SUM_SIZE)
 
 _REQ0, _REQ1 = REQUEST_HEADER  # FA AF: short and long packets
 _RET0, _RET1 = RETURN_HEADER   # FD DF: return packets
-# Header layout shared by every packet (chapter 4, "Format of Packets"): two sync bytes, ID, Flag,
-# Address, Length, Count, then the data and one Sum byte, the XOR of ID through the last data byte.
-_LENGTH, _COUNT, _OVERHEAD = 5, 6, HEADER_SIZE + 1
+# Header layout shared by every packet (chapter 4, "Format of Packets", protocol.wire): two sync bytes, ID,
+# Flag, Address, Length, Count, then the data and one Sum byte, the XOR of ID through the last data byte.
 _NONE = np.zeros(0, dtype=np.intp)
 
 
@@ -35,14 +35,14 @@ def scan_regular_arrays(window: bytes, max_data: int) -> tuple[np.ndarray, np.nd
     cand = np.flatnonzero(sync)
     if cand.size == 0 or cand[0] != 0:
         return _NONE, _NONE, False
-    length = a[cand + _LENGTH].astype(np.int64)
-    data_len = np.where(a[cand] == _REQ0, length * a[cand + _COUNT], length)
-    ends = cand + _OVERHEAD + data_len
+    length = a[cand + AT_LENGTH].astype(np.int64)
+    data_len = np.where(a[cand] == _REQ0, length * a[cand + AT_COUNT], length)
+    ends = cand + FRAME_OVERHEAD + data_len
     whole = (data_len <= max_data) & (ends <= n)
-    last = np.minimum(ends, n) - 1          # the Sum byte (clipped for frames not all here: masked by ``whole``)
+    last = np.minimum(ends, n) - SUM_SIZE   # the Sum byte (clipped for frames not all here: masked by ``whole``)
     running = np.bitwise_xor.accumulate(a)   # running[k] = a[0] ^ ... ^ a[k]
-    # XOR of ID..data = running[last - 1] ^ running[start + 1] (the two sync bytes drop out).
-    ok = whole & ((running[last - 1] ^ running[cand + 1]) == a[last])
+    # XOR of ID..data = running[last - 1] ^ running[start + AT_ID - 1] (the two sync bytes drop out).
+    ok = whole & ((running[last - 1] ^ running[cand + (AT_ID - 1)]) == a[last])
     starts, stops = cand[ok], ends[ok]
     if starts.size and starts[0] == 0:
         broken = np.flatnonzero(stops[:-1] != starts[1:])

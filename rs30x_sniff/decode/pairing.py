@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 from collections import deque
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Collection, Iterable, Mapping
 from weakref import ref
 
-from ..protocol.events import CAPTURE_START, Ack, AnyEvent, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
+import numpy as np
+
+from .frame_runs import LONG, RETURN, SHORT
+from ..protocol.events import (
+    ADDRESS, CAPTURE_START, CHECKSUM_OK, DATA, FLAG, ID, LONG_ADDRESS, LONG_CHECKSUM_OK, LONG_LENGTH, LONG_RECORDS,
+    REASON, T_END, T_START, Ack, AnyEvent, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket)
 from ..protocol.memmap import Field, Model, ModelRegistry, default_registry
-from ..protocol.wire import BROADCAST_ID, FLAG_WANTS_REPLY
+from ..protocol.wire import AT_DATA, BROADCAST_ID, FLAG_WANTS_REPLY, LONG_PACKET_ID, SUM_SIZE
 
 # Reply status of a record.
 ANSWERED = "answered"        # a request whose reply came
@@ -24,6 +29,65 @@ UNSEEN = "request-unseen"
 # A return comes 100 us + 50 us x return_delay (at most 12.85 ms, table 4.6 No. 7) after the request;
 # allow for the reply's own transmission and USB jitter before calling it missing.
 DEFAULT_REPLY_TIMEOUT = 0.050
+# A servo's shadow of its memory map: addresses 0 to 255 (data past the end is clipped).
+MAP_SIZE = 256
+# A return of addresses 0-1 carries the model number (table 4.5): 0x3030 RS303MR, 0x3040 RS304MD.
+MODEL_NUMBER_ADDRESS, MODEL_NUMBER_SIZE = 0, 2
+
+# ---- the special cases: frames the tracker follows one by one ----------------------------------------
+# What a checksum-valid frame does to the tracker is plain when it only counts a request or a return for
+# its servo (by ID, or each VID of a long packet) and stores its data in that servo's shadow, inside the
+# map: the columnar path (rs30x_sniff.decode.blocks) does that for a whole run of frames at once. A frame
+# of these cases does more, which only BusTracker.feed_into follows (a case is a bit; a frame may be two):
+PLAIN = 0
+BROADCAST_WRITE = 1  # data to ID 255: every servo's shadow
+SERVO_ID_WRITE = 2   # data over servo_id (table 4.6 No. 4): the servo answers to its new ID at once
+PAST_MAP = 4         # data past address 255: clipped
+MODEL_NUMBER = 8     # a return of the model number from a servo of no configured model: its model is learned
+
+
+# frame_case and frame_cases are twins, one frame and a column of frames: change one, change the other.
+# The tracker decides each event by frame_case; BusTracker.rows_needing_tracker hands frame_cases to the
+# columnar path. tests/decode/test_pairing_twins.py holds them equal on random runs.
+def frame_case(kind: int, sid: int, address: int, size: int, id_address: int, configured: Collection[int]) -> int:
+    """The special cases of one checksum-valid frame (PLAIN: none): ``kind`` SHORT, LONG or RETURN
+    (rs30x_sniff.decode.frame_runs), ``size`` its data bytes (a long packet's: each record's, after its VID),
+    ``id_address`` where servo_id lives, ``configured`` the IDs given a model (none is learned)."""
+    if size <= 0:
+        return PLAIN
+    end = address + size
+    case = PAST_MAP if end > MAP_SIZE else PLAIN
+    if kind == RETURN:
+        if address == MODEL_NUMBER_ADDRESS and size >= MODEL_NUMBER_SIZE and sid not in configured:
+            case |= MODEL_NUMBER
+    elif kind == SHORT and sid == BROADCAST_ID:
+        case |= BROADCAST_WRITE
+    elif address <= id_address < end:
+        case |= SERVO_ID_WRITE
+    return case
+
+
+def frame_cases(columns: Mapping[str, np.ndarray], id_address: int, configured: Collection[int]) -> np.ndarray:
+    """:func:`frame_case` of every frame of a run, from its header columns (rs30x_sniff.decode.frame_runs
+    FrameRun.header: kind, id, address, length, data_len): one uint8 of case bits per row."""
+    kind, sid = columns["kind"], columns["id"]
+    address = columns["address"].astype(np.int64)
+    size = np.where(kind == LONG, columns["length"].astype(np.int64) - 1, columns["data_len"])
+    end = address + size
+    data = size > 0
+    case = np.where(data & (end > MAP_SIZE), PAST_MAP, PLAIN).astype(np.uint8)
+    is_return = kind == RETURN
+    request = data & ~is_return
+    broadcast = request & (kind == SHORT) & (sid == BROADCAST_ID)
+    case[broadcast] |= BROADCAST_WRITE
+    case[request & ~broadcast & (address <= id_address) & (id_address < end)] |= SERVO_ID_WRITE
+    learns = is_return & (address == MODEL_NUMBER_ADDRESS) & (size >= MODEL_NUMBER_SIZE)
+    if configured:
+        known = np.zeros(256, dtype=bool)  # by ID: every value of the ID byte
+        known[list(configured)] = True
+        learns &= ~known[sid]
+    case[learns] |= MODEL_NUMBER
+    return case
 
 
 def reply_latency(request: AnyEvent, reply: AnyEvent) -> float | None:
@@ -33,7 +97,7 @@ def reply_latency(request: AnyEvent, reply: AnyEvent) -> float | None:
     baud, a held clock) give no latency rather than a false 0; F005/F006 report them. Blocks
     (rs30x_sniff.decode.blocks) hold only replies with a latency of zero or more: ``Block.reply_latencies``.
     """
-    t0, t1 = reply[2], request[3]
+    t0, t1 = reply[T_START], request[T_END]
     if t0 is None or t1 is None:
         return None
     latency = t0 - t1
@@ -156,7 +220,7 @@ class Record:
                 return None, b""
             return self.model.layout(ev.address, len(ev.data)), ev.data
         if t is LongPacket and ev.length and ev.records:
-            data = ev.raw[7:-1]
+            data = ev.raw[AT_DATA:-SUM_SIZE]
             vm = self.vid_models
             first = self.model if vm is None else vm[0]
             if len(data) == ev.length * ev.count and (vm is None or all(m is first for m in vm)):
@@ -183,17 +247,6 @@ class Record:
             return [x for sub, d, vid in lay for x in sub.named_values(d, sub.values(d), vid)]
         return lay.named_values(data, self.values, self.event.id)
 
-    def fields_json(self, only: set[int] | None = None, compact: bool = False) -> str:
-        """The JSON text of the fields' objects (``render.field_json``), without the brackets, written
-        from per-layout templates: no Field objects or dicts are built (``only``: those servo IDs)."""
-        lay, data = self.data_layout()
-        if lay is None:
-            return ""
-        if isinstance(lay, list):
-            parts = [sub.fields_json(d, sub.values(d), vid, only, compact) for sub, d, vid in lay]
-            return ("," if compact else ", ").join(p for p in parts if p)
-        return lay.fields_json(data, self.values, self.event.id, only, compact)
-
     @property
     def read_names(self) -> list[str]:
         """For a read request: the registers it asks for."""
@@ -216,7 +269,7 @@ class ServoState:
     def __init__(self, servo_id: int, model: Model) -> None:
         self.id = servo_id
         self.model = model
-        self.image = bytearray(256)
+        self.image = bytearray(MAP_SIZE)
         self.known = 0  # bit a set once address a of image holds a value seen on the bus
         self.requests = 0
         self.returns = 0
@@ -225,8 +278,8 @@ class ServoState:
 
     def store(self, address: int, data: bytes, t: float | None = None) -> None:
         n = len(data)
-        if address + n > 256:
-            n = 256 - address
+        if address + n > MAP_SIZE:
+            n = MAP_SIZE - address
             data = data[:n]
         self.image[address:address + n] = data
         self.known |= ((1 << n) - 1) << address
@@ -285,15 +338,15 @@ class BusTracker:
         return all(m is d for m in self.configured.values()) and all(m is d for m in self.learned.values())
 
     # ---- what pairing outside the tracker reads and moves (a Block of rows: rs30x_sniff.decode.blocks) ----
+    def rows_needing_tracker(self, columns: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Per frame of a run of checksum-valid frames (its header columns, FrameRun.header): True where
+        the frame is one of the special cases (:func:`frame_case`), which only :meth:`feed_into` follows."""
+        return frame_cases(columns, self._id_address, self.configured) != PLAIN
+
     @property
     def uniform(self) -> bool:
         """True while every servo has the default model (the common case: one model on the bus)."""
         return self._uniform
-
-    @property
-    def id_address(self) -> int:
-        """The address of servo_id (table 4.6 No. 4): a write there moves the servo to its new ID."""
-        return self._id_address
 
     @property
     def waiting(self) -> Record | None:
@@ -358,25 +411,25 @@ class BusTracker:
         """Append the records released by one more event to ``out`` (the form the decoder's loops call)."""
         t = type(ev)
         if t is ShortPacket or t is ReturnPacket:
-            model = self._model_cache.get(ev[4]) or self.model_of(ev[4])
+            model = self._model_cache.get(ev[ID]) or self.model_of(ev[ID])
         else:
             model = self.default
         rec = Record(ev, self._index, model)
         if self.fresh:
             if self._segment_t is None:
-                self._segment_t = ev[2]
-            if t is not Garbage or ev[4] != CAPTURE_START:  # bytes from before the capture keep it fresh
+                self._segment_t = ev[T_START]
+            if t is not Garbage or ev[REASON] != CAPTURE_START:  # bytes from before the capture keep it fresh
                 self.fresh = False
                 if t is ReturnPacket or t is Ack or t is Nack:
                     self._first_reply(rec)
         if t is LongPacket and not self._uniform:
             # Settle each VID's model now: what is learned later does not rewrite this packet.
             model_of = self.model_of
-            rec.vid_models = tuple([model_of(r[0]) for r in ev.records])
+            rec.vid_models = tuple([model_of(r[0]) for r in ev[LONG_RECORDS]])  # r[0]: the record's VID
         self._index += 1
         pending = self._pending
         if pending is not None:
-            t0, t1 = ev[2], pending.event[3]
+            t0, t1 = ev[T_START], pending.event[T_END]
             if t0 is not None and t1 is not None and t0 - t1 > self.reply_timeout:
                 self._resolve_missing(out, rec)
                 pending = None
@@ -420,13 +473,13 @@ class BusTracker:
         if p is None:
             return
         self._resolve_missing(out)
-        t1 = p.event[3]
+        t1 = p.event[T_END]
         if end_t is None or t1 is None or end_t - t1 <= self.reply_timeout:
             p.status = UNKNOWN  # its reply time had not run out: it may have come after the capture
 
     def _first_reply(self, rec: Record) -> None:
         """The segment's first packet is a reply: to a request before the capture, if it came in time."""
-        t0, s = rec.event[2], self._segment_t
+        t0, s = rec.event[T_START], self._segment_t
         if self._pending is None and (t0 is None or s is None or t0 - s <= self.reply_timeout):
             rec.status = UNSEEN
 
@@ -439,50 +492,50 @@ class BusTracker:
         self._held = []
 
     def _on_long(self, ev: LongPacket) -> None:
-        if not ev.checksum_ok:
+        if not ev[LONG_CHECKSUM_OK]:
             return
-        address, t = ev.address, ev.t_start
-        n = ev.length - 1
+        address, t = ev[LONG_ADDRESS], ev[T_START]
+        n = ev[LONG_LENGTH] - 1  # each record's data bytes, after its VID
         if n <= 0:
             return
-        end = address + n
-        if end > 256:
-            for vid, data in ev.records:
-                self.servo(vid).store(address, data, t)
+        ida = self._id_address
+        case = frame_case(LONG, LONG_PACKET_ID, address, n, ida, self.configured)
+        records = ev[LONG_RECORDS]
+        if case & PAST_MAP:
+            for vid, data in records:
+                self.servo(vid).store(address, data, t)  # clipped
         else:
+            end = address + n
             mask = ((1 << n) - 1) << address
             servos = self.servos
-            for vid, data in ev.records:
+            for vid, data in records:
                 st = servos.get(vid)
                 if st is None:
                     st = self.servo(vid)
                 st.image[address:end] = data  # inlined ServoState.store: 18 of these per gait frame
                 st.known |= mask
                 st.last_t = t
-        ida = self._id_address
-        if address <= ida < end:
+        if case & SERVO_ID_WRITE:
             k = ida - address
-            self._renumber([(vid, data[k]) for vid, data in ev.records if len(data) > k])
+            self._renumber([(vid, data[k]) for vid, data in records if len(data) > k])
 
     def _on_short(self, rec: Record, ev: ShortPacket) -> None:
-        sid = ev.id
         # A packet whose Sum is wrong names no servo we can trust: it creates none and changes no shadow.
-        if ev.checksum_ok:
-            data = ev.data
-            if sid == BROADCAST_ID:
-                if data:
-                    for st in list(self.servos.values()):
-                        st.store(ev.address, data, ev.t_start)
-            else:
+        if ev[CHECKSUM_OK]:
+            sid, address, data = ev[ID], ev[ADDRESS], ev[DATA]
+            ida = self._id_address
+            case = frame_case(SHORT, sid, address, len(data), ida, self.configured)
+            if case & BROADCAST_WRITE:
+                for st in list(self.servos.values()):
+                    st.store(address, data, ev[T_START])
+            elif sid != BROADCAST_ID:  # a broadcast names no servo: none is made or counted for it
                 st = self.servos.get(sid) or self.servo(sid)
                 st.requests += 1
                 if data:
-                    address = ev.address
-                    st.store(address, data, ev.t_start)
-                    ida = self._id_address
-                    if address <= ida < address + len(data):
+                    st.store(address, data, ev[T_START])  # clipped if PAST_MAP
+                    if case & SERVO_ID_WRITE:
                         self._renumber([(sid, data[ida - address])])
-        if FLAG_WANTS_REPLY[ev.flag]:  # an ACK/NACK or a return (table 4.3)
+        if FLAG_WANTS_REPLY[ev[FLAG]]:  # an ACK/NACK or a return (table 4.3)
             self._pending = rec
 
     def _renumber(self, moves: list[tuple[int, int]]) -> None:
@@ -536,23 +589,24 @@ class BusTracker:
         if req is not None:
             rec.latency = reply_latency(req.event, ev)
         if type(ev) is ReturnPacket:
-            if ev.checksum_ok:
-                st = self.servo(ev.id)
+            if ev[CHECKSUM_OK]:
+                sid, address, data = ev[ID], ev[ADDRESS], ev[DATA]
+                st = self.servo(sid)
                 st.returns += 1
                 if rec.latency is not None and rec.status == PAIRED:
                     st.latencies.append(rec.latency)
-                self._learn(ev, st)
-                st.store(ev.address, ev.data, ev.t_start)
+                if frame_case(RETURN, sid, address, len(data), self._id_address, self.configured) & MODEL_NUMBER:
+                    self._learn(sid, data, st)
+                st.store(address, data, ev[T_START])  # clipped if PAST_MAP
                 rec.model = st.model
         elif req is not None:
             rec.model = req.model
 
-    def _learn(self, ev: ReturnPacket, st: ServoState) -> None:
-        # A return of addresses 0-1 carries the model number (table 4.5): 0x3030 RS303MR, 0x3040 RS304MD.
-        if ev.address == 0 and len(ev.data) >= 2 and ev.id not in self.configured:
-            m = self.registry.by_number.get(int.from_bytes(ev.data[:2], "little"))
-            if m is not None and m is not st.model:
-                self.learned[ev.id] = m
-                self._model_cache.pop(ev.id, None)
-                st.model = m
-                self._uniform = self._all_default()
+    def _learn(self, sid: int, data: bytes, st: ServoState) -> None:
+        """A return of the model number (MODEL_NUMBER) from servo ``sid``: its model, if the registry knows it."""
+        m = self.registry.by_number.get(int.from_bytes(data[:MODEL_NUMBER_SIZE], "little"))
+        if m is not None and m is not st.model:
+            self.learned[sid] = m
+            self._model_cache.pop(sid, None)
+            st.model = m
+            self._uniform = self._all_default()

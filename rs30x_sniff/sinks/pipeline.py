@@ -5,38 +5,15 @@ from __future__ import annotations
 from typing import Any, Iterable, Iterator
 
 from ..decode.blocks import Block
-from ..decode.decoder import DecodeOptions, Decoder, Step
+from ..decode.decoder import DecodeOptions, Decoder, Sink, Step
 from ..protocol.chunks import Marked
+
+# Sink (what a Step goes to) is declared beside the Step, in rs30x_sniff.decode.decoder, so that the decode
+# stage's rate watches can be sinks without importing this later stage; every sink imports it from here.
+__all__ = ["GROUP_BYTES", "Pipeline", "Sink", "columnar_for", "decode_records", "drive"]
 
 # A columnar Pipeline decodes a file's chunks this many bytes at a time (unless told otherwise).
 GROUP_BYTES = 1 << 16
-
-
-class Sink:
-    """Where decoded traffic goes (text, JSON lines, a lint report, MCAP, statistics, the monitor).
-
-    The drive loop calls ``chunk`` with the raw bytes before they are decoded (so nothing read is lost
-    to a decoding error; ``sender`` and ``error`` are what the capture said of them, rs30x_sniff.protocol.chunks),
-    ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing for a moment, and
-    ``close`` once at the end. Every method is optional.
-
-    A sink with ``takes_blocks`` True is handed a columnar decoder's steps as they are (Records and
-    Blocks, rs30x_sniff.decode.blocks); any other sink gets them with every Block's rows as Records.
-    """
-
-    takes_blocks = False
-
-    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
-        pass
-
-    def batch(self, step: Step) -> None:
-        pass
-
-    def idle(self) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
 
 
 class Pipeline:

@@ -700,7 +700,7 @@ def _from_durations(durations: list[float]) -> dict[str, Any]:
 
 
 def _from_spacing(rows: list[Row]) -> dict[str, Any]:
-    from ..decode.autobaud import estimate_baud  # the same estimate as for timestamped hex
+    from ..protocol.baud import estimate_baud  # the same estimate as for timestamped hex
 
     est = estimate_baud((bytes((r[1],)), r[0]) for r in rows)
     if est.baud is None:

@@ -707,7 +707,7 @@ def _prober(read: Callable[[BinaryIO, ReadContext], Iterator[Chunk]]) -> Callabl
     at arrival, chunks that follow each other back to back are a byte time apart per byte of the later."""
 
     def probe(path: str, options: dict) -> dict:
-        from ..decode.autobaud import estimate_from_spacings
+        from ..protocol.baud import estimate_from_spacings
 
         try:
             with open(path, "rb") as f:

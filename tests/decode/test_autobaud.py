@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from rs30x_sniff.decode.autobaud import (
-    BaudFromTimes, BaudWatch, NoFrameStretch, contradicts, estimate_baud, scan, score_bytes)
+from rs30x_sniff.decode.autobaud import BaudFromTimes, BaudWatch, NoFrameStretch, scan, score_bytes
+from rs30x_sniff.protocol.baud import contradicts, estimate_baud
 from rs30x_sniff.decode.decoder import Decoder, DecodeOptions
 from rs30x_sniff.sinks.pipeline import Pipeline
 from rs30x_sniff.sim import run

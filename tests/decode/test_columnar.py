@@ -155,6 +155,17 @@ def test_models_configured_and_mixed():
     assert assert_same(traffic(5, 600, timed=True, gaps=False, faults=False, rare=0.03), [250], options, lint=True) > 0
 
 
+@pytest.mark.parametrize("vids", [[(1, b"")], [(2, b""), (1, b"")], []])
+def test_long_packets_without_data_carry_their_vids_models(min_block, vids):
+    # Servos of two models; a Block whose only long packets carry VIDs alone (Length 1) or nothing
+    # (Length 0): each record still has its VIDs' models, as the tracker gives them (a tuple, never None).
+    options = DecodeOptions(models={2: "RS304MD"})
+    poll = [encode_short(1, 0x09, 0, b"", length=0, count=1), encode_return(1, 42, bytes(18))]
+    long = encode_long(0, vids) if vids else encode_short(0, 0, 0, b"", length=0, count=0)
+    chunks = [(f, None) for f in poll * 20 + [long] + poll * 20]
+    assert assert_same(chunks, [len(chunks)], options) > 0
+
+
 @pytest.mark.parametrize("name", sorted(scenarios.SCENARIOS))
 def test_scenarios(name):
     chunks = list(scenarios.run(name, duration=2.0))

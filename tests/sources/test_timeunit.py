@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from rs30x_sniff.decode.autobaud import rate_fit
+from rs30x_sniff.protocol.baud import rate_fit
 from rs30x_sniff.sources.captures import CaptureError, read_capture
 from rs30x_sniff.sim import run
 from rs30x_sniff.sources.timeunit import (
