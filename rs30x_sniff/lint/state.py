@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..protocol.codegen import attribute_setter
 from ..protocol.memmap import Model
 
 # Registers the sequence rules follow, and the Shadow attribute each one lands in.
@@ -77,12 +78,9 @@ class Plan:
         # A write of servo_id moves the servo to its new ID at once (table 4.6 No. 4), if in range (1-127).
         self.id_part = self.index.get("servo_id")
         self.id_range = (1, 127) if self.id_part is None else (parts[self.id_part][0].range or (1, 127))
-        # apply(shadow, raws): store the tracked registers, generated once per plan (it runs per servo written).
-        body = [f"s.{attr} = r[{j}]" for attr, j in self.tracked]
-        src = "def apply(s, r):\n    " + ("\n    ".join(body) or "pass") + "\n"
-        env: dict = {}
-        exec(src, env)  # noqa: S102 - generated from register names of the validated memory map
-        self.apply = env["apply"]
+        # apply(shadow, raws): store the tracked registers (setattr of each of tracked), generated once per
+        # plan as it runs per servo written (protocol.codegen; the attributes are Shadow's, from _TRACKED).
+        self.apply = attribute_setter(self.tracked)
         self.target_checks: tuple | None = None  # filled by the linter: the target rules this write wakes
 
     def unpack_long(self, count: int):

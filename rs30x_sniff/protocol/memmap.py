@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import struct
 import tomllib
@@ -12,6 +11,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from .codegen import values_function
 from .wire import MAX_READ_ADDRESS
 
 ACCESS = ("read", "read-write", "reserved")
@@ -51,8 +51,8 @@ class Register:
     format: str | None = None
     description: str = ""
     # What other modules make from this register once and keep with it, by a key they choose (a tuple
-    # or string starting with their tag): text and JSON of each raw value (memmap's own JSON, render's
-    # text), the monitor's plot values. Not part of the register's value: no init, repr or comparison.
+    # or string starting with their tag): render's text and JSON of each raw value, the monitor's plot
+    # values. Not part of the register's value: no init, repr or comparison.
     cache: dict[Hashable, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
@@ -96,6 +96,14 @@ class Register:
         else:
             value = raw_value * scale
         return value + self.offset if self.offset else value
+
+    def value_of(self, raw_value: int, partial: str | None = None) -> Any:
+        """The value a part of this register with ``raw_value`` has in a packet: :meth:`convert` for the
+        whole of a named register, the raw value itself for one byte of a 2-byte one (``partial``) and
+        for unnamed bytes. The reference form of Layout.values (which is generated: codegen)."""
+        if partial or self.name is None:
+            return raw_value
+        return self.convert(raw_value)
 
     def value_in(self, address: int, data: bytes | bytearray) -> Any:
         """Engineering value of this register in ``data`` that starts at memory ``address``;
@@ -237,13 +245,15 @@ class Layout:
     """The fields of one (address, length) of a model, and a decoder compiled for them.
 
     ``values(data)`` turns the bytes into engineering values with one ``struct.unpack`` and one
-    generated expression, which is what lets annotation keep up with a saturated bus; ``fields``
-    builds the Field objects from those values only when somebody looks at them. ``unpack_raw(data)``
-    gives the raw integers instead (one per part, VIDs included), for checks on raw values.
-    With ``records`` > 0 it is a long packet's data: that many repeats of VID + ``length`` bytes.
+    generated expression (codegen.values_function; its reference is Register.value_of of each part),
+    which is what lets annotation keep up with a saturated bus; ``fields`` builds the Field objects
+    from those values only when somebody looks at them. ``unpack_raw(data)`` gives the raw integers
+    instead (one per part, VIDs included), for checks on raw values. With ``records`` > 0 it is a long
+    packet's data: that many repeats of VID + ``length`` bytes. ``cache`` keeps what other modules make
+    from the layout, by a key starting with their tag (render's JSON templates, the MCAP state plans).
     """
 
-    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_json", "_named", "_columns", "cache")
+    __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_named", "cache")
 
     def __init__(self, model: Model, address: int, length: int, records: int = 0) -> None:
         parts = []
@@ -259,30 +269,19 @@ class Layout:
         self.parts = tuple(parts)
         self.size = length
         self.records = records
-        codes, exprs, env = [], [], {}
-        k = 0
-        for rep in range(max(records, 1)):
+        codes = []
+        for _ in range(max(records, 1)):
             if records:
                 codes.append("B")  # the VID
-                k += 1
-            for j, (_, size, reg, partial) in enumerate(parts):
+            for _, size, reg, partial in parts:
                 if partial or size == 1:
                     codes.append("b" if reg.signed and not partial else "B")
                 else:
                     codes.append("h" if reg.signed else "H")
-                exprs.append(_conversion(reg, partial, f"r[{k}]", env, j))
-                k += 1
-        self._json: tuple[tuple[str, ...], ...] | None = None  # fields_json's templates (spaced, compact)
         self._named: tuple[tuple[int, str], ...] | None = None  # named_values' (part, name) pairs
-        self._columns: Any = None  # value_columns' plan (made on first use there)
         self.cache: dict[Hashable, Any] = {}  # what other modules make from this layout, by their key
         unpack = self.unpack_raw = struct.Struct("<" + "".join(codes)).unpack
-        if all(e == f"r[{i}]" for i, e in enumerate(exprs)):
-            self.values = unpack
-        else:
-            env["unpack"] = unpack
-            src = f"lambda data: (lambda r: ({', '.join(exprs)},))(unpack(data))"
-            self.values = eval(src, env)  # noqa: S307 - generated from the validated memory map
+        self.values = values_function([(reg, partial) for _, _, reg, partial in parts], records, unpack)
 
     def fields(self, data: bytes, values: tuple, servo_id: int | None = None) -> list[Field]:
         """Field objects for ``data`` and its already decoded ``values``."""
@@ -307,35 +306,6 @@ class Layout:
                                  reg, raw, rv, values[rec * n + j], partial))
         return out
 
-
-    def _compile_json(self, compact: bool) -> tuple[tuple[str, ...], Any]:
-        """fields_json's templates: one per part, and for the whole layout one ``%`` format with a
-        generated function filling it in (the hex of the data sliced per field, and each value's text
-        looked up by its raw value: value_text)."""
-        tmpl = tuple(_field_template(reg, partial, compact) for _, _, reg, partial in self.parts)
-        args = []
-        env: dict[str, Any] = {}
-        for j, (_, _, reg, partial) in enumerate(self.parts):
-            env[f"V{j}"] = value_text(reg, partial)
-        if not self.records:
-            for j, (start, size, reg, partial) in enumerate(self.parts):
-                args += ["s", f"h[{2 * start}:{2 * (start + size)}]", f"V{j}[r[{j}]]"]
-            fmt = ("," if compact else ", ").join(tmpl)
-        else:
-            stride, n = self.size + 1, len(self.parts)
-            for rec in range(self.records):
-                base = rec * stride + 1
-                for j, (start, size, reg, partial) in enumerate(self.parts):
-                    # unpack_raw gives each record's VID, then its parts
-                    args += [f"str(d[{base - 1}])", f"h[{2 * (base + start)}:{2 * (base + start + size)}]",
-                             f"V{j}[r[{rec * (n + 1) + 1 + j}]]"]
-            fmt = ("," if compact else ", ").join(tmpl * self.records)
-        if not args:
-            return tmpl, lambda d, h, r, s: ""
-        env["F"] = fmt
-        src = f"lambda d, h, r, s: F % ({', '.join(args)},)"
-        return tmpl, eval(src, env)  # noqa: S307 - generated from the validated memory map
-
     def named_values(self, data: bytes, values: tuple, servo_id: int | None = None) -> list[tuple[Any, str, Any]]:
         """``(servo id, register name, value)`` of every whole, named register in ``data``: what the
         fields say, without building them (the servo-state channel and table read this per packet)."""
@@ -351,43 +321,6 @@ class Layout:
             vid, base = data[rec * stride], rec * n
             out += [(vid, name, values[base + j]) for j, name in named]
         return out
-
-    def fields_json(self, data: bytes, values: tuple, servo_id: int | None = None,
-                    only: set[int] | None = None, compact: bool = False) -> str:
-        """The JSON text of :meth:`fields` (without the brackets), exactly as ``json.dumps`` writes the
-        objects of ``rs30x_sniff.render.records.field_json``: the same keys, order, spacing and rounding.
-
-        One ``%`` template per part, made once per layout, so ``decode --format jsonl`` builds no Field
-        objects or dicts; ``only`` keeps the fields of those servo IDs alone.
-        """
-        cache = self._json
-        if cache is None:
-            cache = self._json = (self._compile_json(False), self._compile_json(True))
-        tmpl, whole = cache[compact]
-        if only is None:
-            return whole(data, data.hex(), self.unpack_raw(data), "null" if servo_id is None else str(servo_id))
-        sep = "," if compact else ", "
-        parts = self.parts
-        out = []
-        if not self.records:
-            if only is not None and servo_id not in only:
-                return ""
-            sid = "null" if servo_id is None else str(servo_id)
-            for (start, size, _, _), t, v in zip(parts, tmpl, values):
-                out.append(t % (sid, data[start:start + size].hex(), _json_scalar(v)))
-            return sep.join(out)
-        stride = self.size + 1
-        n = len(parts)
-        for rec in range(self.records):
-            base = rec * stride
-            vid = data[base]
-            if only is not None and vid not in only:
-                continue
-            sid = str(vid)
-            base += 1
-            for j, ((start, size, _, _), t) in enumerate(zip(parts, tmpl)):
-                out.append(t % (sid, data[base + start:base + start + size].hex(), _json_scalar(values[rec * n + j])))
-        return sep.join(out)
 
 
 class ByRaw(dict):
@@ -406,89 +339,6 @@ class ByRaw(dict):
         if self.limit is None or len(self) < self.limit:
             self[raw] = made
         return made
-
-
-def converter(reg: Register, partial: str | None, wrap: str = "{}", env: dict | None = None) -> Any:
-    """``lambda x:`` the part's engineering value of raw value ``x`` (_conversion, the expression
-    Layout.values computes), put in ``wrap`` at ``{}``; ``env``: names ``wrap`` uses."""
-    env = {} if env is None else env
-    return eval(f"lambda x: {wrap.format(_conversion(reg, partial, 'x', env, 0))}", env)  # noqa: S307 - from the validated map
-
-
-def value_text(reg: Register, partial: str | None) -> ByRaw:
-    """The JSON text of a part's engineering value, by raw value: the register's conversion
-    (_conversion) and then the JSON of its kind (_JSON_OF), as fields_json wrote them per value.
-    Kept in the register's cache."""
-    key = ("json", partial)
-    table = reg.cache.get(key)
-    if table is None:
-        table = reg.cache[key] = ByRaw(
-            converter(reg, partial, _JSON_OF[_value_kind(reg, partial)], {"J": _json_scalar}))
-    return table
-
-
-def _value_kind(reg: Register, partial: str | None) -> str:
-    """What type a part's engineering value always has: "int", "float", or "any" (enums, tables)."""
-    if partial or reg.name is None:
-        return "int"
-    if reg.enum is not None or reg.table is not None:
-        return "any"
-    if reg.scale == 1 and isinstance(reg.scale, int) and isinstance(reg.offset, int):
-        return "int"
-    return "float" if isinstance(reg.offset, float) or reg.scale != 1 else "any"
-
-
-_JSON_OF = {"int": "str({})", "float": "repr(round({}, 6))", "any": "J({})"}
-
-
-def _field_template(reg: Register, partial: str | None, compact: bool) -> str:
-    """``%`` template of one field's JSON object (``compact``: no spaces after , and :); id, raw and
-    value are filled in per packet."""
-    address = reg.address if not partial else reg.address + (partial == "high")
-    unit = None if partial else reg.unit
-    c, k = (",", ":") if compact else (", ", ": ")
-
-    def lit(x: Any) -> str:
-        return json.dumps(x).replace("%", "%%")
-
-    tail = f'{c}"partial"{k}{lit(partial)}' if partial else ""
-    return (f'{{"id"{k}%s{c}"address"{k}{address}{c}"name"{k}{lit(reg.name)}{c}"raw"{k}"%s"{c}'
-            f'"value"{k}%s{c}"unit"{k}{lit(unit)}{tail}}}')
-
-
-_INF = float("inf")
-
-
-def _json_scalar(v: Any) -> str:
-    """``json.dumps`` of a field value after ``render.json_value`` (floats rounded to 6 places)."""
-    t = type(v)
-    if t is float:
-        if v != v or v == _INF or v == -_INF:
-            return json.dumps(v)
-        return repr(round(v, 6))
-    if t is int:
-        return repr(v)
-    return json.dumps(round(v, 6) if isinstance(v, float) else v)
-
-
-def _conversion(reg: Register, partial: str | None, ref: str, env: dict, j: int) -> str:
-    """A Python expression turning the raw value ``ref`` into the register's engineering value."""
-    if partial or reg.name is None:
-        return ref
-    if reg.enum is not None:
-        env[f"E{j}"] = reg.enum
-        return f"E{j}.get({ref}, {ref})"
-    if reg.table is not None:
-        env[f"T{j}"] = reg.table
-        return f"T{j}.get({ref})"
-    scale, offset = reg.scale, reg.offset
-    if scale == 1:
-        expr = ref
-    elif (divisor := reg.divisor) is not None:
-        expr = f"{ref} / {divisor}"
-    else:
-        expr = f"{ref} * {scale!r}"
-    return f"({offset!r} + {expr})" if offset else expr
 
 
 # ---- loading ------------------------------------------------------------------------------------

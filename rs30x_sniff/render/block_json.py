@@ -15,8 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
+from ..protocol.events import OFFSET, RAW, LongPacket, ReturnPacket, ShortPacket
+from ..protocol.wire import AT_DATA, AT_ID, AT_LENGTH, HEADER_SIZE, SUM_SIZE
 from ..decode.frame_runs import LONG
+from .layout_json import fields_json, record_fields_json
 from .records import COMPACT, NO_FIELDS, SPACED, record_json, record_json_text
 
 # What varies between rows of one shape (besides the fields). The templates are kept by the model
@@ -77,10 +79,11 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
         kind = kinds[k]
         if kind == LONG:
             model = default
-            key = ("json", raw[:7], e - s, raw[7:-1:raw[5] or 1], timed, compact, only_key)
+            key = ("json", raw[:HEADER_SIZE], e - s, raw[AT_DATA:-SUM_SIZE:raw[AT_LENGTH] or 1], timed, compact,
+                   only_key)
         else:
-            model = models[raw[2]]
-            key = ("json", raw[:7], e - s, b"", timed, compact, only_key)
+            model = models[raw[AT_ID]]
+            key = ("json", raw[:HEADER_SIZE], e - s, b"", timed, compact, only_key)
         tpl = model.cache.get(key)
         if tpl is None:
             tpl = _template(blk, k, model, key, only, compact)
@@ -108,10 +111,10 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
                 if layout is None:
                     vals.append("")
                 else:
-                    data = raw[7:-1]
+                    data = raw[AT_DATA:-SUM_SIZE]
                     # fields_json reads the values only to pick fields by ID (``only``)
-                    vals.append(layout.fields_json(data, () if only is None else layout.values(data),
-                                                   0 if kind == LONG else raw[2], only, compact))
+                    vals.append(fields_json(layout, data, () if only is None else layout.values(data),
+                                            0 if kind == LONG else raw[AT_ID], only, compact))
         out.append(fmt % tuple(vals) + end)
     return out
 
@@ -157,8 +160,8 @@ def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = Fal
 
     A record with findings (its diagnostics), no header (ACK, NACK, garbage), no model or times that
     are not plain floats (whose text ``repr`` might not give as JSON does) is written by
-    record_json_text itself. The fields are filled in by Record.fields_json, so the template holds no
-    layout; it is kept by the record's model."""
+    record_json_text itself. The fields are filled in by layout_json.record_fields_json, so the template
+    holds no layout; it is kept by the record's model."""
     ev = rec.event
     t0, t1, latency = ev.t_start, ev.t_end, rec.latency
     # x - x is 0.0 for every finite number, NaN for NaN and the infinities: three checks on the hot path.
@@ -174,9 +177,10 @@ def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = Fal
     if ((t0 is not None and type(t0) is not float) or (t1 is not None and type(t1) is not float)
             or (latency is not None and type(latency) is not float)):
         return record_json_text(rec, only, compact)
-    raw = ev[1]
+    raw = ev[RAW]
     request, reply = rec.request, rec.reply
-    key = ("json record", raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"",
+    key = ("json record", raw[:HEADER_SIZE], len(raw),
+           raw[AT_DATA:-SUM_SIZE:raw[AT_LENGTH]] if t is LongPacket and raw[AT_LENGTH] else b"",
            ev.checksum_ok, t0 is None, t1 is None, latency is None, request is None, reply is None,
            rec.status, compact, None if only is None else frozenset(only))
     tpl = model.cache.get(key)
@@ -185,7 +189,7 @@ def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = Fal
     vals = []
     for name in tpl[1]:
         if name == "offset":
-            vals.append(str(ev[0]))
+            vals.append(str(ev[OFFSET]))
         elif name == "t":
             vals.append(repr(t0))
         elif name == "t_end":
@@ -199,5 +203,5 @@ def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = Fal
         elif name == "latency_s":
             vals.append(repr(latency))
         else:  # fields
-            vals.append(rec.fields_json(only, compact))
+            vals.append(record_fields_json(rec, only, compact))
     return tpl[0] % tuple(vals)

@@ -6,17 +6,18 @@ from typing import Any, Callable, Iterable
 
 from ..decode.blocks import Block
 from ..decode.pairing import Record
-from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
-from ..protocol.memmap import ByRaw, Field, Register, converter
+from ..protocol.codegen import line_function
+from ..protocol.events import RAW, LongPacket, ReturnPacket, ShortPacket
+from ..protocol.memmap import ByRaw, Field, Register
 from .records import bad_sum, direction, field_text, is_shown, kind_word, text_line, verbose_lines
-from ..protocol.wire import COMMAND_ADDRESS
+from ..protocol.wire import (
+    AT_DATA, AT_ID, AT_LENGTH, COMMAND_ADDRESS, FRAME_OVERHEAD, HEADER_SIZE, LONG_PACKET_ID, RETURN_FIRST, SUM_SIZE)
 
 __all__ = ["block_text", "record_line"]
 
 # Compiled shapes are kept across Blocks by the model they are for (Model.keep, a capture has a handful
 # of shapes), a field's texts by its register.
 MAX_TEXTS = 8192  # field texts kept per register (and separator)
-_RETURN_SYNC = 0xFD  # a return's first byte (FD DF); FA AF requests have ID 0 for a long packet
 
 
 class _Shape:
@@ -34,14 +35,14 @@ def _field_text(reg: Register, partial: str | None, sep: str) -> Callable[[int],
     """raw value -> the text a field of this value adds to a line (``sep`` + ``label=value``, or "" when
     render.is_shown hides it), by render's own field_text from a Field of that value.
 
-    The value is what Layout.values computes (the same generated expression, memmap.converter), and
-    format_value reads nothing of a Field but its register, partial, raw value and value: so the text
-    is the one the record path writes."""
-    convert = converter(reg, partial)
+    The value is Register.value_of, the reference of what Layout.values computes (tests/protocol/
+    test_codegen.py holds them equal), and format_value reads nothing of a Field but its register,
+    partial, raw value and value: so the text is the one the record path writes."""
+    value_of = reg.value_of
     address = reg.address if not partial else reg.address + (partial == "high")
 
     def text(x: int) -> str:
-        f = Field(None, address, reg, b"", x, convert(x), partial)
+        f = Field(None, address, reg, b"", x, value_of(x, partial), partial)
         return sep + field_text(f) if is_shown(f) else ""
 
     return text
@@ -102,11 +103,11 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
                 continue
         s = starts[k]
         e = ends[k]
-        h = blob[s:s + 7]  # sync, ID, flag, address, length, count: with the frame's size, the shape
-        if h[2] or h[0] == _RETURN_SYNC:
+        h = blob[s:s + HEADER_SIZE]  # sync, ID, flag, address, length, count: with the frame's size, the shape
+        if h[AT_ID] != LONG_PACKET_ID or h[0] == RETURN_FIRST:
             key = (h, e - s)
         else:  # a long packet: its VIDs too (every record starts with one)
-            key = (h, e - s, blob[s + 7:e - 1:h[5]] if h[5] else b"")
+            key = (h, e - s, blob[s + AT_DATA:e - SUM_SIZE:h[AT_LENGTH]] if h[AT_LENGTH] else b"")
         shape = local.get(key)
         if shape is None:
             shape = local[key] = _shape(blk, k, key, only, only_key, timed)
@@ -117,7 +118,7 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
         raw = shape.raw
         # The row before a return is its request (a Block pairs nothing else); for other rows the
         # request offset is not used.
-        append(fn(ts[k], base + s, raw(blob[s + 7:e - 1]) if raw is not None else None, lats[k],
+        append(fn(ts[k], base + s, raw(blob[s + AT_DATA:e - SUM_SIZE]) if raw is not None else None, lats[k],
                   base + starts[k - 1]))
     return "".join(out)
 
@@ -139,10 +140,11 @@ def record_line(rec: Record, only: set[int] | None = None) -> str:
     lay, data = rec.data_layout()
     # A long packet to servos of mixed models has a layout per servo: the shape is theirs together.
     layouts = (lay,) if type(lay) is not list else tuple([sub for sub, _, _ in lay])
-    raw = ev[1]
+    raw = ev[RAW]
     request = rec.request
     latency = rec.latency
-    key = ("text record", raw[:7], len(raw), raw[7:-1:raw[5]] if t is LongPacket and raw[5] else b"",
+    key = ("text record", raw[:HEADER_SIZE], len(raw),
+           raw[AT_DATA:-SUM_SIZE:raw[AT_LENGTH]] if t is LongPacket and raw[AT_LENGTH] else b"",
            layouts, ev.t_start is not None, rec.status, request is not None, latency is not None,
            None if only is None else frozenset(only))
     shape = model.cache.get(key)
@@ -162,7 +164,7 @@ def _record_shape(rec: Record, key: tuple, only: set[int] | None) -> _Shape:
     if fn is not None:
         ev = rec.event
         request = rec.request
-        got = fn(ev.t_start, ev.offset, raw(ev[1][7:-1]) if raw is not None else None, rec.latency,
+        got = fn(ev.t_start, ev.offset, raw(ev[RAW][AT_DATA:-SUM_SIZE]) if raw is not None else None, rec.latency,
                  request.offset if request is not None else None)
         if got != text_line(rec, only) + "\n":
             fn = None
@@ -188,11 +190,11 @@ def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: froz
     is_long = len(key) == 3
     if is_long:
         vm = blk.vid_models
-        vid_models = None if vm is None or not h[5] else tuple([vm[v] for v in key[2]])
+        vid_models = None if vm is None or not h[AT_LENGTH] else tuple([vm[v] for v in key[2]])
         owner = blk.default
         gkey = ("text", timed, key, vid_models, only_key)
     else:
-        owner = blk.models[h[2]]
+        owner = blk.models[h[AT_ID]]
         gkey = ("text", timed, key)
     shape = owner.cache.get(gkey)
     if shape is not None:
@@ -204,7 +206,7 @@ def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: froz
         # render's own functions (_field_text), the rest is checked here once; a mismatch (a case this
         # module does not know) sends the shape's rows through Records instead.
         ev = sample.event
-        data = ev[1][7:-1]
+        data = ev[RAW][AT_DATA:-SUM_SIZE]
         got = fn(ev.t_start, ev.offset, raw(data) if raw is not None else None, sample.latency,
                  sample.request.offset if sample.request is not None else None)
         if got != text_line(sample, only) + "\n":
@@ -213,33 +215,26 @@ def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: froz
 
 
 def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable | None, Callable | None]:
-    """(raw, fn) of the record's shape: a line as one generated f-string (one BUILD_STRING)."""
+    """(raw, fn) of the record's shape: ``fn(t, offset, raw, latency, request offset)``, the line as one
+    generated f-string (protocol.codegen.line_function, from the pieces worked out here)."""
     ev = rec.event
     kind = ev.kind
     if kind not in ("short", "long", "return") or rec.findings:
         return None, None
-    pieces: list[tuple[str, str]] = []  # ("lit", text) or ("exp", f-string replacement field)
-    env: dict[str, Any] = {"G": _join_shown}
-    tables: list[ByRaw] = []  # each field's texts by raw value, M0, M1, ... in the generated code
-
-    def memo(reg: Register, partial: str | None, sep: str) -> str:
-        name = f"M{len(tables)}"
-        tables.append(_texts(reg, partial, sep))
-        env[name] = tables[-1]
-        return name
-
-    pieces.append(("exp", "t:12.6f") if timed else ("lit", f"{'-':>12}"))
-    pieces += [("lit", " @"), ("exp", "o:<8"), ("lit", f" {direction(rec):<5} ")]
-    pieces.append(("lit", kind_word(rec) + ("(BAD-SUM)" if bad_sum(rec) else "")))
+    # Literal text, or (what, ...) for codegen.line_function: an argument, a text by raw value, a group.
+    pieces: list[Any] = []
+    pieces.append(("arg", "t", "12.6f") if timed else f"{'-':>12}")
+    pieces += [" @", ("arg", "o", "<8"), f" {direction(rec):<5} "]
+    pieces.append(kind_word(rec) + ("(BAD-SUM)" if bad_sum(rec) else ""))
     if kind != "long":
-        pieces.append(("lit", f" id={ev.id}"))
+        pieces.append(f" id={ev.id}")
     raw: Callable | None = None
     lay, data = rec.data_layout()
     if kind != "long":
         if lay is not None:
             raw = lay.unpack_raw
             for j, (_, _, reg, partial) in enumerate(lay.parts):
-                pieces.append(("exp", f"{memo(reg, partial, ' ')}[r[{j}]]"))
+                pieces.append(("text", _texts(reg, partial, " "), j))
     elif lay is not None:
         # Items per VID: (raw index, register, partial), in field order.
         items: list[tuple[int, int, Register, str | None]] = []
@@ -259,52 +254,47 @@ def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable 
         for vid, at, reg, partial in items:
             if only is None or vid in only:
                 by_vid.setdefault(vid, []).append((at, reg, partial))
-        vids = [r[0] for r in ev.records]
-        for g, (vid, group) in enumerate(by_vid.items()):
+        vids = [r.vid for r in ev.records]
+        for vid, group in by_vid.items():
             hidden = [reg.name is None for _, reg, _ in group]
             if not any(hidden):
-                pieces.append(("lit", f" {vid}:"))
+                pieces.append(f" {vid}:")
                 for j, (at, reg, partial) in enumerate(group):
-                    pieces.append(("exp", f"{memo(reg, partial, ',' if j else '')}[r[{at}]]"))
+                    pieces.append(("text", _texts(reg, partial, "," if j else ""), at))
             elif vids.count(vid) > 1:
                 # A VID met twice, with items that may hide: where its group stands depends on the data.
                 return None, None
             else:
-                env[f"P{g}"] = f" {vid}:"
-                args = ", ".join(f"{memo(reg, partial, '')}[r[{at}]]" for at, reg, partial in group)
-                pieces.append(("exp", f"G(P{g}, ({args},))"))
+                pieces.append(("join", _join_shown, f" {vid}:",
+                               tuple((_texts(reg, partial, ""), at) for at, reg, partial in group)))
     if kind == "short":
         names_read = rec.read_names
         if names_read and ev.read_range:
             a, n = ev.read_range
-            pieces.append(("lit", f" read[{a}+{n}]" if len(names_read) > 3 else f" read[{','.join(names_read)}]"))
+            pieces.append(f" read[{a}+{n}]" if len(names_read) > 3 else f" read[{','.join(names_read)}]")
         if ev.commands and not ev.data and (ev.address, ev.length, ev.count) != (COMMAND_ADDRESS, 0, 0):
-            pieces.append(("lit", f" addr={ev.address} len={ev.length} count={ev.count}"))
+            pieces.append(f" addr={ev.address} len={ev.length} count={ev.count}")
     if kind == "return" and ev.flags:
-        pieces.append(("lit", " flags=" + ",".join(ev.flag_names or (f"0x{ev.flags:02X}",))))
+        pieces.append(" flags=" + ",".join(ev.flag_names or (f"0x{ev.flags:02X}",)))
     if rec.is_reply:
         if rec.request is not None:
-            pieces += [("lit", " reply_to=@"), ("exp", "q")]
+            pieces += [" reply_to=@", ("arg", "q", "")]
         if rec.latency is not None:
-            pieces += [("lit", " latency="), ("exp", "l * 1e3:.3f"), ("lit", "ms")]
+            pieces += [" latency=", ("arg", "l", ".3f", 1e3), "ms"]
         if rec.status and rec.status != "paired":
-            pieces.append(("lit", " " + rec.status.upper()))
+            pieces.append(" " + rec.status.upper())
     elif rec.status == "missing":
-        pieces.append(("lit", " NO-REPLY"))
+        pieces.append(" NO-REPLY")
     elif rec.status == "unknown":
-        pieces.append(("lit", " CAPTURE-ENDED"))
-    pieces.append(("lit", "\n"))
-    # Adjacent literals, plain and f-strings, are one string at compile time; the text goes in through
-    # repr, so nothing in a label or unit can be read as code.
-    src = " ".join(repr(text) if what == "lit" else "f'{" + text + "}'" for what, text in pieces)
-    fn = eval(f"lambda t, o, r, l, q: ({src})", env)  # noqa: S307 - generated from the validated map
-    return raw, fn
+        pieces.append(" CAPTURE-ENDED")
+    pieces.append("\n")
+    return raw, line_function(pieces)
 
 
 def _mixed_raw(ev: Any, subs: list) -> Callable:
     """unpack_raw of a long packet to servos of different models: each record's layout on its bytes."""
     length = ev.length
-    size = len(ev[1]) - 8
+    size = len(ev[RAW]) - FRAME_OVERHEAD
     spans = [(sub.unpack_raw, i * length + 1, min(i * length + length, size)) for i, sub in enumerate(subs)]
 
     def raw(data: bytes) -> tuple:

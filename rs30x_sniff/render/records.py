@@ -9,6 +9,7 @@ from ..decode.pairing import Record
 from ..protocol.events import Garbage, LongPacket, ReturnPacket, ShortPacket
 from ..protocol.memmap import Field, Register
 from ..protocol.wire import COMMAND_ADDRESS, FLAG_RESERVED, request_flag_names as _short_flag_names
+from .layout_json import record_fields_json
 
 _KIND_WORD = {"ack": "ACK", "nack": "NACK", "long": "LONG", "return": "RETURN", "garbage": "GARBAGE"}
 _OP_WORD = {"write": "WRITE", "read": "READ", "write+read": "WRITE+READ", "write+ack": "WRITE+ACK",
@@ -184,9 +185,10 @@ COMPACT = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 
 def record_json_text(rec: Record, only: set[int] | None = None, compact: bool = False) -> str:
     """``json.dumps(record_json(rec, only))`` (``compact``: with "," and ":" separators), the same text
-    made faster: the fields come from per-layout templates (Record.fields_json), not Field objects."""
+    made faster: the fields come from per-layout templates (layout_json.record_fields_json), not Field
+    objects."""
     text = (COMPACT if compact else SPACED)(record_json(rec, only, fields=False))
-    fields = rec.fields_json(only, compact)
+    fields = record_fields_json(rec, only, compact)
     if fields:
         empty = NO_FIELDS[compact]
         # "fields" is the first list in the object and its key comes before any string that could hold

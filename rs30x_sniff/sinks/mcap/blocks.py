@@ -9,9 +9,10 @@ from typing import Any
 from ...render.block_json import block_json_rows, json_template
 from ...decode.frame_runs import LONG
 from ...protocol.mcap_names import PACKETS_TOPIC, TRANSACTIONS_TOPIC, log_time_ns
-from ...protocol.memmap import Layout, value_text
+from ...protocol.memmap import Layout
 from ...protocol.wire import (
     AT_ADDRESS, AT_COUNT, AT_DATA, AT_ID, AT_LENGTH, BROADCAST_ID, FRAME_OVERHEAD, HEADER_SIZE, SUM_SIZE)
+from ...render.layout_json import value_text
 from .transactions import transaction_json
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
