@@ -8,7 +8,7 @@ from .decode.decoder import DecodeOptions, Decoder
 from .sinks.pipeline import decode_records
 from .lint import RULES, Finding, LintConfig, Linter
 
-__version__ = "0.1.0"
+from .version import __version__
 
 __all__ = [
     "Ack", "BusTracker", "DecodeOptions", "Decoder", "Event", "Field", "Finding", "FrameDecoder", "Garbage",

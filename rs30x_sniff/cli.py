@@ -13,7 +13,7 @@ import sys
 import threading
 from typing import Any
 
-from . import __version__
+from .version import __version__
 from .commands.common import CliError
 from .sources.captures import CaptureError
 from .protocol.memmap import ModelError

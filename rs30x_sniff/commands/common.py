@@ -328,9 +328,10 @@ def is_port_path(path: str, *, unplugged: bool = False) -> bool:
 
 def _scan(port: str, settings: Settings) -> Settings:
     """``--baud auto`` on a port: listen at each rate of table 4.7 and take the one with valid frames."""
-    from ..sources.serial_tap import scan_port
+    from ..decode.autobaud import scan
+    from ..sources.serial_tap import port_reader
 
-    result = scan_port(port)
+    result = scan(port_reader(port))  # each rate of table 4.7 in SCAN_ORDER, listened to for SCAN_DWELL
     if not result:
         raise CliError(f"{port}: {result.describe()}")
     print(f"rs30x-sniff: {port}: {result.describe()}", file=sys.stderr)

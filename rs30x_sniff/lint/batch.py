@@ -26,7 +26,7 @@ import numpy as np
 
 from ..decode.frame_runs import LONG, RETURN, SHORT
 from ..protocol.events import RAW
-from ..protocol.wire import AT_DATA, BROADCAST_ID, COMMAND_BITS, HEADER_SIZE, SUM_SIZE
+from ..protocol.wire import AT_DATA, BROADCAST_ID, COMMAND_BITS, HEADER_SIZE, SUM_SIZE, VID_SIZE
 from .registry import follows_cut
 
 UNKNOWN = -(1 << 40)  # an unknown shadow value in an int64 column (BlockView.shadows)
@@ -285,14 +285,15 @@ def _writes(view: BlockView, run: tuple, vid_groups: list) -> list[int] | None:
             groups.append((model, key // 4096, key % 4096, r2, np.zeros(len(r2), np.int64), sid[r2],
                            starts[r2] + AT_DATA, "write"))
     for rows, vids, ln in vid_groups:
-        if ln < 2:
+        if ln <= VID_SIZE:  # a record with its VID and no data
             continue
         cnt = vids.shape[1]
         for ad in np.unique(address[rows]).tolist():
             r2 = rows[address[rows] == ad]
             v2 = vids[address[rows] == ad]
-            groups.append((blk.default, ad, ln - 1, np.repeat(r2, cnt), np.tile(np.arange(1, cnt + 1), len(r2)),
-                           v2.ravel(), (starts[r2][:, None] + AT_DATA + 1 + np.arange(cnt) * ln).ravel(), "write"))
+            at = (starts[r2][:, None] + AT_DATA + VID_SIZE + np.arange(cnt) * ln).ravel()
+            groups.append((blk.default, ad, ln - VID_SIZE, np.repeat(r2, cnt), np.tile(np.arange(1, cnt + 1), len(r2)),
+                           v2.ravel(), at, "write"))
     ret_rows = np.flatnonzero(view.is_return)
     rkey = address[ret_rows] * 4096 + dlen[ret_rows]
     mentions.append((ret_rows.astype(np.int64) * 512, sid[ret_rows].astype(np.int64)))

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import IO, Iterable
 from urllib.parse import quote
 
-from .. import __version__
+from ..version import __version__
 from .registry import RULES, SEVERITY_RANK, Finding
 
 SARIF_SCHEMA = "https://json.schemastore.org/sarif-2.1.0.json"

@@ -22,6 +22,7 @@ HEADER_SIZE = 7  # the bytes before the data: header(2) ID flag address length c
 AT_DATA = HEADER_SIZE
 SUM_SIZE = 1     # the XOR Sum after the data
 FRAME_OVERHEAD = HEADER_SIZE + SUM_SIZE  # a frame's length beyond its data
+VID_SIZE = 1     # a long packet's record: its VID byte, then the data (Length = data + 1, "Long Packet")
 REQUEST_FIRST = REQUEST_HEADER[0]  # 0xFA: the byte a request starts with
 RETURN_FIRST = RETURN_HEADER[0]    # 0xFD: the byte a return packet starts with
 BROADCAST_ID = 0xFF

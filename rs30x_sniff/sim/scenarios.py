@@ -9,7 +9,7 @@ from typing import Callable, Iterator
 
 from ..protocol.wire import (
     BAUD_RATES, FLAG_REBOOT, FLAG_WRITE_FLASH, RETURN_ACK, RETURN_MODE_RANGES, encode_command, encode_long,
-    encode_read, encode_short)
+    REQUEST_FIRST, RETURN_FIRST, encode_read, encode_short)
 from .bus import Chunk, SimBus
 from .servo import RETURN_DELAY_STEP, Physics, Servo
 
@@ -231,7 +231,7 @@ def noise(bus: SimBus, rng: random.Random, duration: float) -> Iterator[None]:
     host, gait, _ = _fault_bus(bus, rng)
     yield from _startup(host, gait)
     # No FA or FD in the noise, so it never looks like a header: it is just garbage.
-    pool = [b for b in range(256) if b not in (0xFA, 0xFD)]
+    pool = [b for b in range(256) if b not in (REQUEST_FIRST, RETURN_FIRST)]
 
     def hook(cycle: int) -> None:
         if cycle % 10 == 5:

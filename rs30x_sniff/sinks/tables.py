@@ -231,7 +231,7 @@ def register_columns(registry: ModelRegistry) -> list[Column]:
     return [(name, kinds[name]) for name in sorted(kinds, key=lambda n: (where[n], n))]
 
 
-class StatesSink(TableSink):
+class StatesTable(TableSink):
     """One row per (time, servo) whenever a packet changes a register of that servo: the whole state
     known so far, one column per register (empty until seen), as the MCAP /rs30x/servo/<id>/state
     channel has it (the same packets count: intact requests and returns, a broadcast for every servo
@@ -286,7 +286,7 @@ class StatesSink(TableSink):
             self._row(t, (ev.offset, tid, models.get(tid) or fallback, *st))
 
 
-class TransactionsSink(TableSink):
+class TransactionsTable(TableSink):
     """One row per request that expects a reply: what it asked, what came back, and how fast."""
 
     kind = "transactions"
@@ -323,7 +323,7 @@ class TransactionsSink(TableSink):
                 tj["reply_checksum_ok"], tj["request_raw"], tj["reply_raw"]))
 
 
-class FindingsSink(TableSink):
+class FindingsTable(TableSink):
     """One row per lint finding; ``line`` and ``column`` of a text capture when ``locate`` is given
     (the capture reader's: it maps a stream offset to where the byte is written)."""
 
@@ -355,7 +355,7 @@ class FindingsSink(TableSink):
             self._row(self._time(f.t, f.offset), rest)
 
 
-class PacketsSink(TableSink):
+class PacketsTable(TableSink):
     """One row per event (every packet, ACK/NACK and garbage run), as `decode` lists them."""
 
     kind = "packets"
@@ -378,4 +378,4 @@ class PacketsSink(TableSink):
                 summary(rec, bare=False, keep=False), [f.code for f in rec.findings] or None, ev.raw.hex()))
 
 
-SINKS = {"states": StatesSink, "transactions": TransactionsSink, "findings": FindingsSink, "packets": PacketsSink}
+SINKS = {"states": StatesTable, "transactions": TransactionsTable, "findings": FindingsTable, "packets": PacketsTable}

@@ -439,11 +439,3 @@ def port_reader(port: str, *, read_timeout: float = READ_TIMEOUT) -> Callable[[i
             ser.close()
 
     return read_for
-
-
-def scan_port(port: str, rates=None, dwell: float | None = None):
-    """``--baud auto``: listen to ``port`` at each rate of table 4.7 (most likely first) and return the
-    :class:`rs30x_sniff.decode.autobaud.ScanResult` (``.baud`` is None when no rate gave valid frames)."""
-    from ..decode.autobaud import SCAN_DWELL, SCAN_ORDER, scan
-
-    return scan(port_reader(port), SCAN_ORDER if rates is None else rates, SCAN_DWELL if dwell is None else dwell)

@@ -14,11 +14,11 @@ from textual.widgets.tree import TreeNode
 
 from ..decode.pairing import Record
 from ..protocol.events import Garbage, LongPacket, ReturnPacket, ShortPacket
-from ..protocol.wire import AT_ADDRESS, AT_COUNT, AT_DATA, AT_FLAG, AT_ID, AT_LENGTH, HEADER_SIZE, SUM_SIZE
+from ..protocol.wire import (
+    AT_ADDRESS, AT_COUNT, AT_DATA, AT_FLAG, AT_ID, AT_LENGTH, HEADER_SIZE, SUM_SIZE, VID_SIZE)
 from ..render.records import format_value, kind_word
 from .rows import SEVERITY_STYLES, clean, kind_style, short_summary
 
-VID_SIZE = 1  # a long packet's record: its VID byte, then the data ("Length = ... + 1(byte of VID)")
 HEX_PER_LINE = 16
 
 

@@ -10,9 +10,7 @@ from ..decode.blocks import Block
 from ..decode.frame_runs import LONG
 from ..decode.pairing import Record
 from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
-from ..protocol.wire import AT_DATA
-
-VID_SIZE = 1  # a long packet's record: its VID byte, then the data ("Length = ... + 1(byte of VID)", Long Packet)
+from ..protocol.wire import AT_DATA, VID_SIZE
 
 
 def register_value(rec: Record, servo_id: int, name: str) -> Any:

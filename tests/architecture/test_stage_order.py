@@ -5,7 +5,7 @@ Every ``import`` and ``from ... import`` of every module under rs30x_sniff/ is r
 inside functions too (a lazy import is still a dependency), and each is placed by the folder (or
 top-level module) it names. The stages, lowest first:
 
-    protocol, schemas -> sources -> decode -> lint -> render -> filters.py -> sinks -> settings.py
+    version.py, protocol, schemas -> sources -> decode -> lint -> render -> filters.py -> sinks -> settings.py
         -> the top: cli.py, commands/, tui/, sim/, the package itself (__init__.py, __main__.py)
 
 ``filters.py`` (the filter language) reads Records and render's words, and sinks (decode --filter's lines)
@@ -26,7 +26,7 @@ import rs30x_sniff
 PACKAGE = Path(rs30x_sniff.__file__).parent
 
 TOP = len(("protocol", "sources", "decode", "lint", "render", "filters", "sinks", "settings"))
-RANK = {"protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "filters": 5,
+RANK = {"version": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "filters": 5,
         "sinks": 6, "settings": 7,
         "cli": TOP, "commands": TOP, "tui": TOP, "sim": TOP, "__main__": TOP, "": TOP}
 
@@ -35,11 +35,7 @@ RANK = {"protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "rend
 ALLOWED = {
     # --baud auto and a logic analyzer's rate count checksum-valid frames at each candidate rate with the
     # frame decoder (decode.autobaud.scan, score_bytes). The rates from timestamps alone are protocol.baud.
-    ("rs30x_sniff.sources.serial_tap", "rs30x_sniff.decode.autobaud"): "the port scan decodes at each rate",
     ("rs30x_sniff.sources.uart", "rs30x_sniff.decode.autobaud"): "the sampled line's rate decodes at each rate",
-    # The version string lives in the package's __init__.py, which imports the stages to offer them.
-    ("rs30x_sniff.lint.report", "rs30x_sniff"): "__version__ (SARIF's tool version)",
-    ("rs30x_sniff.sinks.mcap.writer", "rs30x_sniff"): "__version__ (an MCAP file's library name)",
 }
 
 

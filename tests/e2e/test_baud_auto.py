@@ -9,7 +9,8 @@ import time
 import pytest
 
 from rs30x_sniff.decode.autobaud import scan
-from rs30x_sniff.sources.serial_tap import scan_port
+from rs30x_sniff.decode.autobaud import scan
+from rs30x_sniff.sources.serial_tap import port_reader
 from rs30x_sniff.sim import run
 from rs30x_sniff.sim.port import play
 from rs30x_sniff.sim.wire import SimWire
@@ -40,7 +41,7 @@ def test_scan_port_on_a_pty_picks_a_rate_with_valid_frames_and_never_writes():
         th = threading.Thread(target=writer, daemon=True)
         th.start()
         time.sleep(0.1)
-        result = scan_port(pty.path, dwell=0.3)
+        result = scan(port_reader(pty.path), dwell=0.3)
         stop.set()
         th.join(5)
         assert result.baud is not None, result.describe()

@@ -13,7 +13,7 @@ from mcap.reader import make_reader
 
 from rs30x_sniff.cli import main
 from rs30x_sniff.sources.captures import read_capture
-from rs30x_sniff.sinks.tables import PARQUET_HINT, ParquetTable, StatesSink
+from rs30x_sniff.sinks.tables import PARQUET_HINT, ParquetTable, StatesTable
 from rs30x_sniff.protocol.memmap import default_registry
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.sinks.pipeline import drive
@@ -150,7 +150,7 @@ def test_parquet_is_written_in_row_groups(tmp_path):
     """A long capture is written as it is read: a row group per batch, never every row held at once."""
     path = tmp_path / "s.parquet"
     table = ParquetTable(str(path), batch_rows=100)
-    sink = StatesSink(table, baud=115200, registry=default_registry())
+    sink = StatesTable(table, baud=115200, registry=default_registry())
     drive(read_capture(str(SESSION)), Decoder(DecodeOptions()), sink)
     assert sink.rows > 300
     assert pq.ParquetFile(path).metadata.num_row_groups == -(-sink.rows // 100)

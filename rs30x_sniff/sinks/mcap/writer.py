@@ -13,7 +13,7 @@ from typing import IO, Any, Iterable
 import foxglove
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
-from ... import __version__
+from ...version import __version__
 from ...protocol.events import Garbage
 from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, LOG_SCHEMA, MCAP_MAGIC, METADATA_NAME, MODELS_METADATA_NAME,
                                     PACKET_SCHEMA, PACKETS_TOPIC, RAW_SCHEMA, RAW_TOPIC, SERVO_STATE_SCHEMA,
