@@ -11,9 +11,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-import rs30x_sniff
-
-PACKAGE = Path(rs30x_sniff.__file__).parent
+from .imports import PACKAGE, imported_from, module_name
 
 # (module, the expression as ast.unparse writes it): each with why it is not a crossing.
 ALLOWED = {
@@ -38,36 +36,16 @@ def _private(name: str) -> bool:
     return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
 
 
-def _module_name(path: Path) -> str:
-    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
-    if parts[-1] == "__init__":
-        parts.pop()
-    return ".".join(parts)
-
-
-def _imported_from(node: ast.ImportFrom, module: str, is_package: bool) -> str | None:
-    """The absolute name of the module ``node`` imports from (None: not under rs30x_sniff)."""
-    if node.level:
-        base = module.split(".")
-        if not is_package:
-            base = base[:-1]
-        base = base[:len(base) - (node.level - 1)]
-        name = ".".join(base + ([node.module] if node.module else []))
-    else:
-        name = node.module or ""
-    return name if name == "rs30x_sniff" or name.startswith("rs30x_sniff.") else None
-
-
 def crossings(path: Path, source: str | None = None) -> list[str]:
     """Each cross-module use of a private name in the module at ``path`` (``source``: its text, if
     not read from the file), as 'module:line: what', less the allowed ones."""
     rel = path.relative_to(PACKAGE).as_posix()
-    module = _module_name(path)
+    module = module_name(path)
     tree = ast.parse(path.read_text() if source is None else source, rel)
     found = []
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom):
-            target = _imported_from(node, module, path.name == "__init__.py")
+            target = imported_from(node, module, path.name == "__init__.py")
             if target is None or target == module:
                 continue
             for alias in node.names:

@@ -21,9 +21,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-import rs30x_sniff
-
-PACKAGE = Path(rs30x_sniff.__file__).parent
+from .imports import PACKAGE, imported_from, module_name
 
 TOP = len(("protocol", "sources", "decode", "lint", "render", "filters", "sinks", "settings"))
 RANK = {"version": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "filters": 5,
@@ -37,13 +35,6 @@ ALLOWED = {
     # frame decoder (decode.autobaud.scan, score_bytes). The rates from timestamps alone are protocol.baud.
     ("rs30x_sniff.sources.uart", "rs30x_sniff.decode.autobaud"): "the sampled line's rate decodes at each rate",
 }
-
-
-def _module_name(path: Path) -> str:
-    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
-    if parts[-1] == "__init__":
-        parts.pop()
-    return ".".join(parts)
 
 
 def _stage(module: str) -> str:
@@ -61,14 +52,7 @@ def _imports(path: Path, module: str) -> set[str]:
         if isinstance(node, ast.Import):
             found.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = module.split(".")
-                if not is_package:
-                    base = base[:-1]
-                base = base[:len(base) - (node.level - 1)]
-                name = ".".join(base + ([node.module] if node.module else []))
-            else:
-                name = node.module or ""
+            name = imported_from(node, module, is_package) or node.module or ""
             found.add(name)
             for alias in node.names:  # from . import wire: the module wire
                 sub = f"{name}.{alias.name}"
@@ -86,7 +70,7 @@ def _upward() -> dict[tuple[str, str], str]:
     """(importing module, imported module) -> "stage -> stage", for every import of a later stage."""
     out = {}
     for path in sorted(PACKAGE.rglob("*.py")):
-        module = _module_name(path)
+        module = module_name(path)
         here = _stage(module)
         for target in _imports(path, module):
             there = _stage(target)
@@ -117,5 +101,5 @@ def test_the_allowed_crossings_are_still_there():
 def test_decode_imports_nothing_but_protocol_and_itself():
     # The stage this rule began with (decode/autobaud.py imported sinks/pipeline.py for its Sink).
     for path in sorted((PACKAGE / "decode").rglob("*.py")):
-        module = _module_name(path)
+        module = module_name(path)
         assert {_stage(m) for m in _imports(path, module)} <= {"decode", "protocol"}, module
