@@ -146,6 +146,8 @@ KEYS: dict[str, Key] = {
                             f"seconds a flash write takes (Q003; at most {MAX_SECONDS:g})"),
     "max_servos": Key(_at_most(MAX_SERVO_ID, _count), "max-servos",
                       f"servos one bus may carry (Q008; at most {MAX_SERVO_ID}, one per ID)"),
+    "regress": Key(lambda v: None if isinstance(v, dict) else "expected a table of FIGURE = THRESHOLD", "regress",
+                   "thresholds of `diff --fail-on-regress` (each checked by rs30x_sniff.compare)"),
 }
 LINT_THRESHOLDS = ("latency_margin", "inter_byte_gap", "flash_write_time", "max_servos")
 

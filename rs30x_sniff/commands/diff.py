@@ -1,0 +1,232 @@
+"""`rs30x-sniff diff BEFORE AFTER`: two captures' figures side by side, and the regressions past `[regress]`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import IO, Any
+
+from ..compare import Change, Comparison, ThresholdError, Threshold, change_text, compare, parse_threshold, \
+    parse_thresholds, show
+from ..decode.decoder import Decoder
+from ..sinks.pipeline import columnar_for, drive
+from ..sinks.stats import CaptureStats
+from .common import (CliError, add_decode_options, add_lint_options, add_live_options, check_positive, config_layer,
+                     live_sinks, make_linter, no_data, open_input, settings_for)
+from .outputs import STDOUT, add_output_options, check_output, output_stream
+
+REGRESS = "regress"  # the configuration's table of thresholds
+
+
+def add_parser(sub: Any) -> None:  # argparse's subparsers action (no public name for its type)
+    p = sub.add_parser("diff", help="compare two captures: poll rates, latencies, missing replies, findings, load",
+                       description="Two captures of any format side by side: per-servo poll rates, missing and "
+                                   "unsolicited replies and register ranges, reply latency percentiles, bus load, "
+                                   "and findings by rule (new, gone, changed). Thresholds come from the "
+                                   "configuration's [regress] table (or --threshold); with --fail-on-regress a "
+                                   "threshold crossed exits 1.")
+    p.add_argument("before", metavar="BEFORE", help="the reference capture (e.g. recorded on main)")
+    p.add_argument("after", metavar="AFTER", help="the capture to compare with it")
+    add_decode_options(p)
+    add_live_options(p)
+    add_lint_options(p)
+    p.add_argument("--format", choices=("text", "json", "markdown"), default="text",
+                   help="output format (default text)")
+    p.add_argument("--threshold", action="append", default=[], metavar="FIGURE=LIMIT",
+                   help="a threshold as in [regress], e.g. latency_p95=+20%% or missing_replies=+0; "
+                        "replaces the configuration's for that figure; repeatable")
+    p.add_argument("--fail-on-regress", action="store_true",
+                   help="exit 1 when a threshold is crossed (default: report only, exit 0)")
+    add_output_options(p)
+    p.set_defaults(run=run)
+
+
+def thresholds_from(conf: dict[str, Any], specs: list[str]) -> dict[str, Threshold]:
+    """The configuration's [regress] thresholds, then --threshold's over them (one line for a bad one)."""
+    out: dict[str, Threshold] = {}
+    try:
+        table = conf.get(REGRESS)
+        if table is not None:
+            out.update(parse_thresholds(table, str(conf.get("source", "config"))))
+        for spec in specs:
+            key, eq, value = spec.partition("=")
+            if not eq or not key.strip():
+                raise CliError(f"--threshold {spec}: expected FIGURE=LIMIT, e.g. latency_p95=+20%")
+            t = parse_threshold(key.strip(), value.strip(), "--threshold")
+            out[t.figure] = t
+    except ThresholdError as e:
+        raise CliError(str(e)) from None
+    return out
+
+
+def figures_of(args: argparse.Namespace, path: str, conf: dict[str, Any]) -> dict[str, Any]:
+    """One capture's figures as `info --format json` gives them, from one drive loop (the linter in the
+    same pass), with ``unsolicited_counted``: whether rule B003 ran."""
+    settings = settings_for(args, path, config=conf)
+    linter = make_linter(args, settings)
+    source = open_input(path, args.input_format, settings, duration=args.duration)
+    stats = CaptureStats(settings.baud)
+    stats.timing_unsupported = getattr(settings, "timing_unsupported", None)
+    stats.stalls = getattr(source, "stalls", stats.stalls)
+    drive(source, Decoder(settings.decode_options(), linter, columnar=columnar_for(source)), stats,
+          *live_sinks(settings, source, path))
+    no_data(path, stats, source)
+    codes = linter.config.enabled_codes() if linter is not None else []
+    return {"input": path, "linted": linter is not None, "unsolicited_counted": "B003" in codes, **stats.as_dict()}
+
+
+def run(args: argparse.Namespace) -> int:
+    check_positive("--duration", args.duration)
+    if args.before == STDOUT and args.after == STDOUT:
+        raise CliError("BEFORE and AFTER are both - (stdin): at most one of them can be read from stdin")
+    inputs = (args.before, args.after)
+    if args.output:
+        check_output(args.output, args.force, inputs)  # before the work, not after
+    conf = dict(config_layer(args))
+    thresholds = thresholds_from(conf, args.threshold)
+    conf.pop(REGRESS, None)
+    before = figures_of(args, args.before, conf)
+    after = figures_of(args, args.after, conf)
+    result = compare(before, after, thresholds)
+    with output_stream(args.output, force=args.force, inputs=inputs) as out:
+        if args.format == "json":
+            out.write(json.dumps(result.as_dict(), indent=2) + "\n")
+        elif args.format == "markdown":
+            write_markdown(out, result)
+        else:
+            write_text(out, result)
+    if args.fail_on_regress:
+        if not thresholds:
+            print("rs30x-sniff: warning: --fail-on-regress: no thresholds ([regress] in the configuration, or "
+                  "--threshold): nothing to fail on", file=sys.stderr)
+        for c in result.crossings:
+            print(f"rs30x-sniff: regression: {c.describe()}", file=sys.stderr)
+        return 1 if result.regressed else 0
+    return 0
+
+
+# ---- text -------------------------------------------------------------------------------------------
+def _side(d: Any) -> str:
+    timing = f"{d.get('duration_s', 0):.3f} s" + ("" if d.get("timed") else " of line time (no timestamps)")
+    lint = "" if d.get("linted", True) else ", not linted"
+    return f"{d.get('input')}: {timing}, {d.get('bytes', 0)} bytes at {d.get('baud')} bit/s{lint}"
+
+
+def _cells(c: Change) -> tuple[str, str, str]:
+    """(before, after, change) in words; an absent figure says why instead of a change."""
+    b, a = show(c.before.value, c.unit), show(c.after.value, c.unit)
+    if c.absent is not None:
+        return b, a, f"absent: {c.absent}"
+    text = change_text(c)
+    trend = c.trend
+    return b, a, text + (f", {trend}" if trend in ("worse", "better") else "")
+
+
+def _changed(rows: list[Change]) -> list[Change]:
+    """The rows that differ, or that one side cannot give (absent on both: json has them)."""
+    return [c for c in rows if c.delta != 0 and (c.before.value is not None or c.after.value is not None)]
+
+
+def write_text(out: IO[str], r: Comparison) -> None:
+    w = out.write
+    w(f"before  {_side(r.before)}\n")
+    w(f"after   {_side(r.after)}\n")
+    w("\nbus\n")
+    for c in [*r.bus, *r.changes]:
+        b, a, ch = _cells(c)
+        w(f"  {c.figure:<27} {b:>13} -> {a:<13} {ch}\n")
+    w("\nservos" + " (figures that are the same before and after are left out; --format json has all)\n")
+    for sid, rows in r.servos.items():
+        shown = _changed(rows)
+        if not shown:
+            w(f"  ID {sid}: the same\n")
+            continue
+        w(f"  ID {sid}\n")
+        for c in shown:
+            b, a, ch = _cells(c)
+            w(f"    {c.figure:<25} {b:>13} -> {a:<13} {ch}\n")
+    if r.only_before:
+        w(f"  only BEFORE: ID {', '.join(r.only_before)}\n")
+    if r.only_after:
+        w(f"  only AFTER: ID {', '.join(r.only_after)}\n")
+    w("\nfindings by rule\n")
+    f = r.findings
+    if f.absent is not None:
+        w(f"  absent: {f.absent}\n")
+    elif not (f.new or f.gone or f.changed or f.same):
+        w("  none in either capture\n")
+    else:
+        for rule, n in f.new.items():
+            w(f"  new      {rule:<40} {n}\n")
+        for rule, n in f.gone.items():
+            w(f"  gone     {rule:<40} {n}\n")
+        for rule, (nb, na) in f.changed.items():
+            w(f"  changed  {rule:<40} {nb} -> {na}\n")
+        for rule, n in f.same.items():
+            w(f"  same     {rule:<40} {n}\n")
+    w("\nthresholds")
+    if not r.thresholds:
+        w(": none ([regress] in the configuration, or --threshold)\n")
+        return
+    w(": " + ", ".join(f"{k} {t.text}" for k, t in r.thresholds.items()) + "\n")
+    if r.crossings:
+        for c in r.crossings:
+            w(f"  crossed      {c.describe()}\n")
+    else:
+        w("  none crossed\n")
+    for u in r.unchecked:
+        w(f"  not checked  {u.describe()}\n")
+
+
+# ---- markdown (a pull request's comment) ------------------------------------------------------------
+def _md(text: str) -> str:
+    return text.replace("|", "\\|")
+
+
+def write_markdown(out: IO[str], r: Comparison) -> None:
+    w = out.write
+    verdict = (f"**{len(r.crossings)} threshold{'s' if len(r.crossings) != 1 else ''} crossed**" if r.crossings
+               else "no threshold crossed" if r.thresholds else "no thresholds set")
+    w(f"### rs30x-sniff diff: {verdict}\n\n")
+    w(f"- before: `{_side(r.before)}`\n- after: `{_side(r.after)}`\n\n")
+    if r.crossings:
+        for c in r.crossings:
+            w(f"- :x: {_md(c.describe())}\n")
+        w("\n")
+    if r.unchecked:
+        for u in r.unchecked:
+            w(f"- not checked: {_md(u.describe())}\n")
+        w("\n")
+    w("| bus | before | after | change |\n|---|---:|---:|---|\n")
+    for c in [*r.bus, *r.changes]:
+        b, a, ch = _cells(c)
+        w(f"| {c.figure} | {b} | {a} | {_md(ch)} |\n")
+    rows = [(sid, c) for sid, cs in r.servos.items() for c in _changed(cs)]
+    w("\n| servo | figure | before | after | change |\n|---:|---|---:|---:|---|\n")
+    for sid, c in rows:
+        b, a, ch = _cells(c)
+        w(f"| {sid} | {c.figure} | {b} | {a} | {_md(ch)} |\n")
+    same = [sid for sid, cs in r.servos.items() if not _changed(cs)]
+    notes = []
+    if same:
+        notes.append(f"the same before and after: ID {', '.join(same)}")
+    if r.only_before:
+        notes.append(f"only BEFORE: ID {', '.join(r.only_before)}")
+    if r.only_after:
+        notes.append(f"only AFTER: ID {', '.join(r.only_after)}")
+    if notes:
+        w("\n" + "; ".join(notes) + "\n")
+    f = r.findings
+    w("\n| findings by rule | before | after | |\n|---|---:|---:|---|\n")
+    if f.absent is not None:
+        w(f"| absent: {_md(f.absent)} | - | - | |\n")
+    else:
+        for rule, n in f.new.items():
+            w(f"| {_md(rule)} | 0 | {n} | new |\n")
+        for rule, n in f.gone.items():
+            w(f"| {_md(rule)} | {n} | 0 | gone |\n")
+        for rule, (nb, na) in f.changed.items():
+            w(f"| {_md(rule)} | {nb} | {na} | changed |\n")
+        for rule, n in f.same.items():
+            w(f"| {_md(rule)} | {n} | {n} | same |\n")
