@@ -1,0 +1,678 @@
+"""Figure checks (``[[expect]]`` in the configuration): a small expression language over the figures ``info``
+computes, checked at the end of input and reported as lint findings (docs/checks.md).
+
+    [[expect]]
+    code = "U101"
+    name = "legs-polled-fast"
+    severity = "error"
+    check = "poll_hz >= 5 and missing_replies == 0"
+    for = "id:1-6"                  # each of these servos; "each": every servo seen; omitted: the whole bus
+
+Three pure steps: :func:`load_checks` reads the configuration's entries (one line naming the file, the
+check, the key and the column on a mistake: :class:`ExpectError`); :func:`evaluate` measures them against
+the figures (``CaptureStats.as_dict()``, ``info --format json``'s keys) and gives a :class:`Result` per
+check and servo: pass, fail (with the measured value) or not checkable (with the reason); :func:`findings`
+turns the results that are not passes into lint Findings at the end of input. A hand-written tokenizer and
+parser: nothing is ever evaluated as Python.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field, replace
+from difflib import get_close_matches
+from typing import Any, Callable, Collection, Iterable, Mapping
+
+from .lint.config import ConfigError
+from .lint.registry import SEVERITIES, Finding
+from .protocol.memmap import ModelError, default_registry
+from .protocol.wire import RETURN_FLAG_BITS
+from .sinks.health import PRESENT, WRITTEN
+
+CODE = re.compile(r"U\d{3}")
+NAME = re.compile(r"[a-z][a-z0-9]*(?:-[a-z0-9]+)*")
+KEYS = ("code", "name", "severity", "check", "for", "doc", "not_checkable")
+PASS, FAIL, NOT_CHECKABLE = "pass", "fail", "not checkable"
+
+
+class ExpectError(ConfigError):
+    """A bad ``[[expect]]`` entry; the message is one line naming the file, the check, the key (and column).
+    A ConfigError: the commands report it as any bad configuration value (one line, exit 2)."""
+
+
+# ---- units -------------------------------------------------------------------------------------------------
+# unit -> (dimension, its size in the dimension's base unit). A figure is measured in one of these (its
+# ``unit``); a number in a check may carry any unit of the same dimension, and is converted.
+UNITS: dict[str, tuple[str, float]] = {
+    "s": ("time", 1.0), "ms": ("time", 1e-3), "us": ("time", 1e-6), "µs": ("time", 1e-6),
+    "Hz": ("rate", 1.0), "kHz": ("rate", 1e3),
+    "%": ("fraction", 1.0),
+    "deg": ("angle", 1.0),
+    "deg/s": ("angular speed", 1.0),
+    "mA": ("current", 1.0), "A": ("current", 1e3),
+    "degC": ("temperature", 1.0),
+    "V": ("voltage", 1.0), "mV": ("voltage", 1e-3),
+}
+
+
+def _units_of(dimension: str) -> str:
+    return ", ".join(u for u, (d, _) in UNITS.items() if d == dimension and u != "µs")
+
+
+# ---- the figures -------------------------------------------------------------------------------------------
+# A measured figure: its value in the figure's unit, or None with the reason it cannot be given.
+Measured = tuple[float | None, str]
+BUS, SERVO = "bus", "servo"
+
+
+@dataclass(frozen=True)
+class Figure:
+    """A name of the language: where it applies (the bus, a servo, both), its unit (None: a count) and
+    what it is; how it is measured is :func:`_measure`'s."""
+
+    name: str
+    scopes: tuple[str, ...]
+    unit: str | None
+    doc: str
+
+
+_FIGURES = [
+    Figure("poll_hz", (SERVO,), "Hz",
+           "requests asking the servo for a reply, per second, within time segments (info's poll rate)"),
+    Figure("requests", (SERVO, BUS), None, "short packets addressed to the servo (bus: to any servo)"),
+    Figure("reads", (SERVO, BUS), None, "requests that asked for a reply"),
+    Figure("long_writes", (SERVO, BUS), None, "records for the servo in long packets"),
+    Figure("returns", (SERVO, BUS), None, "return packets heard from the servo"),
+    Figure("acks", (SERVO, BUS), None, "ACKs heard"),
+    Figure("nacks", (SERVO, BUS), None, "NACKs heard"),
+    Figure("missing_replies", (SERVO, BUS), None, "requests that asked for a reply and got none"),
+    Figure("unsolicited_replies", (SERVO, BUS), None,
+           "replies no request asked for (lint's B003 findings: needs the linter with B003 on)"),
+    Figure("findings", (SERVO, BUS), None, "lint findings (a servo's: those naming it); needs the linter"),
+    *(Figure(flag, (SERVO, BUS), None, f"returns carrying the {flag} status flag (needs a return)")
+      for flag in RETURN_FLAG_BITS.values()),
+    Figure("duration", (BUS,), "s", "seconds from the first to the last byte, over the time segments"),
+    Figure("bytes", (BUS,), None, "bytes of the capture"),
+    Figure("packets", (BUS,), None, "packets (records that are not garbage)"),
+    Figure("bad_checksums", (BUS,), None, "packets whose checksum is wrong"),
+    Figure("garbage_bytes", (BUS,), None, "bytes that are no packet"),
+    Figure("servos", (BUS,), None, "servo IDs the traffic names"),
+    Figure("segments", (BUS,), None, "time segments (the capture's clock restarts or resumes between them)"),
+    Figure("bus_load", (BUS,), "%", "share of the capture's time the line was busy"),
+    Figure("bus_load_peak", (BUS,), "%", "the busiest one-second window's load"),
+    Figure("latency_p50", (BUS,), "ms", "median reply latency, over every reply"),
+    Figure("latency_p95", (BUS,), "ms", "95th percentile of the reply latency"),
+    Figure("latency_max", (BUS,), "ms", "longest reply latency"),
+]
+FIGURES: dict[str, Figure] = {f.name: f for f in _FIGURES}
+# min(register) / max(register): the range a servo's returns (goal_position: the host's writes) showed.
+REGISTERS = (*PRESENT, *WRITTEN)
+FUNCTIONS = ("min", "max")
+
+
+def register_unit(name: str) -> str | None:
+    """The unit the bundled default model gives ``name`` (None: none, or no such register)."""
+    try:
+        return default_registry().default.register(name).unit or None
+    except (KeyError, ModelError):
+        return None
+
+
+# ---- the expression: tokens --------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Token:
+    kind: str      # "number", "word", "op", "(", ")", "%"
+    text: str
+    col: int       # 1-based column in the check's text
+    spaced: bool   # whitespace before it
+
+
+_TOKEN = re.compile(r"""
+    (?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)
+  | (?P<word>[A-Za-zµ_][A-Za-z0-9µ_]*(?:/[A-Za-z]+)?)
+  | (?P<op><=|>=|==|!=|<|>)
+  | (?P<paren>[()])
+  | (?P<percent>%)
+""", re.VERBOSE)
+COMPARISONS = ("<", "<=", ">", ">=", "==", "!=")
+_NEGATED = {"<": ">=", "<=": ">", ">": "<=", ">=": "<", "==": "!=", "!=": "=="}
+_FLIPPED = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
+_TEST: dict[str, Callable[[float, float], bool]] = {
+    "<": lambda a, b: a < b, "<=": lambda a, b: a <= b, ">": lambda a, b: a > b, ">=": lambda a, b: a >= b,
+    "==": lambda a, b: a == b, "!=": lambda a, b: a != b}
+
+
+class _ParseError(Exception):
+    def __init__(self, col: int, text: str) -> None:
+        super().__init__(text)
+        self.col, self.text = col, text
+
+
+def tokenize(text: str) -> list[Token]:
+    out, i, n = [], 0, len(text)
+    while i < n:
+        j = i
+        while j < n and text[j].isspace():
+            j += 1
+        if j == n:
+            break
+        m = _TOKEN.match(text, j)
+        if m is None:
+            if text[j] == "=":
+                raise _ParseError(j + 1, "'=' is no comparison: write '=='")
+            raise _ParseError(j + 1, f"unexpected {text[j]!r}")
+        kind = m.lastgroup or ""
+        kind = {"paren": m.group(), "percent": "%"}.get(kind, kind)
+        out.append(Token(kind, m.group(), j + 1, j > i or not out))
+        i = m.end()
+    return out
+
+
+# ---- the expression: parsed --------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Operand:
+    """A figure (``name``, or ``func(name)`` over a register) or a number (``value``, in ``unit``)."""
+
+    col: int
+    text: str                      # as written, for messages
+    name: str | None = None        # a figure's name, or the register of min/max
+    func: str | None = None        # "min" / "max"
+    value: float | None = None     # a number
+    unit: str | None = None        # a number's unit as written; a figure's unit
+
+    @property
+    def is_figure(self) -> bool:
+        return self.name is not None
+
+
+@dataclass(frozen=True)
+class Comparison:
+    left: Operand                  # always a figure
+    op: str
+    right: Operand                 # a number, or a figure of the same dimension
+    col: int
+
+
+def _dimension(unit: str | None) -> str | None:
+    return None if unit is None else UNITS.get(unit, (f"in {unit}", 1.0))[0]
+
+
+def _what(unit: str | None) -> str:
+    """How a message names a dimension: 'a time (s, ms, us)', 'a count'."""
+    if unit is None:
+        return "a count (no unit)"
+    dim = _dimension(unit) or ""
+    units = _units_of(dim) if unit in UNITS else unit
+    article = "an" if dim[:1] in "aeiou" else "a"
+    return f"{article} {dim} ({units})" if unit in UNITS else f"measured in {unit}"
+
+
+def parse_check(text: str, scope: str) -> list[Comparison]:
+    """The comparisons of ``text`` (joined by ``and``), each figure known in ``scope`` (BUS or SERVO) and
+    each number's unit fitting its figure; raises _ParseError (with the column) otherwise."""
+    toks = tokenize(text)
+    pos = 0
+    end_col = len(text.rstrip()) + 1
+
+    def peek() -> Token | None:
+        return toks[pos] if pos < len(toks) else None
+
+    def take() -> Token:
+        nonlocal pos
+        t = peek()
+        if t is None:
+            raise _ParseError(end_col, "the check ends too soon")
+        pos += 1
+        return t
+
+    def operand() -> Operand:
+        nonlocal pos
+        t = take()
+        if t.kind == "number":
+            nxt = peek()
+            if nxt is not None and (nxt.kind == "%" or (nxt.kind == "word" and nxt.text in UNITS)):
+                pos += 1
+                return Operand(t.col, f"{t.text} {nxt.text}" if nxt.spaced else t.text + nxt.text,
+                               value=float(t.text), unit=nxt.text)
+            if nxt is not None and nxt.kind == "word" and not nxt.spaced:
+                raise _ParseError(nxt.col, f"unknown unit {nxt.text!r} (units: {', '.join(UNITS)})")
+            return Operand(t.col, t.text, value=float(t.text))
+        if t.kind != "word" or t.text == "and":
+            raise _ParseError(t.col, f"expected a figure or a number, found {t.text!r}")
+        if t.text in FUNCTIONS:
+            if peek() is None or peek().kind != "(":  # type: ignore[union-attr]
+                raise _ParseError(t.col + len(t.text), f"{t.text} takes a register: {t.text}(present_temperature)")
+            take()
+            reg = take()
+            if reg.kind != "word" or reg.text not in REGISTERS:
+                hint = _hint(reg.text, REGISTERS)
+                raise _ParseError(reg.col, f"{t.text}() of {reg.text!r}: not a register with a range in info"
+                                           f"{hint} (registers: {', '.join(REGISTERS)})")
+            close = take()
+            if close.kind != ")":
+                raise _ParseError(close.col, f"expected ')' after {t.text}({reg.text}")
+            return Operand(t.col, f"{t.text}({reg.text})", name=reg.text, func=t.text, unit=register_unit(reg.text))
+        fig = FIGURES.get(t.text)
+        if fig is None:
+            if t.text in REGISTERS:
+                raise _ParseError(t.col, f"{t.text} is a register: write max({t.text}) or min({t.text})")
+            known = [*FIGURES, *FUNCTIONS]
+            raise _ParseError(t.col, f"unknown figure {t.text!r}{_hint(t.text, known)} (see docs/checks.md)")
+        if scope not in fig.scopes:
+            raise _ParseError(t.col, f"{t.text} is a figure of each servo: give the check for = \"id:...\" "
+                                     f"or for = \"each\"" if scope == BUS else
+                              f"{t.text} is a figure of the whole bus (not measured per servo): "
+                              f"check it without 'for'")
+        return Operand(t.col, t.text, name=t.text, unit=fig.unit)
+
+    def fits(num: Operand, fig: Operand) -> None:
+        if num.unit is None:
+            return  # a bare number is in the figure's own unit
+        if fig.unit is None:
+            raise _ParseError(num.col, f"{fig.text} is a count: no unit ({num.text})")
+        if num.unit not in UNITS or fig.unit not in UNITS:
+            if num.unit != fig.unit:
+                raise _ParseError(num.col, f"{fig.text} is {_what(fig.unit)}; {num.unit!r} does not fit")
+            return
+        if _dimension(num.unit) != _dimension(fig.unit):
+            raise _ParseError(num.col, f"{fig.text} is {_what(fig.unit)}; {num.unit!r} is {_what(num.unit)}")
+
+    def comparison() -> Comparison:
+        left = operand()
+        opt = take()
+        if opt.kind != "op":
+            if opt.kind == "word" and opt.text in ("or", "not"):
+                raise _ParseError(opt.col, f"'{opt.text}' is not part of the language: only 'and' joins comparisons")
+            raise _ParseError(opt.col, f"expected a comparison ({' '.join(COMPARISONS)}) after {left.text}, "
+                                       f"found {opt.text!r}")
+        right = operand()
+        op = opt.text
+        if not left.is_figure and not right.is_figure:
+            raise _ParseError(left.col, "compares two numbers: one side must be a figure")
+        if not left.is_figure:
+            left, right, op = right, left, _FLIPPED[op]
+        if right.is_figure:
+            if _dimension(left.unit) != _dimension(right.unit):
+                raise _ParseError(right.col, f"{left.text} is {_what(left.unit)}, {right.text} is "
+                                             f"{_what(right.unit)}: they cannot be compared")
+        else:
+            fits(right, left)
+        return Comparison(left, op, right, left.col)
+
+    if not toks:
+        raise _ParseError(1, "empty check")
+    out = [comparison()]
+    while pos < len(toks):
+        t = take()
+        if t.kind == "word" and t.text == "and":
+            out.append(comparison())
+        elif t.kind == "word" and t.text == "or":
+            raise _ParseError(t.col, "'or' is not part of the language: write two checks")
+        else:
+            raise _ParseError(t.col, f"expected 'and' or the end of the check, found {t.text!r}")
+    return out
+
+
+def _hint(word: str, known: Iterable[str]) -> str:
+    close = get_close_matches(word, list(known), n=1)
+    return f" (did you mean {close[0]}?)" if close else ""
+
+
+# ---- the checks --------------------------------------------------------------------------------------------
+EACH = "each"
+
+
+@dataclass(frozen=True)
+class Check:
+    """One ``[[expect]]`` entry, checked."""
+
+    code: str
+    name: str
+    severity: str
+    text: str                             # the check as written
+    comparisons: tuple[Comparison, ...]
+    ids: tuple[int, ...] | str | None     # servo IDs; EACH: every servo seen; None: the whole bus
+    doc: str = ""
+    not_checkable: str = ""               # severity of a not-checkable result ("" : the check's own)
+    index: int = 1                        # 1-based place among the [[expect]] entries
+
+    @property
+    def unknown_severity(self) -> str:
+        return self.not_checkable or self.severity
+
+
+def parse_ids(text: str) -> tuple[int, ...] | str:
+    """``id:1-6,9`` (the filter language's IDs) or ``each``; raises ValueError with the reason."""
+    text = text.strip()
+    if text == EACH:
+        return EACH
+    if not text.startswith("id:"):
+        raise ValueError(f"expected id:1-6,9 (the filter language's IDs) or \"each\", found {text!r}")
+    wanted: set[int] = set()
+    value = text[3:]
+    for part in value.split(","):
+        lo, sep, hi = part.strip().partition("-")
+        try:
+            a = int(lo, 0)
+            b = int(hi, 0) if sep else a
+        except ValueError:
+            raise ValueError(f"{part.strip()!r} is not an ID or a range like 1-6") from None
+        if not (0 <= a <= 255 and 0 <= b <= 255):
+            raise ValueError("IDs run from 0 to 255")
+        if a > b:
+            raise ValueError(f"range {part.strip()} runs backwards")
+        wanted.update(range(a, b + 1))
+    return tuple(sorted(wanted))
+
+
+def load_checks(entries: Any, where: str) -> list[Check]:
+    """The ``[[expect]]`` entries of a configuration file (``where``: its name, for messages), checked."""
+    if not isinstance(entries, list):
+        raise ExpectError(f"{where}: expect: expected [[expect]] tables (an array of tables)")
+    out: list[Check] = []
+    codes: dict[str, int] = {}
+    names: dict[str, int] = {}
+    for i, entry in enumerate(entries, 1):
+        label = f"{where}: [[expect]] #{i}"
+        if not isinstance(entry, Mapping):
+            raise ExpectError(f"{label}: expected a table")
+        code = entry.get("code")
+        if isinstance(code, str):
+            label += f" ({code})"
+        for raw in entry:
+            if raw.replace("-", "_") not in KEYS:
+                raise ExpectError(f"{label}: unknown key {raw!r}{_hint(raw, KEYS)} (known: {', '.join(KEYS)})")
+        get = {k.replace("-", "_"): v for k, v in entry.items()}
+
+        def text(key: str, required: bool) -> str:
+            v = get.get(key)
+            if v is None:
+                if required:
+                    raise ExpectError(f"{label}: {key}: missing (required)")
+                return ""
+            if not isinstance(v, str):
+                raise ExpectError(f"{label}: {key} = {v!r}: expected a string")
+            return v
+
+        code = text("code", True)
+        if not CODE.fullmatch(code):
+            raise ExpectError(f"{label}: code = {code!r}: expected U and three digits (U101)")
+        if code in codes:
+            raise ExpectError(f"{label}: code = {code!r}: already the code of [[expect]] #{codes[code]}")
+        name = text("name", True)
+        if not NAME.fullmatch(name):
+            raise ExpectError(f"{label}: name = {name!r}: expected lower-case words joined by '-' (legs-polled-fast)")
+        if name in names:
+            raise ExpectError(f"{label}: name = {name!r}: already the name of [[expect]] #{names[name]}")
+        severity = text("severity", False) or "error"
+        unknown = text("not_checkable", False)
+        for key, level in (("severity", severity), ("not_checkable", unknown)):
+            if level and level not in SEVERITIES:
+                raise ExpectError(f"{label}: {key} = {level!r}: expected one of {', '.join(SEVERITIES)}")
+        ids: tuple[int, ...] | str | None = None
+        if "for" in get:
+            try:
+                ids = parse_ids(text("for", True))
+            except ValueError as e:
+                raise ExpectError(f"{label}: for = {get['for']!r}: {e}") from None
+        src = text("check", True)
+        try:
+            comparisons = parse_check(src, BUS if ids is None else SERVO)
+        except _ParseError as e:
+            raise ExpectError(f"{label}: check = {src!r}: column {e.col}: {e.text}") from None
+        codes[code], names[name] = i, i
+        out.append(Check(code, name, severity, src, tuple(comparisons), ids, text("doc", False), unknown, i))
+    return out
+
+
+def matches(check: Check, selector: str) -> bool:
+    """Whether a --select/--ignore/--severity selector names ``check``: ALL, its code, a prefix of its code
+    (U, U1), or its name, as the built-in rules' selectors do."""
+    return selector == "ALL" or check.code.startswith(selector) or selector == check.name
+
+
+def select_checks(checks: Iterable[Check], select: Iterable[str] | None = None, ignore: Iterable[str] = (),
+                  severity: Mapping[str, str] | None = None) -> list[Check]:
+    """The checks a lint configuration keeps (``select`` None: every one), with its severities applied
+    (``severity``: selector -> level; a not-checkable result follows the new level unless the check sets
+    its own ``not_checkable``)."""
+    sel = None if select is None else list(select)
+    ign = list(ignore)
+    out = []
+    for c in checks:
+        if sel is not None and not any(matches(c, s) for s in sel):
+            continue
+        if any(matches(c, s) for s in ign):
+            continue
+        for key, level in (severity or {}).items():
+            if matches(c, key) and key != "ALL":
+                c = replace(c, severity=level)
+        out.append(c)
+    return out
+
+
+# ---- measuring ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Result:
+    """One check's outcome for one servo (``id``) or the bus (None)."""
+
+    check: Check
+    id: int | None
+    status: str           # PASS, FAIL, NOT_CHECKABLE
+    message: str
+
+
+@dataclass
+class _Context:
+    info: Mapping[str, Any]
+    rules: frozenset[str] | None     # the lint codes that ran (None: not linted)
+    units: dict[str, str | None] = field(default_factory=dict)  # register -> its unit in these figures
+
+    def servo_ids(self) -> list[int]:
+        return sorted({int(k) for k in self.info.get("servos", {})} | {int(k) for k in self.info.get("health", {})})
+
+
+NO_TIMES = "the capture has no timestamps"
+
+
+def _count_of(ctx: _Context, sid: int | None, key: str) -> Measured:
+    servos = ctx.info.get("servos", {})
+    if sid is None:
+        return float(sum(s.get(key, 0) for s in servos.values())), ""
+    return float(servos[str(sid)].get(key, 0)), ""
+
+
+def _linted(ctx: _Context, code: str | None = None) -> str:
+    """Why lint-derived figures cannot be given ("": they can)."""
+    if ctx.rules is None:
+        return "the capture was not linted"
+    if code is not None and code not in ctx.rules:
+        return f"rule {code} did not run (--select/--ignore)"
+    return ""
+
+
+def _measure(ctx: _Context, op: Operand, sid: int | None) -> Measured:
+    """The figure ``op`` of servo ``sid`` (None: the bus), in the figure's unit, or None and why not."""
+    info = ctx.info
+    name = op.name or ""
+    health = info.get("health", {})
+    if op.func is not None:
+        ranges = [health[str(sid)]] if sid is not None else list(health.values()) if health else []
+        got = [h["registers"][name] for h in ranges if name in h.get("registers", {})]
+        who = f"ID {sid}" if sid is not None else "no servo"
+        if not got:
+            src = "writes" if name in WRITTEN else "returns"
+            return None, f"{who} showed no {name} in its {src}" if sid is not None else \
+                f"no servo showed {name}"
+        unit = got[0].get("unit") or None
+        if op.unit is not None and unit != op.unit and _dimension(unit) != _dimension(op.unit):
+            return None, f"the memory map gives {name} in {unit or 'no unit'}"
+        vals = [r[op.func] for r in got]
+        v = min(vals) if op.func == "min" else max(vals)
+        return float(v) * UNITS.get(unit or "", ("", 1.0))[1] / UNITS.get(op.unit or "", ("", 1.0))[1], ""
+    if name == "poll_hz":
+        s = info["servos"].get(str(sid), {})
+        v = s.get("poll_rate_hz")
+        if v is not None:
+            return float(v), ""
+        if not info.get("timed"):
+            return None, NO_TIMES
+        return None, f"fewer than two polls of ID {sid} in one time segment ({s.get('reads', 0)} reads)"
+    if name == "missing_replies":
+        return _count_of(ctx, sid, "missing")
+    if name in ("requests", "reads", "long_writes", "returns", "acks", "nacks"):
+        return _count_of(ctx, sid, name)
+    if name == "unsolicited_replies":
+        why = _linted(ctx, "B003")
+        if why:
+            return None, why
+        if sid is not None:
+            return float(health.get(str(sid), {}).get("findings", {}).get("B003", 0)), ""
+        return float(sum(n for k, n in info.get("findings_by_rule", {}).items() if k.split(" ")[0] == "B003")), ""
+    if name == "findings":
+        why = _linted(ctx)
+        if why:
+            return None, why
+        if sid is not None:
+            return float(sum(health.get(str(sid), {}).get("findings", {}).values())), ""
+        return float(sum(info.get("findings", {}).values())), ""
+    if name in RETURN_FLAG_BITS.values():
+        servos = info.get("servos", {})
+        ids = [str(sid)] if sid is not None else list(servos)
+        if not any(servos.get(i, {}).get("returns", 0) for i in ids):
+            return None, (f"ID {sid} sent no return: its status flags are unknown" if sid is not None
+                          else "no servo sent a return: the status flags are unknown")
+        return float(sum(health.get(i, {}).get("flags", {}).get(name, {}).get("count", 0) for i in ids)), ""
+    if name == "servos":
+        return float(len(info.get("servos", {}))), ""
+    if name in ("bytes", "packets", "bad_checksums", "garbage_bytes", "segments"):
+        return float(info.get(name, 0)), ""
+    if name == "duration":
+        return float(info["duration_s"]), ""
+    if name in ("bus_load", "bus_load_peak"):
+        v = info.get("bus_load") if name == "bus_load" else (info.get("bus_load_peak") or {}).get("load")
+        if v is not None:
+            return float(v) * 100.0, ""
+        if not info.get("timed"):
+            return None, NO_TIMES
+        if info.get("timing_unsupported"):
+            return None, str(info["timing_unsupported"])
+        return None, ("the capture is shorter than one second" if name == "bus_load_peak"
+                      else "the capture lasts no time")
+    if name.startswith("latency_"):
+        lat = info.get("latency_s", {})
+        v = lat.get(name.split("_", 1)[1])
+        if not info.get("timed"):
+            return None, NO_TIMES
+        if lat.get("absent"):  # some or all replies have no latency: a percentile over the rest is not true
+            return None, str(lat["absent"])
+        if v is None:
+            return None, "no reply was paired with its request"
+        return float(v) * 1e3, ""
+    raise AssertionError(f"figure {name!r} has no measure")  # every name of FIGURES is measured above
+
+
+def _scaled(value: float, op: Operand, shown: str | None) -> float:
+    """``value`` (in ``op``'s unit) in the unit ``shown``."""
+    if shown is None or op.unit is None or shown == op.unit:
+        return value
+    return value * UNITS[op.unit][1] / UNITS[shown][1]
+
+
+def _fmt(v: float, keeps: Callable[[float], bool] | None = None) -> str:
+    """``v`` short, yet with the digits that keep its comparison's outcome (``keeps(shown) -> bool``)."""
+    if math.isfinite(v) and v == int(v) and abs(v) < 1e15:
+        return str(int(v))
+    for digits in range(3, 17):
+        s = f"{v:.{digits}g}"
+        if keeps is None or keeps(float(s)):
+            return s
+    return repr(v)
+
+
+def _compare(ctx: _Context, c: Comparison, sid: int | None) -> tuple[str, str]:
+    """(status, text) of one comparison for servo ``sid`` (None: the bus)."""
+    left, why = _measure(ctx, c.left, sid)
+    if left is None:
+        return NOT_CHECKABLE, f"{c.left.text} not checkable: {why}"
+    test = _TEST[c.op]
+    if c.right.is_figure:
+        right, why = _measure(ctx, c.right, sid)
+        if right is None:
+            return NOT_CHECKABLE, f"{c.right.text} not checkable: {why}"
+        limit_text = f"{c.right.text} {_fmt(right)}" + (f" {c.right.unit}" if c.right.unit else "")
+        shown = c.left.unit
+        if c.right.unit in UNITS and shown in UNITS:
+            right = _scaled(right, c.right, shown)
+    else:
+        assert c.right.value is not None
+        right = c.right.value
+        shown = c.right.unit                # the unit the check was written in (None: the figure's own)
+        if shown in UNITS and c.left.unit in UNITS:
+            left = _scaled(left, c.left, shown)
+        limit_text = c.right.text
+    ok = test(left, right)
+    op = c.op if ok else _NEGATED[c.op]
+    value = _fmt(left, lambda x: test(x, right) == ok)
+    unit = f" {shown}" if shown else ""
+    return (PASS if ok else FAIL), f"{c.left.text} {value}{unit} {op} {limit_text}"
+
+
+def _judge(ctx: _Context, check: Check, sid: int | None) -> Result:
+    who = f"ID {sid}: " if sid is not None else ""
+    outcomes = [_compare(ctx, c, sid) for c in check.comparisons]
+    failed = [t for s, t in outcomes if s == FAIL]
+    unknown = [t for s, t in outcomes if s == NOT_CHECKABLE]
+    if failed:
+        return Result(check, sid, FAIL, who + "; ".join(failed + unknown))
+    if unknown:
+        return Result(check, sid, NOT_CHECKABLE, who + "; ".join(unknown))
+    return Result(check, sid, PASS, who + "; ".join(t for _, t in outcomes))
+
+
+def evaluate(checks: Iterable[Check], info: Mapping[str, Any], rules: Collection[str] | None = None) -> list[Result]:
+    """Each check against ``info`` (``CaptureStats.as_dict()``: ``info --format json``'s figures), per servo
+    of its ``for`` (or once for the bus): pass, fail or not checkable. ``rules``: the codes of the lint rules
+    that ran (None: the capture was not linted; the figures drawn from findings are then not checkable)."""
+    ctx = _Context(info, None if rules is None else frozenset(rules))
+    seen = set(ctx.servo_ids())
+    out: list[Result] = []
+    for check in checks:
+        if check.ids is None:
+            out.append(_judge(ctx, check, None))
+            continue
+        ids = sorted(seen) if check.ids == EACH else list(check.ids)
+        if not ids:
+            out.append(Result(check, None, NOT_CHECKABLE, "no servo seen"))
+        for sid in ids:
+            if sid not in seen:
+                out.append(Result(check, sid, NOT_CHECKABLE, f"ID {sid} not seen"))
+            else:
+                out.append(_judge(ctx, check, sid))
+    return out
+
+
+def findings(results: Iterable[Result], offset: int, t: float | None = None) -> list[Finding]:
+    """The results that are not passes as lint findings at the end of input (``offset``: the capture's byte
+    count; ``t``: its last time, or None): a failure at the check's severity, a not-checkable result at its
+    ``not_checkable`` severity with a message that starts "not checkable: "."""
+    out = []
+    for r in results:
+        if r.status == PASS:
+            continue
+        c = r.check
+        if r.status == FAIL:
+            out.append(Finding(c.code, c.name, c.severity, r.message, offset, t, r.id))
+        else:
+            out.append(Finding(c.code, c.name, c.unknown_severity, f"not checkable: {r.message}", offset, t, r.id))
+    return out
+
+
+def figures_doc() -> list[tuple[str, str, str, str]]:
+    """(name, where it applies, unit, what it is) of every name of the language, for docs/checks.md."""
+    rows = [(f.name, " and ".join(f.scopes), f.unit or "count", f.doc) for f in _FIGURES]
+    for reg in REGISTERS:
+        rows.append((f"min({reg}), max({reg})", "servo and bus", register_unit(reg) or "-",
+                     f"the range of {reg} the {'writes' if reg in WRITTEN else 'returns'} showed"))
+    return rows
