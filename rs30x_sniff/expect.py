@@ -25,7 +25,7 @@ from difflib import get_close_matches
 from typing import Any, Callable, Collection, Iterable, Mapping
 
 from .lint.config import ConfigError
-from .lint.registry import SEVERITIES, Finding
+from .lint.registry import SEVERITIES, Finding, Rule
 from .protocol.memmap import ModelError, default_registry
 from .protocol.wire import RETURN_FLAG_BITS
 from .sinks.health import PRESENT, WRITTEN
@@ -424,6 +424,26 @@ def load_checks(entries: Any, where: str) -> list[Check]:
         codes[code], names[name] = i, i
         out.append(Check(code, name, severity, src, tuple(comparisons), ids, text("doc", False), unknown, i))
     return out
+
+
+def _checked_at_the_end(lint: Any) -> None:
+    """A figure check's rule does nothing in the linter: the check is measured once the figures are in."""
+
+
+def as_rule(check: Check) -> Rule:
+    """``check`` as a rule of the registry (a user rule: code U and three digits), so that rule selection,
+    severities, the reports' rule lists and ``rules`` know it; its findings come from :func:`findings`, not
+    from the linter (its one kind, "close", does nothing)."""
+    scope = "the whole bus" if check.ids is None else "every servo seen" if check.ids == EACH else \
+        "IDs " + ", ".join(map(str, check.ids))
+    summary = f"Figure check: {check.text} ({scope})."
+    doc = (f"## What it does\nChecks `{check.text}` over the capture's figures (those of `info`) for {scope}, "
+           f"at the end of input (docs/checks.md). A figure the capture cannot give is reported as not "
+           f"checkable, at severity {check.unknown_severity}.\n")
+    if check.doc:
+        doc += f"\n## Why it matters\n{check.doc}\n"
+    return Rule(check.code, check.name, check.severity, summary, doc, ("close",), _checked_at_the_end,
+                column="silent")
 
 
 def matches(check: Check, selector: str) -> bool:

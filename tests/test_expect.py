@@ -337,3 +337,15 @@ def test_a_bad_entry_is_a_configuration_error():
     from rs30x_sniff.lint.config import ConfigError
     with pytest.raises(ConfigError):
         load_checks([{"code": "U1"}], "t.toml")
+
+
+def test_a_check_as_a_rule_of_the_registry():
+    from rs30x_sniff.expect import as_rule
+    (c,) = load_checks([{"code": "U101", "name": "legs-polled-fast", "check": "poll_hz >= 5", "for": "id:1-6",
+                         "severity": "warning", "doc": "The gait needs fresh positions."}], "t.toml")
+    r = as_rule(c)
+    assert (r.code, r.name, r.severity, r.kinds, r.column) == ("U101", "legs-polled-fast", "warning", ("close",),
+                                                                "silent")
+    assert r.summary == "Figure check: poll_hz >= 5 (IDs 1, 2, 3, 4, 5, 6)."
+    assert "The gait needs fresh positions." in r.doc
+    assert r.check(None) is None
