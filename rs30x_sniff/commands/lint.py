@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..sources.captures import CaptureError
+from ..lint.baseline import Baseline, BaselineError, BaselineReport
 from ..lint.config import FAIL_ON, FORMATS
 from ..lint.linter import Linter
 from ..lint.report import FileResult, fails, write_report
@@ -43,6 +44,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_output_options(p)
     p.add_argument("--allow-empty", action="store_true",
                    help="an input that holds no data is a warning, not an error (exit 2)")
+    p.add_argument("--baseline", metavar="FILE",
+                   help="fail only on findings FILE does not hold (written by --write-baseline); the report "
+                        "counts the findings it absorbed and lists its entries no longer seen")
+    p.add_argument("--write-baseline", metavar="FILE",
+                   help="record the findings in FILE (- for stdout) instead of reporting them, for a later "
+                        "--baseline; exit 0 unless an input cannot be read")
     p.set_defaults(run=run)
 
 
@@ -109,6 +116,7 @@ def _size(path: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     check_positive("--duration", args.duration)
+    baseline = _baseline_options(args)
     if args.output:
         check_output(args.output, args.force, tuple(args.inputs))  # before the work, not after
     config = config_layer(args)
@@ -147,13 +155,63 @@ def run(args: argparse.Namespace) -> int:
             progress_ctx.stop()
     errors = [r.error for r in results if r.error]
     readable = [r for r in results if not r.error]
+    if args.write_baseline:
+        return _write_baseline(args, results, errors)
+    report = None
+    if baseline is not None:
+        report = apply_baseline(baseline, readable)
     # After an input error, no report file: it would read as a clean pass of every input. On stdout the
     # readable files are still reported (the unreadable ones are not counted), and the exit code is 2.
     if readable and not (errors and args.output):
         with output_stream(args.output, force=args.force, inputs=tuple(args.inputs)) as out:
-            write_report(fmt, readable, out, cfg.fail_on)
+            write_report(fmt, readable, out, cfg.fail_on, baseline=report)
     for e in errors:
         print(f"rs30x-sniff: error: {e}", file=sys.stderr)
     if errors:
         return 2
     return 1 if any(fails(f, cfg.fail_on) for r in results for f in r.findings) else 0
+
+
+def _baseline_options(args: argparse.Namespace) -> Baseline | None:
+    """Check --baseline and --write-baseline before the work: the baseline read, the file to write free."""
+    if args.baseline and args.write_baseline:
+        raise CliError("--baseline and --write-baseline: give one (--write-baseline records every finding anew)")
+    if args.write_baseline:
+        if args.output:
+            raise CliError("-o and --write-baseline: the baseline is the output (no report is written)")
+        check_output(args.write_baseline, args.force, tuple(args.inputs))
+        return None
+    if not args.baseline:
+        return None
+    try:
+        return Baseline.load(args.baseline)
+    except BaselineError as e:
+        raise CliError(str(e)) from None
+
+
+def apply_baseline(baseline: Baseline, results: list[FileResult]) -> BaselineReport:
+    """Move each result's findings the baseline holds to its ``absorbed``; what the baseline did."""
+    absorbed = []
+    for r in results:
+        r.findings, r.absorbed = baseline.split(r.findings)
+        absorbed += r.absorbed
+    return BaselineReport(baseline.path or "", len(absorbed), baseline.stale(absorbed))
+
+
+def _write_baseline(args: argparse.Namespace, results: list[FileResult], errors: list[str]) -> int:
+    """--write-baseline: every input read, or nothing written (a baseline missing a file's findings would
+    pass them later)."""
+    for e in errors:
+        print(f"rs30x-sniff: error: {e}", file=sys.stderr)
+    if errors:
+        print(f"rs30x-sniff: error: {args.write_baseline}: baseline not written", file=sys.stderr)
+        return 2
+    findings = [f for r in results for f in r.findings]
+    baseline = Baseline.of(findings)
+    with output_stream(args.write_baseline, force=args.force, inputs=tuple(args.inputs)) as out:
+        baseline.dump(out)
+    where = "stdout" if args.write_baseline == "-" else args.write_baseline
+    n, k = len(findings), len(baseline.entries)
+    print(f"rs30x-sniff: baseline: {k} entr{'ies' if k != 1 else 'y'} ({n} finding{'s' if n != 1 else ''}) "
+          f"to {where}", file=sys.stderr)
+    return 0

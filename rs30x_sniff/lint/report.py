@@ -8,11 +8,14 @@ import xml.etree.ElementTree as ET
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Iterable
+from typing import IO, TYPE_CHECKING, Iterable
 from urllib.parse import quote
 
 from ..version import __version__
 from .registry import RULES, SEVERITY_RANK, Finding
+
+if TYPE_CHECKING:
+    from .baseline import BaselineReport
 
 SARIF_SCHEMA = "https://json.schemastore.org/sarif-2.1.0.json"
 _SARIF_LEVEL = {"error": "error", "warning": "warning", "info": "note"}
@@ -34,6 +37,9 @@ class FileResult:
     locations: dict[int, tuple[int, int]] = field(default_factory=dict)
     # The capture's format as it was read ("bin", "hex", "mcap", ...); None: told by the path's extension.
     format: str | None = None
+    # With --baseline: the findings the baseline held, moved out of ``findings`` (which keeps the new ones,
+    # the only ones that count toward the exit code); SARIF still lists them, as "unchanged".
+    absorbed: list[Finding] = field(default_factory=list)
 
     def where(self, f: Finding) -> str:
         """``FILE:LINE:COL`` in a text capture, else ``FILE:OFFSET``."""
@@ -54,8 +60,10 @@ def _t(f: Finding) -> str:
     return f" (t={f.t:.6f})" if f.t is not None else ""
 
 
-def write_text(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
-    """``FILE:OFFSET (t=SECONDS) CODE name: message``, the packet under it, then a summary table."""
+def write_text(results: list[FileResult], out: IO[str], fail_on: str = "error",
+               baseline: BaselineReport | None = None) -> None:
+    """``FILE:OFFSET (t=SECONDS) CODE name: message``, the packet under it, then a summary table (and,
+    with a baseline, how many findings it absorbed and its entries no longer seen)."""
     counts: Counter = Counter()
     for r in results:
         for f in _sorted(r):
@@ -84,6 +92,22 @@ def write_text(results: list[FileResult], out: IO[str], fail_on: str = "error") 
     failing = sum(1 for r in results for f in r.findings if fails(f, fail_on))
     if failing:
         out.write(f"{failing} finding{'s' if failing != 1 else ''} at or above --fail-on {fail_on}.\n")
+    if baseline is not None:
+        write_baseline_summary(baseline, out)
+
+
+def write_baseline_summary(baseline: BaselineReport, out: IO[str]) -> None:
+    """The absorbed count and the stale entries, in words."""
+    n = baseline.absorbed
+    out.write(f"{n} finding{'s' if n != 1 else ''} absorbed by the baseline {baseline.path}"
+              f"{' (not counted above)' if n else ''}.\n")
+    if baseline.stale:
+        k = len(baseline.stale)
+        out.write(f"{k} baseline entr{'ies' if k != 1 else 'y'} no longer seen (stale; --write-baseline "
+                  f"to drop {'them' if k != 1 else 'it'}):\n")
+        for e in baseline.stale:
+            out.write(f"    {e.code} {'ID ' + str(e.id) if e.id is not None else 'bus'}: {e.message} "
+                      f"({e.count} before)\n")
 
 
 def _severity(results: list[FileResult], code: str) -> str:
@@ -98,12 +122,20 @@ def json_findings(results: list[FileResult]) -> list[dict]:
     return [{"file": r.path, **f.as_json()} for r in results for f in _sorted(r)]
 
 
-def write_json(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
+def write_json(results: list[FileResult], out: IO[str], fail_on: str = "error",
+               baseline: BaselineReport | None = None) -> None:
+    """A list of the findings; with a baseline, an object: ``findings`` (the new ones) and ``baseline``
+    (its file, the count it absorbed, its stale entries)."""
+    if baseline is not None:
+        json.dump({"findings": json_findings(results), "baseline": baseline.as_json()}, out, indent=1)
+        out.write("\n")
+        return
     json.dump(json_findings(results), out, indent=1)
     out.write("\n")
 
 
-def write_junit(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
+def write_junit(results: list[FileResult], out: IO[str], fail_on: str = "error",
+                baseline: BaselineReport | None = None) -> None:
     """One test case per rule and file; a failure for each rule with findings at or above --fail-on."""
     suites = ET.Element("testsuites", name="rs30x-sniff lint")
     total_tests = total_fail = 0
@@ -149,8 +181,10 @@ def write_junit(results: list[FileResult], out: IO[str], fail_on: str = "error")
     out.write("\n")
 
 
-def sarif_log(results: list[FileResult]) -> dict:
-    """A SARIF 2.1.0 log: the registry as the driver's rules, one result per finding."""
+def sarif_log(results: list[FileResult], baseline: BaselineReport | None = None) -> dict:
+    """A SARIF 2.1.0 log: the registry as the driver's rules, one result per finding. With a baseline,
+    each result has its ``baselineState`` (SARIF 2.1.0 3.27.24): "new", or "unchanged" for a finding the
+    baseline absorbed; the absorbed count and the stale entries go in the run's property bag."""
     rules = list(RULES)
     index = {r.code: k for k, r in enumerate(rules)}
     driver = {
@@ -169,7 +203,10 @@ def sarif_log(results: list[FileResult]) -> dict:
     }
     out = []
     for res in results:
-        for f in _sorted(res):
+        found = [(f, "new") for f in res.findings]
+        if baseline is not None:
+            found += [(f, "unchanged") for f in res.absorbed]
+        for f, state in sorted(found, key=lambda fs: (fs[0].offset, fs[0].code)):
             props = {"t": f.t, "servoId": f.id, "severity": f.severity}
             # A finding's offset is in the decoded byte stream (decode's @N), kept as a property: it is
             # a position in the file only for a binary capture.
@@ -178,21 +215,26 @@ def sarif_log(results: list[FileResult]) -> dict:
             region = _region(res, f)
             if region:
                 physical["region"] = region
-            out.append({
+            result = {
                 "ruleId": f.code,
                 "ruleIndex": index[f.code],
                 "level": _SARIF_LEVEL[f.severity],
                 "message": {"text": f.message},
                 "locations": [{"physicalLocation": physical}],
                 "properties": props,
-            })
+            }
+            if baseline is not None:
+                result["baselineState"] = state
+            out.append(result)
     invocation = {"executionSuccessful": not any(r.error for r in results)}
     notes = [{"level": "error", "message": {"text": r.error}} for r in results if r.error]
     if notes:
         invocation["toolExecutionNotifications"] = notes
-    return {"$schema": SARIF_SCHEMA, "version": "2.1.0",
-            "runs": [{"tool": {"driver": driver}, "results": out, "invocations": [invocation],
-                      "artifacts": [{"location": {"uri": sarif_uri(r.path)}} for r in results]}]}
+    run = {"tool": {"driver": driver}, "results": out, "invocations": [invocation],
+           "artifacts": [{"location": {"uri": sarif_uri(r.path)}} for r in results]}
+    if baseline is not None:
+        run["properties"] = {"baseline": baseline.as_json()}
+    return {"$schema": SARIF_SCHEMA, "version": "2.1.0", "runs": [run]}
 
 
 _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")  # a pyserial URL (socket://host:port) is a URI already
@@ -224,8 +266,9 @@ def _region(res: FileResult, f: Finding) -> dict | None:
     return None
 
 
-def write_sarif(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
-    json.dump(sarif_log(results), out, indent=1)
+def write_sarif(results: list[FileResult], out: IO[str], fail_on: str = "error",
+                baseline: BaselineReport | None = None) -> None:
+    json.dump(sarif_log(results, baseline), out, indent=1)
     out.write("\n")
 
 
@@ -234,7 +277,8 @@ def _gh_escape(s: str, prop: bool = False) -> str:
     return s.replace(":", "%3A").replace(",", "%2C") if prop else s
 
 
-def write_github(results: list[FileResult], out: IO[str], fail_on: str = "error") -> None:
+def write_github(results: list[FileResult], out: IO[str], fail_on: str = "error",
+                 baseline: BaselineReport | None = None) -> None:
     """GitHub Actions workflow commands: ``::error file=F,title=CODE name::message``."""
     for r in results:
         if r.error:
@@ -251,5 +295,8 @@ WRITERS = {"text": write_text, "json": write_json, "junit": write_junit, "sarif"
            "github": write_github}
 
 
-def write_report(fmt: str, results: Iterable[FileResult], out: IO[str], fail_on: str = "error") -> None:
-    WRITERS[fmt](list(results), out, fail_on)
+def write_report(fmt: str, results: Iterable[FileResult], out: IO[str], fail_on: str = "error",
+                 baseline: BaselineReport | None = None) -> None:
+    """Write the report; with a baseline, ``results`` hold only the new findings in ``findings`` (the
+    absorbed ones in ``absorbed``), and the text, json and sarif reports say what the baseline did."""
+    WRITERS[fmt](list(results), out, fail_on, baseline=baseline)
