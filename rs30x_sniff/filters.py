@@ -8,9 +8,13 @@ import re
 from dataclasses import dataclass
 from typing import Any, Callable
 
+import numpy as np
+
+from .decode.frame_runs import LONG, RETURN, SHORT
 from .decode.pairing import Record
 from .protocol.events import LongPacket, ReturnPacket, ShortPacket
 from .protocol.memmap import Model, ModelRegistry, Register, default_registry
+from .protocol.wire import AT_DATA, VID_SIZE
 from .render.records import direction, kind_word, summary
 
 SEVERITIES = ("info", "warning", "error")
@@ -38,6 +42,11 @@ class FilterError(ValueError):
 Predicate = Callable[[Record], bool]
 _UNSEEN = object()
 FindingPredicate = Callable[[Any], bool]
+# A term's column form: (maybe, surely) over a Block's rows (rs30x_sniff.decode.blocks), two boolean arrays:
+# the rows whose records the term may match (never missing one), and those it surely matches. A term
+# without one is read as maybe everywhere, surely nowhere. The predicates carry it as ``.column``, with
+# ``.kinds`` (the event kinds a record it matches can have; absent: any) and ``.timed`` (it reads times).
+ColumnTerm = Callable[[Any], "tuple[np.ndarray, np.ndarray]"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +59,11 @@ class Filter:
     # The terms as tests of a lint finding shown apart from its record; None when a term cannot judge
     # one (kind, reg, latency ask for packets of a sort, and such a finding is not one).
     finding_terms: tuple[FindingPredicate, ...] | None = ()
+    # The event kinds a matching record can have (None: any), whether a term reads times (latency, t),
+    # and which terms are ``sev:`` (they read the findings a record has been given).
+    kinds: frozenset[str] | None = None
+    uses_time: bool = False
+    uses_findings: bool = False
 
     def matches(self, rec: Record) -> bool:
         for term in self.terms:
@@ -70,6 +84,16 @@ class Filter:
     def __call__(self, rec: Record) -> bool:
         return self.matches(rec)
 
+    def may_match(self, blk: Any) -> np.ndarray:
+        """The column form: per row of Block ``blk``, whether its record may match (True for every row
+        that :meth:`matches`; rows it cannot rule out on the columns count as may-match too)."""
+        maybe = np.ones(len(blk), dtype=bool)
+        for term in self.terms:
+            col = getattr(term, "column", None)
+            if col is not None:
+                maybe &= col(blk)[0]
+        return maybe
+
 
 def parse_filter(text: str, registry: ModelRegistry | None = None) -> Filter | None:
     """Parse ``text``; None for an empty filter (show everything). Raises FilterError."""
@@ -80,7 +104,8 @@ def parse_filter(text: str, registry: ModelRegistry | None = None) -> Filter | N
     known = _register_names(registry)
     terms: list[Predicate] = []
     finding_terms: list[FindingPredicate] | None = []
-    uses_text = False
+    uses_text = uses_time = uses_findings = False
+    kinds: frozenset[str] | None = None
     for tok in _TOKEN.finditer(text):
         quoted, word = tok["quoted"] is not None, tok["quoted"] if tok["quoted"] is not None else tok["word"]
         negate = bool(tok["neg"])
@@ -110,19 +135,64 @@ def parse_filter(text: str, registry: ModelRegistry | None = None) -> Filter | N
         else:
             pred, fpred = _text(word)
             uses_text = True
+        uses_time = uses_time or getattr(pred, "timed", False)
+        uses_findings = uses_findings or key == "sev"
         if negate:
             pred = _negate(pred)
             fpred = None if fpred is None else _negate(fpred)
+        else:
+            k = getattr(pred, "kinds", None)
+            if k is not None:
+                kinds = k if kinds is None else kinds & k
         terms.append(pred)
         if fpred is None:
             finding_terms = None
         elif finding_terms is not None:
             finding_terms.append(fpred)
-    return Filter(text, tuple(terms), uses_text, None if finding_terms is None else tuple(finding_terms))
+    return Filter(text, tuple(terms), uses_text, None if finding_terms is None else tuple(finding_terms),
+                  kinds, uses_time, uses_findings)
 
 
 def _negate(pred: Callable[[Any], bool]) -> Callable[[Any], bool]:
-    return lambda x: not pred(x)
+    def negated(x: Any) -> bool:
+        return not pred(x)
+
+    col = getattr(pred, "column", None)
+    if col is not None:
+        def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
+            maybe, surely = col(blk)
+            return ~surely, ~maybe
+        negated.column = column  # type: ignore[attr-defined]
+    negated.timed = getattr(pred, "timed", False)  # type: ignore[attr-defined]
+    return negated
+
+
+def _with(pred: Callable[[Any], bool], column: ColumnTerm | None = None, kinds: Any = None,
+          timed: bool = False) -> Callable[[Any], bool]:
+    """``pred`` with its column form, the event kinds it can match and whether it reads times."""
+    if column is not None:
+        pred.column = column  # type: ignore[attr-defined]
+    if kinds is not None:
+        pred.kinds = frozenset(kinds)  # type: ignore[attr-defined]
+    pred.timed = timed  # type: ignore[attr-defined]
+    return pred
+
+
+# ---- column forms: what a Block's columns tell of its rows ---------------------------------------
+def _long_records(blk: Any):
+    """Per distinct (record size, count) of the Block's long packets: (rows, count, size, where each
+    row's first record starts in the run's bytes)."""
+    c = blk.cols
+    rows = np.flatnonzero(c["kind"] == LONG)
+    if not rows.size:
+        return
+    size = c["length"][rows].astype(np.int64)
+    count = c["count"][rows].astype(np.int64)
+    key = size * 256 + count
+    starts = blk.run.starts[blk.lo:blk.hi]
+    for k in np.unique(key).tolist():
+        r = rows[key == k]
+        yield r, k % 256, k // 256, starts[r] + AT_DATA
 
 
 def _register_names(registry: ModelRegistry) -> frozenset[str]:
@@ -209,7 +279,22 @@ def _ids(value: str) -> tuple[Predicate, FindingPredicate]:
             return 0 in frozen or any(r.vid in frozen for r in ev.records)
         return rec.id in frozen
 
-    return match, lambda f: f.id in frozen
+    table = np.zeros(256, dtype=bool)
+    table[sorted(frozen)] = True
+
+    def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
+        c = blk.cols
+        out = table[c["id"]]
+        if 0 not in frozen:  # else every long packet matches by its own ID 0
+            a = blk.run.bytes_array
+            for rows, count, size, at in _long_records(blk):
+                hit = np.zeros(len(rows), dtype=bool)
+                for k in range(count):
+                    hit |= table[a[at + k * size]]
+                out[rows] = hit
+        return out, out
+
+    return _with(match, column), lambda f: f.id in frozen
 
 
 # ---- kind -------------------------------------------------------------------------------------
@@ -232,7 +317,20 @@ def _kinds(value: str) -> Predicate:
             return True
         return kind_word(rec).split("(")[0].lower() in ops
 
-    return match
+    # What a short packet does (write, read, ...) is not in the columns: with such a word, any short may match.
+    words = ops - {"request", "reply"}
+    event_kinds = set(kinds)
+    if "request" in ops:
+        event_kinds |= {"short", "long"}
+    if "reply" in ops:
+        event_kinds |= {"return", "ack", "nack"}
+    codes = [code for code, k in ((SHORT, "short"), (LONG, "long"), (RETURN, "return")) if k in event_kinds]
+
+    def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
+        surely = np.isin(blk.cols["kind"], codes)
+        return (surely | (blk.cols["kind"] == SHORT) if words else surely), surely
+
+    return _with(match, column, event_kinds | {"short"} if words else event_kinds)
 
 
 # ---- reg --------------------------------------------------------------------------------------
@@ -272,7 +370,42 @@ def _registers(value: str, registry: ModelRegistry) -> Predicate:
             return ev.length > 1 and covers(model, ev.address, ev.length - 1)
         return False
 
-    return match
+    def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
+        # A short packet may ask to read the register (its read range is in its flags): it may match.
+        c = blk.cols
+        kind = c["kind"]
+        surely = np.zeros(len(kind), dtype=bool)
+        address = c["address"].astype(np.int64)
+        size = np.where(kind == LONG, c["length"].astype(np.int64) - VID_SIZE, c["data_len"].astype(np.int64))
+        for model, rows in _rows_by_model(blk, np.flatnonzero(kind != SHORT)):
+            if model is None:
+                continue
+            for n in wanted:
+                try:
+                    reg = model.register(n)
+                except KeyError:
+                    continue
+                a, ln = address[rows], size[rows]
+                surely[rows] |= (ln > 0) & (a < reg.address + reg.size) & (reg.address < a + ln)
+        return surely | (kind == SHORT), surely
+
+    return _with(match, column, ("short", "long", "return"))
+
+
+def _rows_by_model(blk: Any, rows: np.ndarray):
+    """``rows`` of Block ``blk`` split by the model their records carry: a short packet's and a return's
+    is its servo's, a long packet's the Block's default."""
+    kind, sid = blk.cols["kind"][rows], blk.cols["id"][rows]
+    is_long = kind == LONG
+    if is_long.any():
+        yield blk.default, rows[is_long]
+    rows, sid = rows[~is_long], sid[~is_long]
+    by: dict[int, tuple[Any, list[int]]] = {}
+    for s in np.unique(sid).tolist():
+        model = blk.models.get(s)
+        by.setdefault(id(model), (model, []))[1].append(s)
+    for model, ids in by.values():
+        yield model, (rows if len(by) == 1 else rows[np.isin(sid, ids)])
 
 
 def _raw_test(term: str, reg: Register, op: str, value: str) -> Callable[[int], bool]:
@@ -313,6 +446,7 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
     # One compiled check per model: (address, size, signed, test of the raw value). The register's
     # bytes are read straight from the packet, so a scan over a long history decodes nothing else.
     tables: list[tuple[Register, Any]] = []
+    arrays: dict[Model, tuple[int, int, np.ndarray]] = {}  # the tables as arrays, for the column form
 
     def compile_for(model: Model):
         try:
@@ -332,6 +466,7 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
             half = 1 << (bits - 1)
             table = bytes(bool(test(u - (1 << bits) if reg.signed and u >= half else u)) for u in range(1 << bits))
             tables.append((reg, table))
+        arrays[model] = (reg.address, reg.size, np.frombuffer(table, dtype=bool))
         return reg.address, reg.size, False, table.__getitem__
 
     specs: dict[Model, Any] = {}  # by model (a Model hashes as itself)
@@ -388,7 +523,54 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
             return False
         return any(carries(spec_for(m), address, r.data) for m, r in zip(vm, ev.records))
 
-    return match
+    def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
+        # The register's raw value read from the run's bytes and judged by the model's table; a model
+        # whose test has no table (a register wider than 2 bytes) leaves its rows may-match.
+        c = blk.cols
+        kind = c["kind"]
+        n = len(kind)
+        maybe, surely = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        a = blk.run.bytes_array
+        starts = blk.run.starts[blk.lo:blk.hi]
+        address = c["address"].astype(np.int64)
+        dlen = c["data_len"].astype(np.int64)
+
+        def judge(at: np.ndarray, size: int, table: np.ndarray) -> np.ndarray:
+            raw = a[at].astype(np.int64)
+            if size == 2:
+                raw |= a[at + 1].astype(np.int64) << 8
+            return table[raw]
+
+        for model, rows in _rows_by_model(blk, np.arange(n)):
+            spec = None if model is None else spec_for(model)
+            if spec is None:
+                continue
+            arr = arrays.get(model)
+            is_long = kind[rows] == LONG
+            if arr is None or (is_long.any() and blk.vid_models is not None):
+                maybe[rows] = True  # no table to read columns by, or servos of mixed models: ask the records
+                continue
+            reg_address, size, table = arr
+            start = reg_address - address[rows]
+            if not is_long[0]:
+                ok = (start >= 0) & (start + size <= dlen[rows])
+                r = rows[ok]
+                hit = judge(starts[r] + AT_DATA + start[ok], size, table)
+                maybe[r] = surely[r] = hit
+                continue
+            for lrows, count, rsize, at in _long_records(blk):
+                st = reg_address - address[lrows]
+                ok = (st >= 0) & (st + size <= rsize - VID_SIZE)
+                if not ok.any():
+                    continue
+                lr, at, st = lrows[ok], at[ok], st[ok]
+                hit = np.zeros(len(lr), dtype=bool)
+                for k in range(count):
+                    hit |= judge(at + k * rsize + VID_SIZE + st, size, table)
+                maybe[lr] = surely[lr] = hit
+        return maybe, surely
+
+    return _with(match, column, ("short", "long", "return"))
 
 
 # ---- latency ----------------------------------------------------------------------------------
@@ -403,7 +585,26 @@ def _latency(op: str, value: str) -> Predicate:
         lat = rec.latency
         return lat is not None and test(lat)
 
-    return match
+    def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
+        lat = blk.latencies()  # NaN but for the replies; None: no times, no latency
+        if lat is None:
+            none = np.zeros(len(blk), dtype=bool)
+            return none, none
+        return _column_test(op, lat, limit)
+
+    limit = _duration(term, value)
+    return _with(match, column, timed=True)
+
+
+def _column_test(op: str, values: np.ndarray, x: float) -> tuple[np.ndarray, np.ndarray]:
+    """(maybe, surely) of :func:`_numeric_test` on a column of floats (NaN: no value). The same comparison
+    for an order; "=" and "!=" (a tolerance math.isclose sets) say may-match wherever there is a value."""
+    present = ~np.isnan(values)
+    if op in ("=", "!="):
+        return present, np.zeros(len(values), dtype=bool)
+    cmp = {">": np.greater, ">=": np.greater_equal, "<": np.less, "<=": np.less_equal}[op]
+    out = present & cmp(np.where(present, values, 0.0), x)
+    return out, out
 
 
 # ---- t ----------------------------------------------------------------------------------------
@@ -425,7 +626,17 @@ def _time(op: str, value: str) -> tuple[Predicate, FindingPredicate]:
     else:
         test = _numeric_test(op, _duration(term, value))  # type: ignore[assignment]
 
-    return (lambda rec: test(rec.event.t_start)), (lambda f: test(f.t))
+    def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
+        t0 = blk.t0
+        if t0 is None:
+            none = np.zeros(len(blk), dtype=bool)
+            return none, none
+        if op in (":", "="):
+            out = (t0 >= lo) & (t0 <= hi)
+            return out, out
+        return _column_test(op, t0, _duration(term, value))
+
+    return _with(lambda rec: test(rec.event.t_start), column, timed=True), (lambda f: test(f.t))
 
 
 # ---- sev --------------------------------------------------------------------------------------

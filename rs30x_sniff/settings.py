@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -12,12 +13,13 @@ from .decode.pairing import DEFAULT_REPLY_TIMEOUT
 from .decode.framing import DEFAULT_GAP_BYTES
 from .lint.config import FAIL_ON, FORMATS, ConfigError, LintConfig
 from .lint.config import resolve as resolve_rules
-from .lint.registry import SEVERITIES
+from .lint.registry import RULES, SEVERITIES
 from .protocol.memmap import ModelError, ModelRegistry, default_registry
 from .decode.decoder import DecodeOptions
 from .sources.timebase import TIME_REFS
 from .sources.timeunit import UNITS as TIME_UNITS
 from .protocol.wire import BAUD_RATES, DEFAULT_BAUD
+from .user_rules import compile_rules
 
 CONFIG_NAME = "rs30x-sniff.toml"
 TABLE = "tool.rs30x-sniff"
@@ -27,6 +29,7 @@ MAX_SERVO_ID = 127  # table 4.6 No. 4: IDs 1 to 127 (7FH); 0 is the long packet,
 DEFAULTS, CAPTURE, CONFIG, COMMAND_LINE = "defaults", "capture", "config", "command line"
 
 SettingsError = ConfigError  # one error type for a bad option or config value (exit code 2)
+_nothing = contextlib.nullcontext
 
 
 # ---- what a value may be: one check per key, the same for the command line and a config file ----
@@ -106,6 +109,11 @@ def _models(v: Any) -> str | None:
     return None if isinstance(v, dict) else "expected a table of ID = MODEL"
 
 
+def _rule_tables(v: Any) -> str | None:
+    # Each table is checked key by key when it is compiled (rs30x_sniff.user_rules).
+    return None if isinstance(v, list) and all(isinstance(t, dict) for t in v) else "expected [[rule]] tables"
+
+
 def _channel(v: Any) -> str | None:
     if isinstance(v, int) and not isinstance(v, bool):
         return None if 0 <= v <= MAX_CHANNEL else f"must be a channel name or an index from 0 to {MAX_CHANNEL}"
@@ -146,6 +154,7 @@ KEYS: dict[str, Key] = {
                             f"seconds a flash write takes (Q003; at most {MAX_SECONDS:g})"),
     "max_servos": Key(_at_most(MAX_SERVO_ID, _count), "max-servos",
                       f"servos one bus may carry (Q008; at most {MAX_SERVO_ID}, one per ID)"),
+    "rule": Key(_rule_tables, "[[rule]]", "the project's own lint rules (rs30x_sniff.user_rules); config files only"),
     "regress": Key(lambda v: None if isinstance(v, dict) else "expected a table of FIGURE = THRESHOLD", "regress",
                    "thresholds of `diff --fail-on-regress` (each checked by rs30x_sniff.compare)"),
 }
@@ -174,14 +183,20 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
         if problem:
             raise SettingsError(f"{_label(key, value, where)}: {problem}")
         out[key] = value
-    for key in ("select", "ignore"):
-        if key in out:
-            resolve_rules(out[key], key, where)
-    for k, level in out.get("severity", {}).items():
-        if level not in SEVERITIES:
-            name = f"--severity {k}={level}" if where == COMMAND_LINE else f"{where}: severity.{k}"
-            raise SettingsError(f"{name}: level must be one of {', '.join(SEVERITIES)}")
-        resolve_rules([k], "severity", where)
+    if "rule" in out:
+        if where == COMMAND_LINE:
+            raise SettingsError("user rules ([[rule]]) come from a config file only")
+        out["rule"] = compile_rules(out["rule"], where, reg)
+    # A config file's selections may name its own user rules: they are checked with those in effect.
+    with RULES.user_rules(out["rule"]) if "rule" in out else _nothing():
+        for key in ("select", "ignore"):
+            if key in out:
+                resolve_rules(out[key], key, where)
+        for k, level in out.get("severity", {}).items():
+            if level not in SEVERITIES:
+                name = f"--severity {k}={level}" if where == COMMAND_LINE else f"{where}: severity.{k}"
+                raise SettingsError(f"{name}: level must be one of {', '.join(SEVERITIES)}")
+            resolve_rules([k], "severity", where)
     try:
         if "model" in out:
             out["model"] = reg.get(out["model"]).name
@@ -275,6 +290,7 @@ class Settings:
     origin: Mapping[str, str] = field(default_factory=dict)
     config_path: str | None = None
     timing_unsupported: str | None = None          # why timing figures are left out (see above)
+    user_rules: tuple = ()                         # the config file's [[rule]]s (rs30x_sniff.lint.registry.Rule)
 
     def decode_options(self, registry: ModelRegistry | None = None) -> DecodeOptions:
         return DecodeOptions(baud=self.baud, default_model=self.default_model, models=dict(self.models),
@@ -291,8 +307,10 @@ class Settings:
             cfg.gap_bytes = self.gap_bytes
         cfg.source = self.config_path or "options"
         try:
-            cfg.enabled_codes()
-            cfg.severities()
+            # The user rules are in the registry while a command runs (commands.common.config_layer).
+            with RULES.user_rules(self.user_rules) if self.user_rules else _nothing():
+                cfg.enabled_codes()
+                cfg.severities()
         except ConfigError as e:
             raise SettingsError(str(e)) from None
         return cfg
@@ -366,4 +384,4 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
                     time_ref=values["time_ref"], time_unit=values["time_unit"], lint=lint,
                     channel=None if values["channel"] is None else str(values["channel"]).strip(),
                     report_format=fmt, origin=origin,
-                    config_path=where_conf if config else None)
+                    config_path=where_conf if config else None, user_rules=tuple(conf.get("rule", ())))

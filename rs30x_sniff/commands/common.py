@@ -18,6 +18,7 @@ from ..sources.timeunit import UNITS as TIME_UNITS
 from ..protocol.wire import DEFAULT_BAUD
 from ..sinks.pipeline import Sink
 from ..decode.decoder import Step
+from ..lint.registry import RULES
 from ..settings import COMMAND_LINE, DEFAULTS, Settings, SettingsError, find_config, load_config, resolve
 
 
@@ -127,7 +128,17 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def config_layer(args: argparse.Namespace) -> dict[str, Any]:
-    """The config file's settings (checked), or {} when there is none or --isolated."""
+    """The config file's settings (checked), or {} when there is none or --isolated.
+
+    Its user rules (``[[rule]]``) become the registry's for the rest of the command (none without a
+    config), so that every rule selection, report and listing takes them as it takes the built-in rules.
+    """
+    conf = _config_file(args)
+    RULES.set_user(conf.get("rule", ()))
+    return conf
+
+
+def _config_file(args: argparse.Namespace) -> dict[str, Any]:
     if getattr(args, "isolated", False):
         return {}
     path = getattr(args, "config", None) or find_config()

@@ -84,6 +84,10 @@ class Linter:
             if kind in on:
                 on[kind] = tuple(fn for fn in on[kind] if getattr(fn, "__self__", None) is not state)
 
+    def severity_of(self, code: str) -> str:
+        """The severity rule ``code`` reports at in this run (its own, or as --severity / the config set it)."""
+        return self._sev[code]
+
     def state_of(self, code: str) -> Any:
         """The state object of rule ``code`` in this run (None for a rule without state or not enabled)."""
         return self._states.get(code)

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import re
+from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 from ..decode.pairing import ANSWERED, PAIRED
 from ..protocol.events import FLAG, OFFSET, REASON, TRUNCATED
@@ -14,6 +15,11 @@ SEVERITIES = ("info", "warning", "error")
 SEVERITY_RANK = {"info": 1, "warning": 2, "error": 3}
 FAMILIES = {"F": "Framing", "P": "Packet structure", "M": "Memory map", "B": "Bus", "S": "Servo status",
             "Q": "Sequences"}
+# A project's own rules, from its configuration ([[rule]], rs30x_sniff.user_rules): U and three digits.
+USER_PREFIX, USER_FAMILY = "U", "User rules"
+USER_CODE = re.compile(r"U\d{3}")
+KEBAB = re.compile(r"[a-z0-9]+(-[a-z0-9]+)*")
+_ORDER = "FPMBSQ" + USER_PREFIX
 
 # What a rule's check is called with, by "kind":
 #   short, long, return, ack, nack, garbage  check(lint, rec, ev) for every intact record of that kind
@@ -136,7 +142,12 @@ class Rule:
 
     @property
     def family(self) -> str:
-        return FAMILIES[self.code[0]]
+        return FAMILIES.get(self.code[0]) or USER_FAMILY
+
+    @property
+    def is_user(self) -> bool:
+        """A rule of the project's configuration rather than one of the built-in rules."""
+        return self.code[0] == USER_PREFIX
 
     def section(self, title: str) -> str:
         """The text of one section of the doc ("What it does", "Why it matters", "Example")."""
@@ -151,7 +162,9 @@ class Rule:
 
 
 class Registry:
-    """Every rule, by code and by name, iterated in code order."""
+    """Every rule, by code and by name, iterated in code order: the built-in rules (:meth:`add`, by
+    ``@rule``) and the user rules of the configuration in effect (:meth:`add_user`, :meth:`set_user`,
+    :meth:`user_rules`), which every consumer of the registry then treats alike."""
 
     def __init__(self) -> None:
         self._by_code: dict[str, Rule] = {}
@@ -160,23 +173,74 @@ class Registry:
     def add(self, r: Rule) -> None:
         if not re.fullmatch(r"[FPMBSQ]\d{3}", r.code):
             raise ValueError(f"bad rule code {r.code!r}")
-        if not re.fullmatch(r"[a-z0-9]+(-[a-z0-9]+)*", r.name):
+        for part in ("What it does", "Why it matters", "Example"):
+            if not r.section(part):
+                raise ValueError(f"{r.code}: doc has no {part!r} section")
+        self._put(r)
+
+    def _put(self, r: Rule) -> None:
+        if not KEBAB.fullmatch(r.name):
             raise ValueError(f"{r.code}: name {r.name!r} is not kebab-case")
         if r.severity not in SEVERITIES:
             raise ValueError(f"{r.code}: bad severity {r.severity!r}")
         if r.code in self._by_code or r.name in self._by_name:
             raise ValueError(f"{r.code} {r.name}: declared twice")
-        for part in ("What it does", "Why it matters", "Example"):
-            if not r.section(part):
-                raise ValueError(f"{r.code}: doc has no {part!r} section")
         if r.column not in COLUMN_DECLARATIONS and not callable(r.column):
             raise ValueError(f"{r.code}: column={r.column!r}: declare the rule's column form (column='header', "
                              "'silent' or a function quiet(view), see rs30x_sniff.lint.registry)")
         self._by_code[r.code] = r
         self._by_name[r.name] = r
 
+    # ---- user rules ----------------------------------------------------------------------------
+    def add_user(self, r: Rule) -> None:
+        """Register a user rule (code U and three digits; its name clashes with no rule's)."""
+        if not USER_CODE.fullmatch(r.code):
+            raise ValueError(f"bad user rule code {r.code!r} (U and three digits)")
+        self._put(r)
+
+    def remove_user(self, code: str) -> None:
+        """Take user rule ``code`` out again (nothing if it is not there; never a built-in rule)."""
+        r = self._by_code.get(code)
+        if r is not None and r.is_user:
+            del self._by_code[code]
+            del self._by_name[r.name]
+
+    def user(self) -> list[Rule]:
+        """The user rules in effect, in code order."""
+        return [r for r in self if r.is_user]
+
+    def builtin(self) -> list[Rule]:
+        """The built-in rules, in code order (what docs/rules.md lists)."""
+        return [r for r in self if not r.is_user]
+
+    def set_user(self, rules: Iterable[Rule]) -> None:
+        """Make ``rules`` the user rules in effect, in place of any before (all or none: a rule that cannot
+        register leaves the ones before in place)."""
+        before = self.user()
+        for r in before:
+            self.remove_user(r.code)
+        try:
+            for r in rules:
+                self.add_user(r)
+        except ValueError:
+            for r in self.user():
+                self.remove_user(r.code)
+            for r in before:
+                self.add_user(r)
+            raise
+
+    @contextmanager
+    def user_rules(self, rules: Iterable[Rule]) -> Iterator[None]:
+        """``rules`` as the user rules in effect inside the block; those before are back after it."""
+        before = self.user()
+        self.set_user(rules)
+        try:
+            yield
+        finally:
+            self.set_user(before)
+
     def __iter__(self) -> Iterator[Rule]:
-        return iter(sorted(self._by_code.values(), key=lambda r: ("FPMBSQ".index(r.code[0]), r.code)))
+        return iter(sorted(self._by_code.values(), key=lambda r: (_ORDER.index(r.code[0]), r.code)))
 
     def __len__(self) -> int:
         return len(self._by_code)
