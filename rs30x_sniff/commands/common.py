@@ -134,7 +134,10 @@ def config_layer(args: argparse.Namespace) -> dict[str, Any]:
     config), so that every rule selection, report and listing takes them as it takes the built-in rules.
     """
     conf = _config_file(args)
-    RULES.set_user(conf.get("rule", ()))
+    try:
+        RULES.set_user(conf.get("rule", ()))
+    except ValueError as e:  # two of the file's own rules under one code or name
+        raise CliError(f"{conf.get('source', 'config')}: {e}") from None
     return conf
 
 
