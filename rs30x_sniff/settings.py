@@ -19,6 +19,7 @@ from .decode.decoder import DecodeOptions
 from .sources.timebase import TIME_REFS
 from .sources.timeunit import UNITS as TIME_UNITS
 from .protocol.wire import BAUD_RATES, DEFAULT_BAUD
+from .expect import as_rule, load_checks
 from .user_rules import compile_rules
 
 CONFIG_NAME = "rs30x-sniff.toml"
@@ -155,6 +156,7 @@ KEYS: dict[str, Key] = {
     "max_servos": Key(_at_most(MAX_SERVO_ID, _count), "max-servos",
                       f"servos one bus may carry (Q008; at most {MAX_SERVO_ID}, one per ID)"),
     "rule": Key(_rule_tables, "[[rule]]", "the project's own lint rules (rs30x_sniff.user_rules); config files only"),
+    "expect": Key(_rule_tables, "[[expect]]", "figure checks over info's figures (docs/checks.md); config files only"),
     "regress": Key(lambda v: None if isinstance(v, dict) else "expected a table of FIGURE = THRESHOLD", "regress",
                    "thresholds of `diff --fail-on-regress` (each checked by rs30x_sniff.compare)"),
 }
@@ -167,6 +169,12 @@ def _label(key: str, value: Any, where: str) -> str:
         opt = KEYS[key].option
         return f"{opt} {value}" if opt.startswith("--") else f"{opt} {value!r}"
     return f"{where}: {key.replace('_', '-')} = {value!r}"
+
+
+def own_rules(conf: Mapping[str, Any]) -> tuple:
+    """A checked config's own rules for the registry: its [[rule]]s, and its [[expect]]s as rules (so that
+    selections, severities, reports and `rules` know them)."""
+    return (*conf.get("rule", ()), *(as_rule(c) for c in conf.get("expect", ())))
 
 
 def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None = None) -> dict[str, Any]:
@@ -187,8 +195,13 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
         if where == COMMAND_LINE:
             raise SettingsError("user rules ([[rule]]) come from a config file only")
         out["rule"] = compile_rules(out["rule"], where, reg)
-    # A config file's selections may name its own user rules: they are checked with those in effect.
-    with RULES.user_rules(out["rule"]) if "rule" in out else _nothing():
+    if "expect" in out:
+        if where == COMMAND_LINE:
+            raise SettingsError("figure checks ([[expect]]) come from a config file only")
+        out["expect"] = load_checks(out["expect"], where)
+    # A config file's selections may name its own user rules and figure checks: checked with those in effect.
+    own = own_rules(out)
+    with RULES.user_rules(own) if own else _nothing():
         for key in ("select", "ignore"):
             if key in out:
                 resolve_rules(out[key], key, where)
@@ -291,6 +304,7 @@ class Settings:
     config_path: str | None = None
     timing_unsupported: str | None = None          # why timing figures are left out (see above)
     user_rules: tuple = ()                         # the config file's [[rule]]s (rs30x_sniff.lint.registry.Rule)
+    expects: tuple = ()                            # the config file's [[expect]]s (rs30x_sniff.expect.Check)
 
     def decode_options(self, registry: ModelRegistry | None = None) -> DecodeOptions:
         return DecodeOptions(baud=self.baud, default_model=self.default_model, models=dict(self.models),
@@ -308,7 +322,8 @@ class Settings:
         cfg.source = self.config_path or "options"
         try:
             # The user rules are in the registry while a command runs (commands.common.config_layer).
-            with RULES.user_rules(self.user_rules) if self.user_rules else _nothing():
+            own = (*self.user_rules, *(as_rule(c) for c in self.expects))
+            with RULES.user_rules(own) if own else _nothing():
                 cfg.enabled_codes()
                 cfg.severities()
         except ConfigError as e:
@@ -384,4 +399,5 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
                     time_ref=values["time_ref"], time_unit=values["time_unit"], lint=lint,
                     channel=None if values["channel"] is None else str(values["channel"]).strip(),
                     report_format=fmt, origin=origin,
-                    config_path=where_conf if config else None, user_rules=tuple(conf.get("rule", ())))
+                    config_path=where_conf if config else None, user_rules=tuple(conf.get("rule", ())),
+                    expects=tuple(conf.get("expect", ())))

@@ -19,7 +19,7 @@ from ..protocol.wire import DEFAULT_BAUD
 from ..sinks.pipeline import Sink
 from ..decode.decoder import Step
 from ..lint.registry import RULES
-from ..settings import COMMAND_LINE, DEFAULTS, Settings, SettingsError, find_config, load_config, resolve
+from ..settings import COMMAND_LINE, DEFAULTS, Settings, SettingsError, find_config, load_config, own_rules, resolve
 
 
 TIMESTAMP_SAMPLE = 2000  # chunks of a timestamped capture read ahead to tell its baud rate
@@ -130,12 +130,12 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
 def config_layer(args: argparse.Namespace) -> dict[str, Any]:
     """The config file's settings (checked), or {} when there is none or --isolated.
 
-    Its user rules (``[[rule]]``) become the registry's for the rest of the command (none without a
+    Its user rules (``[[rule]]``, and ``[[expect]]`` figure checks as rules) become the registry's for the rest of the command (none without a
     config), so that every rule selection, report and listing takes them as it takes the built-in rules.
     """
     conf = _config_file(args)
     try:
-        RULES.set_user(conf.get("rule", ()))
+        RULES.set_user(own_rules(conf))
     except ValueError as e:  # two of the file's own rules under one code or name
         raise CliError(f"{conf.get('source', 'config')}: {e}") from None
     return conf

@@ -6,6 +6,7 @@ import argparse
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -18,7 +19,10 @@ from ..protocol.memmap import ModelError
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
 from ..settings import Settings
+from ..expect import evaluate
+from ..expect import findings as check_findings
 from ..sinks.lines import FindingsSink, ProgressSink
+from ..sinks.stats import CaptureStats
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, config_layer,
                      is_live, lint_config, live_sinks, no_data, open_input, settings_for)
 from .outputs import add_output_options, check_output, output_stream
@@ -59,9 +63,17 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     """Lint one capture (or a port, live); an unreadable input, or one that holds no data (unless
     ``allow_empty``), gives a result with ``error`` set (findings so far kept)."""
     opts = settings.decode_options()
-    linter = Linter(lint_config(settings))
+    cfg = lint_config(settings)
+    linter = Linter(cfg)
     found = FindingsSink()
     sinks = [found] if progress is None else [found, ProgressSink(progress)]
+    # Figure checks ([[expect]]) need info's figures: CaptureStats runs as one more sink, only for them.
+    enabled, severities = set(cfg.enabled_codes()), cfg.severities()
+    checks = [replace(c, severity=severities[c.code]) for c in settings.expects if c.code in enabled]
+    stats = CaptureStats(opts.baud) if checks else None
+    if stats is not None:
+        stats.timing_unsupported = settings.timing_unsupported
+        sinks.append(stats)
     result = FileResult(path, rules=[r.code for r in linter.rules])
     source = None
     try:
@@ -79,6 +91,10 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
             result.error = f"{path}: {what}; --allow-empty to accept that"
         elif not dec.bytes_in:
             no_data(path, dec, source)
+        if stats is not None and dec.bytes_in:
+            stats.stalls = getattr(source, "stalls", stats.stalls)
+            results = evaluate(checks, stats.as_dict(), [r.code for r in linter.rules])
+            found.findings.extend(check_findings(results, stats.bytes, stats.last_t if stats.timed else None))
     result.findings = found.findings
     locate = getattr(source, "locate", None)  # text captures: findings by line and column, as ruff does
     if locate is not None:

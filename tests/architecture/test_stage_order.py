@@ -25,7 +25,7 @@ from .imports import PACKAGE, imported_from, module_name
 
 TOP = len(("protocol", "sources", "decode", "lint", "render", "filters", "sinks", "settings"))
 RANK = {"version": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "filters": 5,
-        "sinks": 6, "settings": 7, "user_rules": 7, "compare": 7,
+        "sinks": 6, "settings": 7, "user_rules": 7, "compare": 7, "expect": 7,
         "cli": TOP, "commands": TOP, "tui": TOP, "sim": TOP, "__main__": TOP, "": TOP}
 
 # Upward imports that remain, (importing module, imported module) -> why. Each is a known crossing
