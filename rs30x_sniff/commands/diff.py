@@ -10,6 +10,7 @@ from typing import IO, Any
 from ..compare import Change, Comparison, ThresholdError, Threshold, change_text, compare, parse_threshold, \
     parse_thresholds, show
 from ..decode.decoder import Decoder
+from ..lint.report import append_step_summary, github_escape, md_cell, md_code
 from ..sinks.pipeline import columnar_for, drive
 from ..sinks.stats import CaptureStats
 from .common import (CliError, add_decode_options, add_lint_options, add_live_options, check_positive, config_layer,
@@ -31,8 +32,10 @@ def add_parser(sub: Any) -> None:  # argparse's subparsers action (no public nam
     add_decode_options(p)
     add_live_options(p)
     add_lint_options(p)
-    p.add_argument("--format", choices=("text", "json", "markdown"), default="text",
-                   help="output format (default text)")
+    p.add_argument("--format", choices=("text", "json", "markdown", "github"), default="text",
+                   help="output format (default text); github: the text with a workflow annotation per threshold "
+                        "crossed (an error with --fail-on-regress, else a warning), and the markdown table "
+                        "appended to the file GITHUB_STEP_SUMMARY names")
     p.add_argument("--threshold", action="append", default=[], metavar="FIGURE=LIMIT",
                    help="a threshold as in [regress], e.g. latency_p95=+20%% or missing_replies=+0; "
                         "replaces the configuration's for that figure; repeatable")
@@ -96,6 +99,12 @@ def run(args: argparse.Namespace) -> int:
             write_markdown(out, result)
         else:
             write_text(out, result)
+            if args.format == "github":
+                write_annotations(out, result, "error" if args.fail_on_regress else "warning", args.after)
+    if args.format == "github":  # in a workflow, the run's summary too (nothing when GITHUB_STEP_SUMMARY is unset)
+        warning = append_step_summary(lambda md: write_markdown(md, result))
+        if warning:
+            print(f"rs30x-sniff: warning: {warning}", file=sys.stderr)
     if args.fail_on_regress:
         if not thresholds:
             print("rs30x-sniff: warning: --fail-on-regress: no thresholds ([regress] in the configuration, or "
@@ -179,9 +188,20 @@ def write_text(out: IO[str], r: Comparison) -> None:
         w(f"  not checked  {u.describe()}\n")
 
 
+# ---- github (workflow commands) ----------------------------------------------------------------------
+def write_annotations(out: IO[str], r: Comparison, level: str, after: str) -> None:
+    """``::warning file=AFTER,title=...::`` (or ``::error``) for each threshold crossed."""
+    where = "" if after == STDOUT else f"file={github_escape(after, True)},"
+    for c in r.crossings:
+        ch = c.change
+        what = ch.figure + ("" if ch.servo is None else f" of servo {ch.servo}")
+        title = github_escape(f"rs30x-sniff diff: {what} regressed", True)
+        out.write(f"::{level} {where}title={title}::{github_escape(c.describe())}\n")
+
+
 # ---- markdown (a pull request's comment) ------------------------------------------------------------
 def _md(text: str) -> str:
-    return text.replace("|", "\\|")
+    return md_cell(text)
 
 
 def write_markdown(out: IO[str], r: Comparison) -> None:
@@ -189,7 +209,7 @@ def write_markdown(out: IO[str], r: Comparison) -> None:
     verdict = (f"**{len(r.crossings)} threshold{'s' if len(r.crossings) != 1 else ''} crossed**" if r.crossings
                else "no threshold crossed" if r.thresholds else "no thresholds set")
     w(f"### rs30x-sniff diff: {verdict}\n\n")
-    w(f"- before: `{_side(r.before)}`\n- after: `{_side(r.after)}`\n\n")
+    w(f"- before: {md_code(_side(r.before))}\n- after: {md_code(_side(r.after))}\n\n")
     if r.crossings:
         for c in r.crossings:
             w(f"- :x: {_md(c.describe())}\n")

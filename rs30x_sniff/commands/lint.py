@@ -14,7 +14,7 @@ from ..sources.captures import CaptureError
 from ..lint.baseline import Baseline, BaselineError, BaselineReport
 from ..lint.config import FAIL_ON, FORMATS
 from ..lint.linter import Linter
-from ..lint.report import FileResult, fails, write_report
+from ..lint.report import FileResult, append_step_summary, fails, write_report, write_step_summary
 from ..protocol.memmap import ModelError
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
@@ -181,6 +181,10 @@ def run(args: argparse.Namespace) -> int:
     if readable and not (errors and args.output):
         with output_stream(args.output, force=args.force, inputs=tuple(args.inputs)) as out:
             write_report(fmt, readable, out, cfg.fail_on, baseline=report)
+    if fmt == "github":  # in a workflow, the run's summary too (nothing when GITHUB_STEP_SUMMARY is unset)
+        warning = append_step_summary(lambda md: write_step_summary(readable, md, cfg.fail_on, report, errors))
+        if warning:
+            print(f"rs30x-sniff: warning: {warning}", file=sys.stderr)
     for e in errors:
         print(f"rs30x-sniff: error: {e}", file=sys.stderr)
     if errors:

@@ -1,14 +1,17 @@
-"""Lint reports: text for people, and json, junit, sarif 2.1.0 and github annotations for CI."""
+"""Lint reports: text for people, and json, junit, sarif 2.1.0 and github annotations for CI; with github, a
+Markdown summary appended to the file ``GITHUB_STEP_SUMMARY`` names (``append_step_summary``)."""
 
 from __future__ import annotations
 
+import io
 import json
+import os
 import re
 import xml.etree.ElementTree as ET
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Iterable
+from typing import IO, TYPE_CHECKING, Callable, Iterable, Mapping
 from urllib.parse import quote
 
 from ..version import __version__
@@ -272,7 +275,8 @@ def write_sarif(results: list[FileResult], out: IO[str], fail_on: str = "error",
     out.write("\n")
 
 
-def _gh_escape(s: str, prop: bool = False) -> str:
+def github_escape(s: str, prop: bool = False) -> str:
+    """``s`` as a workflow command's message (``prop``: a property's value, where ``:`` and ``,`` end it)."""
     s = s.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
     return s.replace(":", "%3A").replace(",", "%2C") if prop else s
 
@@ -282,13 +286,125 @@ def write_github(results: list[FileResult], out: IO[str], fail_on: str = "error"
     """GitHub Actions workflow commands: ``::error file=F,title=CODE name::message``."""
     for r in results:
         if r.error:
-            out.write(f"::error file={_gh_escape(r.path, True)}::{_gh_escape(r.error)}\n")
+            out.write(f"::error file={github_escape(r.path, True)}::{github_escape(r.error)}\n")
         for f in _sorted(r):
-            title = _gh_escape(f"{f.code} {f.name}", True)
-            msg = _gh_escape(f"{f.message} (offset {f.offset}{', t=' + format(f.t, '.6f') if f.t is not None else ''})")
+            title = github_escape(f"{f.code} {f.name}", True)
+            msg = github_escape(f"{f.message} (offset {f.offset}{', t=' + format(f.t, '.6f') if f.t is not None else ''})")
             loc = r.locations.get(f.offset)
             at = f",line={loc[0]},col={loc[1]}" if loc else ""
-            out.write(f"::{_GITHUB_LEVEL[f.severity]} file={_gh_escape(r.path, True)}{at},title={title}::{msg}\n")
+            out.write(f"::{_GITHUB_LEVEL[f.severity]} file={github_escape(r.path, True)}{at},title={title}::{msg}\n")
+
+
+# ---- the step summary (GitHub Actions: Markdown appended to the file GITHUB_STEP_SUMMARY names) -------
+STEP_SUMMARY = "GITHUB_STEP_SUMMARY"
+
+
+def md_cell(text: str) -> str:
+    """``text`` as one Markdown table cell: a ``|`` (and the backslash that could escape it) escaped, a line
+    break as ``<br>``, so no message breaks its row."""
+    text = text.replace("\\", "\\\\").replace("|", "\\|")
+    return text.replace("\r\n", "<br>").replace("\r", "<br>").replace("\n", "<br>")
+
+
+def md_code(text: str) -> str:
+    """``text`` as a Markdown code span, whatever backticks it holds (one line)."""
+    text = " ".join(text.splitlines())
+    longest = max((len(m) for m in re.findall(r"`+", text)), default=0)
+    fence = "`" * (longest + 1)
+    pad = " " if longest or text.startswith(" ") or text.endswith(" ") else ""
+    return f"{fence}{pad}{text}{pad}{fence}"
+
+
+def step_summary_path(env: Mapping[str, str] | None = None) -> str | None:
+    """The file GITHUB_STEP_SUMMARY names, or None (unset or empty)."""
+    return (os.environ if env is None else env).get(STEP_SUMMARY) or None
+
+
+def append_step_summary(write: Callable[[IO[str]], None], env: Mapping[str, str] | None = None) -> str | None:
+    """Append what ``write`` writes to the step summary file (appended, never replaced: each step of a job
+    adds its own). Nothing when GITHUB_STEP_SUMMARY is unset. Returns a one-line warning when the file
+    cannot be written (the caller's result stands), else None."""
+    path = step_summary_path(env)
+    if path is None:
+        return None
+    buf = io.StringIO()
+    write(buf)
+    text = buf.getvalue()
+    try:
+        with open(path, "a", encoding="utf-8") as f:
+            # A blank line first after what other steps wrote: their last line cannot run into the heading.
+            f.write(("\n" if f.tell() else "") + (text if text.endswith("\n") else text + "\n"))
+    except (OSError, ValueError) as e:  # ValueError: a path with a NUL byte
+        why = getattr(e, "strerror", None) or str(e)
+        return f"{STEP_SUMMARY}={path}: cannot append the summary: {why}".replace("\n", " ")
+    return None
+
+
+def _plural(n: int, word: str, many: str | None = None) -> str:
+    return f"{n} {word if n == 1 else (many or word + 's')}"
+
+
+def write_step_summary(results: list[FileResult], out: IO[str], fail_on: str = "error",
+                       baseline: BaselineReport | None = None, errors: Iterable[str] = ()) -> None:
+    """The lint run in Markdown: the files, the findings by rule (code, name, severity, count; with a
+    baseline the new and absorbed counts), what fails --fail-on, and the baseline's stale entries."""
+    errors = list(errors)
+    w = out.write
+    new = [f for r in results for f in r.findings]
+    absorbed = [f for r in results for f in r.absorbed] if baseline is not None else []
+    by_sev = Counter(f.severity for f in new)
+    parts = ", ".join(_plural(by_sev[s], s) for s in ("error", "warning", "info") if by_sev[s])
+    head = _plural(len(new), "new finding" if baseline is not None else "finding") + (f" ({parts})" if parts else "")
+    w(f"### rs30x-sniff lint: {head}\n\n")
+    w(f"{_plural(len(results), 'file')} linted:\n\n")
+    for r in results:
+        counts = f"{_plural(len(r.findings), 'new finding' if baseline is not None else 'finding')}"
+        if baseline is not None:
+            counts += f", {len(r.absorbed)} absorbed"
+        w(f"- {md_code(r.path)}: {_plural(r.records, 'record')}, {counts}\n")
+    for e in errors:
+        w(f"- :x: not read: {md_cell(e)}\n")
+    w("\n")
+    rows: dict[tuple[str, str], list[int]] = {}
+    for f in new:
+        rows.setdefault((f.code, f.severity), [0, 0])[0] += 1
+    for f in absorbed:
+        rows.setdefault((f.code, f.severity), [0, 0])[1] += 1
+    if rows:
+        order = sorted(rows, key=lambda k: (-SEVERITY_RANK[k[1]], k[0]))
+        if baseline is None:
+            w("| code | rule | severity | count |\n|---|---|---|---:|\n")
+        else:
+            w("| code | rule | severity | new | absorbed |\n|---|---|---|---:|---:|\n")
+        for code, sev in order:
+            name = RULES[code].name if code in RULES else ""
+            n, a = rows[(code, sev)]
+            w(f"| {md_cell(code)} | {md_cell(name)} | {sev} | {n} |" + (f" {a} |" if baseline is not None else "")
+              + "\n")
+        w("\n")
+    else:
+        w("No findings.\n\n")
+    failing = sum(1 for f in new if fails(f, fail_on))
+    if failing:
+        w(f"**{_plural(failing, 'finding')} at or above --fail-on {fail_on}.**\n")
+    else:
+        w(f"Nothing at or above --fail-on {fail_on}.\n")
+    order_codes = RULES.codes()
+    skipped = sorted({c for r in results for c in r.skipped}, key=lambda c: order_codes.index(c)
+                     if c in order_codes else len(order_codes))
+    if skipped:
+        which = ", ".join(md_code(r.path) for r in results if r.skipped)
+        w(f"\nSkipped for lack of timestamps (in {which}): {', '.join(skipped)}.\n")
+    if baseline is not None:
+        w(f"\nBaseline {md_code(baseline.path)}: {len(new)} new, {baseline.absorbed} absorbed "
+          f"(not counted toward the exit code).\n")
+        if baseline.stale:
+            w(f"\n{_plural(len(baseline.stale), 'baseline entry', 'baseline entries')} no longer seen (stale; "
+              f"--write-baseline to drop them):\n\n")
+            w("| code | servo | message | count before |\n|---|---:|---|---:|\n")
+            for e in baseline.stale:
+                sid = str(e.id) if e.id is not None else "bus"
+                w(f"| {md_cell(e.code)} | {sid} | {md_cell(e.message)} | {e.count} |\n")
 
 
 WRITERS = {"text": write_text, "json": write_json, "junit": write_junit, "sarif": write_sarif,
