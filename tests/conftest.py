@@ -13,6 +13,12 @@ ROOT = Path(__file__).resolve().parent.parent
 CAPTURES = ROOT / "captures"
 
 
+@pytest.fixture(autouse=True)
+def no_github_step_summary(monkeypatch):
+    """Tests run in GitHub Actions too: a test's --format github must not append to the job's real summary."""
+    monkeypatch.delenv("GITHUB_STEP_SUMMARY", raising=False)
+
+
 def h(text: str) -> bytes:
     """Bytes from hex text as the manual prints it: 'FA AF 01 ...'."""
     return bytes.fromhex(text)

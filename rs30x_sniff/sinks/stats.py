@@ -79,6 +79,10 @@ class CaptureStats(Sink):
     def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         self.bytes_in += len(data)
 
+    def chunk_group(self, chunks: list[tuple[bytes, float | None]]) -> None:
+        """A group of plain chunks at once (the drive loop's columnar path): one call, not one per chunk."""
+        self.bytes_in += sum(map(len, [d for d, _ in chunks]))
+
     def batch(self, step: Step) -> None:
         if step.seams:
             self.segments.expect(step.seams)
