@@ -88,7 +88,7 @@ def decode_lint_user(chunks) -> tuple[int, int]:
         dec = Decoder(None, linter, columnar=True)
         count, stats = Count(), CaptureStats(115200)
         drive(chunks, dec, count, stats)
-        results = evaluate(conf["expect"], stats.as_dict(), [r.code for r in linter.rules])
+        results = evaluate(conf.get("expect", ()), stats.as_dict(), [r.code for r in linter.rules])
         return count.n, len(linter.findings) + len(findings(results, stats.bytes))
 
 
