@@ -351,6 +351,12 @@ class FindingsDiff:
     def new_findings(self) -> int:
         return sum(self.new.values()) + sum(max(0, a - b) for b, a in self.changed.values())
 
+    def rows(self) -> list[tuple[str, str, int, int]]:
+        """(status, rule, before, after) for each rule: the new, then the gone, the changed and the same."""
+        return [*(("new", r, 0, n) for r, n in self.new.items()), *(("gone", r, n, 0) for r, n in self.gone.items()),
+                *(("changed", r, b, a) for r, (b, a) in self.changed.items()),
+                *(("same", r, n, n) for r, n in self.same.items())]
+
     def as_dict(self) -> dict[str, Any]:
         if self.absent is not None:
             return {"absent": self.absent}

@@ -166,14 +166,9 @@ def write_text(out: IO[str], r: Comparison) -> None:
     elif not (f.new or f.gone or f.changed or f.same):
         w("  none in either capture\n")
     else:
-        for rule, n in f.new.items():
-            w(f"  new      {rule:<40} {n}\n")
-        for rule, n in f.gone.items():
-            w(f"  gone     {rule:<40} {n}\n")
-        for rule, (nb, na) in f.changed.items():
-            w(f"  changed  {rule:<40} {nb} -> {na}\n")
-        for rule, n in f.same.items():
-            w(f"  same     {rule:<40} {n}\n")
+        for status, rule, nb, na in f.rows():
+            counts = f"{nb} -> {na}" if status == "changed" else f"{na if status != 'gone' else nb}"
+            w(f"  {status:<8} {rule:<40} {counts}\n")
     w("\nthresholds")
     if not r.thresholds:
         w(": none ([regress] in the configuration, or --threshold)\n")
@@ -242,11 +237,5 @@ def write_markdown(out: IO[str], r: Comparison) -> None:
     if f.absent is not None:
         w(f"| absent: {_md(f.absent)} | - | - | |\n")
     else:
-        for rule, n in f.new.items():
-            w(f"| {_md(rule)} | 0 | {n} | new |\n")
-        for rule, n in f.gone.items():
-            w(f"| {_md(rule)} | {n} | 0 | gone |\n")
-        for rule, (nb, na) in f.changed.items():
-            w(f"| {_md(rule)} | {nb} | {na} | changed |\n")
-        for rule, n in f.same.items():
-            w(f"| {_md(rule)} | {n} | {n} | same |\n")
+        for status, rule, nb, na in f.rows():
+            w(f"| {_md(rule)} | {nb} | {na} | {status} |\n")
