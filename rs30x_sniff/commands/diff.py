@@ -14,7 +14,7 @@ from ..lint.report import append_step_summary, github_escape, md_cell, md_code
 from ..sinks.pipeline import columnar_for, drive
 from ..sinks.stats import CaptureStats
 from .common import (CliError, add_decode_options, add_lint_options, add_live_options, check_positive, config_layer,
-                     live_sinks, make_linter, no_data, open_input, settings_for)
+                     is_live, live_sinks, make_linter, open_input, settings_for)
 from .outputs import STDOUT, add_output_options, check_output, output_stream
 
 REGRESS = "regress"  # the configuration's table of thresholds
@@ -74,7 +74,9 @@ def figures_of(args: argparse.Namespace, path: str, conf: dict[str, Any]) -> dic
     stats.stalls = getattr(source, "stalls", stats.stalls)
     drive(source, Decoder(settings.decode_options(), linter, columnar=columnar_for(source)), stats,
           *live_sinks(settings, source, path))
-    no_data(path, stats, source)
+    if not stats.bytes_in:  # an empty capture is no session: comparing it would pass as "everything better"
+        what = "no bytes received from the port" if is_live(source) else "no data (the capture is empty)"
+        raise CliError(f"{path}: {what}: nothing to compare")
     codes = linter.config.enabled_codes() if linter is not None else []
     return {"input": path, "linted": linter is not None, "unsolicited_counted": "B003" in codes, **stats.as_dict()}
 

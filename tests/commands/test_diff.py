@@ -191,6 +191,18 @@ def test_no_threshold_crossed_exits_0(capsys, captures, conf):
     assert "regression" not in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("side", [0, 1])
+def test_an_empty_capture_is_no_session_to_compare(capsys, captures, tmp_path, side):
+    # Against an empty capture every count would read "better": it is an input error instead, and no output.
+    empty = tmp_path / "empty.thex"
+    empty.write_bytes(b"")
+    pair = [str(captures["fast"]), str(empty)][::-1 if side else 1]
+    out = tmp_path / "diff.md"
+    assert main(["diff", *pair, "--format", "markdown", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "no data" in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
 def test_without_fail_on_regress_a_crossed_threshold_is_reported_and_exits_0(capsys, captures, conf):
     assert main(["diff", str(captures["fast"]), str(captures["slow"]), "--config", str(conf)]) == 0
     out = capsys.readouterr().out
