@@ -230,6 +230,8 @@ def parse_check(text: str, scope: str) -> list[Comparison]:
         nonlocal pos
         t = take()
         if t.kind == "number":
+            if not math.isfinite(float(t.text)):  # 1e999: a typo, never a limit
+                raise _ParseError(t.col, f"{t.text} is not a finite number")
             nxt = peek()
             if nxt is not None and (nxt.kind == "%" or (nxt.kind == "word" and nxt.text in UNITS)):
                 pos += 1

@@ -267,6 +267,7 @@ def test_flags_and_ranges_of_a_servo_that_never_answered_are_not_checkable():
                               "without 'for'"),
     ("poll_hz >= 5 # x", 14, "unexpected '#'"),
     ("", 1, "empty check"),
+    ("poll_hz >= 1e999", 12, "1e999 is not a finite number"),
 ])
 def test_a_bad_check_names_the_file_the_check_the_key_and_the_column(check, col, why):
     with pytest.raises(ExpectError) as e:
