@@ -232,7 +232,10 @@ def _number(term: str, value: str) -> tuple[float, str]:
     if not m:
         raise FilterError(f"{term}: {value!r} is not a number")
     num = m["num"]
-    return (int(num, 16) if "x" in num.lower() else float(num)), m["unit"]
+    x = int(num, 16) if "x" in num.lower() else float(num)
+    if not math.isfinite(x):  # 1e999: a typo, never a value a field can hold
+        raise FilterError(f"{term}: {value!r} is not a finite number")
+    return x, m["unit"]
 
 
 def _numeric_test(op: str, x: float) -> Callable[[Any], bool]:

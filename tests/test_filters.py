@@ -165,6 +165,7 @@ def test_new_terms_combine_and_negate(recs, objs):
     ("temperature>40", "(did you mean present_temperature, temperature_limit?)"),
     ("reg:temperature>40", "reg:temperature>40: no such register (did you mean"),
     ("present_temperature:40", "present_temperature is a register, not a key"),
+    ("latency>1e999ms", "latency>1e999ms: '1e999ms' is not a finite number"),
     ("present_temperature>hot", "present_temperature>hot: 'hot' is not a number"),
     ("present_temperature>", "present_temperature>: needs a value"),
     ("present_temperature>40deg", "present_temperature is in degC, not deg"),
