@@ -9,9 +9,10 @@ from ..decode.pairing import Record
 from ..protocol.codegen import line_function
 from ..protocol.events import RAW, LongPacket, ReturnPacket, ShortPacket
 from ..protocol.memmap import ByRaw, Field, Register
-from .records import bad_sum, direction, field_text, is_shown, kind_word, text_line, verbose_lines
+from .records import (
+    bad_sum, direction, field_text, is_shown, kind_word, packet_notes, text_line, verbose_lines)
 from ..protocol.wire import (
-    AT_DATA, AT_ID, AT_LENGTH, COMMAND_ADDRESS, FRAME_OVERHEAD, HEADER_SIZE, LONG_PACKET_ID, RETURN_FIRST, SUM_SIZE)
+    AT_DATA, AT_ID, AT_LENGTH, FRAME_OVERHEAD, HEADER_SIZE, LONG_PACKET_ID, RETURN_FIRST, SUM_SIZE)
 
 __all__ = ["block_text", "record_line"]
 
@@ -267,15 +268,7 @@ def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable 
             else:
                 pieces.append(("join", _join_shown, f" {vid}:",
                                tuple((_texts(reg, partial, ""), at) for at, reg, partial in group)))
-    if kind == "short":
-        names_read = rec.read_names
-        if names_read and ev.read_range:
-            a, n = ev.read_range
-            pieces.append(f" read[{a}+{n}]" if len(names_read) > 3 else f" read[{','.join(names_read)}]")
-        if ev.commands and not ev.data and (ev.address, ev.length, ev.count) != (COMMAND_ADDRESS, 0, 0):
-            pieces.append(f" addr={ev.address} len={ev.length} count={ev.count}")
-    if kind == "return" and ev.flags:
-        pieces.append(" flags=" + ",".join(ev.flag_names or (f"0x{ev.flags:02X}",)))
+    pieces += [" " + note for note in packet_notes(rec)]
     if rec.is_reply:
         if rec.request is not None:
             pieces += [" reply_to=@", ("arg", "q", "")]

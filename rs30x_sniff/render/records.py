@@ -75,6 +75,24 @@ def bad_sum(rec: Record) -> bool:
     return not rec.event.checksum_ok and type(rec.event) is not Garbage
 
 
+def packet_notes(rec: Record) -> list[str]:
+    """What a line says of a packet beside its fields: the registers a request reads, a command packet's odd
+    header, a return's status flags (table 4.4)."""
+    ev = rec.event
+    t = type(ev)
+    notes = []
+    if t is ShortPacket:
+        names = rec.read_names
+        if names and ev.read_range:
+            a, n = ev.read_range
+            notes.append(f"read[{a}+{n}]" if len(names) > 3 else f"read[{','.join(names)}]")
+        if ev.commands and not ev.data and (ev.address, ev.length, ev.count) != (COMMAND_ADDRESS, 0, 0):
+            notes.append(f"addr={ev.address} len={ev.length} count={ev.count}")
+    elif t is ReturnPacket and ev.flags:
+        notes.append("flags=" + ",".join(ev.flag_names or (f"0x{ev.flags:02X}",)))
+    return notes
+
+
 def summary(rec: Record, *, bare: bool = False, keep: bool = True, only: set[int] | None = None) -> str:
     """A one-line description of the record without time, offset or direction.
 
@@ -106,15 +124,7 @@ def summary(rec: Record, *, bare: bool = False, keep: bool = True, only: set[int
         parts += [f"{vid}:{','.join(items)}" for vid, items in by_id.items()]
     else:
         parts += [field_text(f) for f in fields if is_shown(f)]
-    if t is ShortPacket:
-        names = rec.read_names
-        if names and ev.read_range:
-            a, n = ev.read_range
-            parts.append(f"read[{a}+{n}]" if len(names) > 3 else f"read[{','.join(names)}]")
-        if ev.commands and not ev.data and (ev.address, ev.length, ev.count) != (COMMAND_ADDRESS, 0, 0):
-            parts.append(f"addr={ev.address} len={ev.length} count={ev.count}")
-    if t is ReturnPacket and ev.flags:
-        parts.append("flags=" + ",".join(ev.flag_names or (f"0x{ev.flags:02X}",)))
+    parts += packet_notes(rec)
     if rec.is_reply:
         if rec.request is not None:
             parts.append(f"reply_to=@{rec.request.offset}")

@@ -13,8 +13,9 @@ import pytest
 
 from rs30x_sniff.cli import main
 from rs30x_sniff.compare import DOWN, UP, ThresholdError, compare, parse_threshold, parse_thresholds
-from rs30x_sniff.sim import SimBus, run
+from rs30x_sniff.sim import run
 from rs30x_sniff.sources.captures import HEX, TIMESTAMPED, write_capture
+from .sim_buses import DelayedBus
 
 
 # ---- the comparison, on figure dicts ---------------------------------------------------------------
@@ -139,18 +140,6 @@ def test_a_bad_threshold_is_one_message_naming_the_file_and_key(key, value, word
 
 
 # ---- the command, on simulator captures --------------------------------------------------------------
-class DelayedBus(SimBus):
-    """A bus whose servos answer after ``delay`` steps of their return delay (No. 7) each."""
-
-    def __init__(self, baud: int, delay: int) -> None:
-        super().__init__(baud)
-        self.delay = delay
-
-    def attach(self, servo):
-        servo.mem[7] = self.delay
-        return super().attach(servo)
-
-
 @pytest.fixture(scope="module")
 def captures(tmp_path_factory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("diff")

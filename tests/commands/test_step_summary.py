@@ -15,10 +15,11 @@ from rs30x_sniff.cli import main
 from rs30x_sniff.lint import Finding
 from rs30x_sniff.lint.baseline import BaselineReport, Entry
 from rs30x_sniff.lint.report import STEP_SUMMARY, FileResult, github_escape, md_cell, md_code, write_step_summary
-from rs30x_sniff.sim import SimBus, run as sim_run
+from rs30x_sniff.sim import run as sim_run
 from rs30x_sniff.sources.captures import TIMESTAMPED, write_capture
 
 from ..conftest import CAPTURES
+from .sim_buses import DelayedBus
 
 MIXED = str(CAPTURES / "session-mixed.thex")
 OLD = "## an earlier step\n\nits summary, kept\n"
@@ -198,18 +199,6 @@ def test_a_message_with_pipes_and_newlines_keeps_its_row():
 
 
 # ---- diff -------------------------------------------------------------------------------------------
-class DelayedBus(SimBus):
-    """A bus whose servos answer after ``delay`` steps of their return delay (No. 7) each."""
-
-    def __init__(self, baud: int, delay: int) -> None:
-        super().__init__(baud)
-        self.delay = delay
-
-    def attach(self, servo):
-        servo.mem[7] = self.delay
-        return super().attach(servo)
-
-
 @pytest.fixture(scope="module")
 def pair(tmp_path_factory) -> tuple[str, str]:
     d = tmp_path_factory.mktemp("summary-diff")
