@@ -300,7 +300,7 @@ def test_record_loses_no_bytes_to_a_client_that_leaves_or_comes_late(tmp_path):
             sent=pty.write_sim("hexapod", duration=4.0, baud=230400)))
         player.start()
         time.sleep(1.5)
-        t_late = in_thread(late, lambda c: done.is_set())
+        t_late = in_thread(late, lambda c: done.is_set(), seconds=300)  # until done: the deadline only guards a hang
         player.join(timeout=30)
         seen = -1
         while len(late.messages) != seen:  # until the late client has caught up
