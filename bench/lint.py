@@ -86,9 +86,10 @@ def decode_lint_user(chunks) -> tuple[int, int]:
     with RULES.user_rules(own_rules(conf)):
         linter = Linter(LintConfig())
         dec = Decoder(None, linter, columnar=True)
-        count, stats = Count(), CaptureStats(115200)
+        checks = conf.get("expect", ())
+        count, stats = Count(), CaptureStats(115200, ranges=any(c.reads_ranges for c in checks))
         drive(chunks, dec, count, stats)
-        results = evaluate(conf.get("expect", ()), stats.as_dict(), [r.code for r in linter.rules])
+        results = evaluate(checks, stats.as_dict(), [r.code for r in linter.rules])
         return count.n, len(linter.findings) + len(findings(results, stats.bytes))
 
 

@@ -343,6 +343,11 @@ class Check:
     def unknown_severity(self) -> str:
         return self.not_checkable or self.severity
 
+    @property
+    def reads_ranges(self) -> bool:
+        """Whether the check reads a register's range (min/max): only then do the stats keep ranges."""
+        return any(o.func is not None for c in self.comparisons for o in (c.left, c.right))
+
 
 def parse_ids(text: str) -> tuple[int, ...] | str:
     """``id:1-6,9`` (the filter language's IDs) or ``each``; raises ValueError with the reason."""

@@ -46,6 +46,8 @@ FindingPredicate = Callable[[Any], bool]
 # the rows whose records the term may match (never missing one), and those it surely matches. A term
 # without one is read as maybe everywhere, surely nowhere. The predicates carry it as ``.column``, with
 # ``.kinds`` (the event kinds a record it matches can have; absent: any) and ``.timed`` (it reads times).
+# A column form with ``.narrows`` set also takes ``among`` (a boolean mask of rows still in question) and
+# need only be right on those: a register's bytes are then read for the rows the earlier terms left.
 ColumnTerm = Callable[[Any], "tuple[np.ndarray, np.ndarray]"]
 
 
@@ -91,7 +93,9 @@ class Filter:
         for term in self.terms:
             col = getattr(term, "column", None)
             if col is not None:
-                maybe &= col(blk)[0]
+                maybe &= (col(blk, among=maybe) if getattr(col, "narrows", False) else col(blk))[0]
+                if not maybe.any():  # the terms are all required: none left, none to ask the rest about
+                    break
         return maybe
 
 
@@ -330,7 +334,10 @@ def _kinds(value: str) -> Predicate:
     codes = [code for code, k in ((SHORT, "short"), (LONG, "long"), (RETURN, "return")) if k in event_kinds]
 
     def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
-        surely = np.isin(blk.cols["kind"], codes)
+        kind = blk.cols["kind"]
+        surely = np.zeros(len(kind), dtype=bool)
+        for code in codes:  # (one to three codes: a comparison each is cheaper than np.isin)
+            surely |= kind == code
         return (surely | (blk.cols["kind"] == SHORT) if words else surely), surely
 
     return _with(match, column, event_kinds | {"short"} if words else event_kinds)
@@ -526,7 +533,7 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
             return False
         return any(carries(spec_for(m), address, r.data) for m, r in zip(vm, ev.records))
 
-    def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
+    def column(blk: Any, among: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         # The register's raw value read from the run's bytes and judged by the model's table; a model
         # whose test has no table (a register wider than 2 bytes) leaves its rows may-match.
         c = blk.cols
@@ -544,7 +551,7 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
                 raw |= a[at + 1].astype(np.int64) << 8
             return table[raw]
 
-        for model, rows in _rows_by_model(blk, np.arange(n)):
+        for model, rows in _rows_by_model(blk, np.arange(n) if among is None else np.flatnonzero(among)):
             spec = None if model is None else spec_for(model)
             if spec is None:
                 continue
@@ -564,6 +571,8 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
             for lrows, count, rsize, at in _long_records(blk):
                 st = reg_address - address[lrows]
                 ok = (st >= 0) & (st + size <= rsize - VID_SIZE)
+                if among is not None:
+                    ok &= among[lrows]
                 if not ok.any():
                     continue
                 lr, at, st = lrows[ok], at[ok], st[ok]
@@ -573,6 +582,7 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
                 maybe[lr] = surely[lr] = hit
         return maybe, surely
 
+    column.narrows = True  # type: ignore[attr-defined]
     return _with(match, column, ("short", "long", "return"))
 
 

@@ -70,7 +70,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     # Figure checks ([[expect]]) need info's figures: CaptureStats runs as one more sink, only for them.
     enabled, severities = set(cfg.enabled_codes()), cfg.severities()
     checks = [replace(c, severity=severities[c.code]) for c in settings.expects if c.code in enabled]
-    stats = CaptureStats(opts.baud) if checks else None
+    stats = CaptureStats(opts.baud, ranges=any(c.reads_ranges for c in checks)) if checks else None
     if stats is not None:
         stats.timing_unsupported = settings.timing_unsupported
         sinks.append(stats)

@@ -158,7 +158,9 @@ class HealthRecorder:
     FrameRun's rows read in place), at ``FLUSH_ROWS`` frames a buffer.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, ranges: bool = True) -> None:
+        # ranges False: no register ranges kept (a figure check that reads none), flags and findings still.
+        self.ranges = ranges
         self.servos: dict[int, ServoHealth] = {}
         # Raw packets by shape, each [model, rows]: returns and short writes by (servo, address, data
         # length), long packets by (address, length, count). One model per buffer: a servo whose model
@@ -178,7 +180,7 @@ class HealthRecorder:
     def returned(self, rec: Any, ev: Any, sid: int) -> None:
         """An intact return packet from ``sid``."""
         data = ev[DATA]
-        if data:
+        if data and self.ranges:
             key = (sid, ev[ADDRESS], len(data))
             b = self.returns.get(key)
             if b is None or b[0] is not rec.model:
@@ -193,6 +195,8 @@ class HealthRecorder:
 
     def written(self, rec: Any, ev: Any, sid: int) -> None:
         """An intact short packet to ``sid`` carrying data."""
+        if not self.ranges:
+            return
         key = (sid, ev[ADDRESS], len(ev[DATA]))
         b = self.writes.get(key)
         if b is None or b[0] is not rec.model:
@@ -203,6 +207,8 @@ class HealthRecorder:
 
     def long_written(self, rec: Any, ev: Any) -> None:
         """An intact long packet."""
+        if not self.ranges:
+            return
         records = ev[LONG_RECORDS]
         vm = rec.vid_models
         if vm is not None:
@@ -223,7 +229,7 @@ class HealthRecorder:
     def returned_rows(self, blk: Any, rows: np.ndarray) -> None:
         """Returns of the Block (``rows``): :meth:`returned` of each."""
         cols = blk.cols
-        with_data = rows[cols["data_len"][rows] > 0]
+        with_data = rows[cols["data_len"][rows] > 0] if self.ranges else rows[:0]
         if with_data.size:
             self._buffer_rows(blk, with_data, self.returns, True)
         flagged = rows[cols["flag"][rows] != 0]
@@ -232,10 +238,13 @@ class HealthRecorder:
 
     def written_rows(self, blk: Any, rows: np.ndarray) -> None:
         """Short packets of the Block to one servo carrying data (``rows``): :meth:`written` of each."""
-        self._buffer_rows(blk, rows, self.writes, False)
+        if self.ranges:
+            self._buffer_rows(blk, rows, self.writes, False)
 
     def long_written_rows(self, blk: Any, rows: np.ndarray) -> None:
         """Long packets of the Block (``rows``): :meth:`long_written` of each."""
+        if not self.ranges:
+            return
         if blk.vid_models is None:
             self._buffer_rows(blk, rows, self.long_writes, None)
             return

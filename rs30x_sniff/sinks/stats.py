@@ -9,6 +9,7 @@ with its record form beside its column form: segments.py (time segments and dura
 from __future__ import annotations
 
 from collections import Counter
+from operator import itemgetter
 from typing import Any, Iterable
 
 import numpy as np
@@ -48,7 +49,7 @@ class CaptureStats(Sink):
 
     takes_blocks = True  # a Block's rows are counted on its columns (add_block), as add() counts each
 
-    def __init__(self, baud: int) -> None:
+    def __init__(self, baud: int, ranges: bool = True) -> None:
         self.baud = baud
         self.bytes = 0
         self.bytes_in = 0  # bytes fed through chunk()
@@ -68,7 +69,8 @@ class CaptureStats(Sink):
         self.per_servo = ServoTraffic()
         self.servos: dict[int, ServoStats] = self.per_servo.by_id
         self.latency = LatencyHistogram()
-        self.health = HealthRecorder()  # per-servo register ranges, status flags, findings
+        # Per-servo register ranges (unless ``ranges`` is False: nothing reads them), status flags, findings.
+        self.health = HealthRecorder(ranges)
         self.timing_unsupported: str | None = None
         self.wall_anchor: float | None = None  # epoch seconds of capture time 0, where the source says
         # Where a live reader fell behind: (t, seconds, bytes) of bytes timed at the line rate, not as
@@ -81,7 +83,7 @@ class CaptureStats(Sink):
 
     def chunk_group(self, chunks: list[tuple[bytes, float | None]]) -> None:
         """A group of plain chunks at once (the drive loop's columnar path): one call, not one per chunk."""
-        self.bytes_in += sum(map(len, [d for d, _ in chunks]))
+        self.bytes_in += sum(map(len, map(itemgetter(0), chunks)))
 
     def batch(self, step: Step) -> None:
         if step.seams:

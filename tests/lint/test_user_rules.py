@@ -275,7 +275,10 @@ def test_a_block_with_a_match_goes_row_by_row_and_the_others_stay_on_columns(mon
 FILTERS = ["present_temperature>60", "id:2", "-id:2", "id:0", "id:1-3 kind:return", "kind:long",
            "kind:write", "kind:request", "-kind:reply", "goal_position>10", "-goal_position<=0",
            "reg:present_temperature", "reg:goal_position", "latency>0.3ms", "latency=0", "t:1-2", "t>3.5",
-           "torque_enable=on", "present_temperature<=40 -id:1,3", "max_torque>50"]
+           "torque_enable=on", "present_temperature<=40 -id:1,3", "max_torque>50",
+           # earlier terms narrow the rows a register's bytes are read for (its column's ``among``)
+           "kind:return present_temperature>60", "id:2 kind:short goal_position>10", "kind:long goal_position>10",
+           "id:3 goal_position<0", "latency>0.3ms present_temperature>30", "-id:2 -goal_position<=0"]
 
 
 @pytest.mark.parametrize("scenario", ["overheat", "hexapod"])

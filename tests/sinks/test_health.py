@@ -171,6 +171,30 @@ def test_asking_midway_changes_nothing(sims, monkeypatch):
     assert often.as_dict() == once.as_dict()
 
 
+@pytest.mark.parametrize("columnar", [False, True])
+def test_without_ranges_the_figures_are_the_same_but_the_ranges(sims, columnar):
+    """CaptureStats(ranges=False) (figure checks that read no min/max): the flags, findings and every other
+    figure as with ranges, on both paths; only the register ranges are left out."""
+    from rs30x_sniff.decode.decoder import Decoder
+    from rs30x_sniff.sinks.pipeline import drive
+
+    got = {}
+    for ranges in (True, False):
+        stats = CaptureStats(115200, ranges=ranges)
+        drive(_chunks(sims["overheat"]), Decoder(columnar=columnar), stats)
+        got[ranges] = stats.as_dict()
+    with_ranges, without = got[True], got[False]
+    assert any(h["registers"] for h in with_ranges["health"].values())
+    assert not any(h["registers"] for h in without["health"].values())
+    for h in with_ranges["health"].values():
+        h["registers"] = {}
+    # "what happened" names the peak a range showed ("... (peak 77 degC)"); its lines are otherwise the same.
+    told = [{k: v for k, v in line.items() if k != "text"} for line in with_ranges.pop("what_happened")]
+    assert [{k: v for k, v in line.items() if k != "text"} for line in without.pop("what_happened")] == told
+    assert without == with_ranges
+    assert any(h["flags"] for h in without["health"].values())  # overheat's flags are still counted
+
+
 def test_wall_clock_for_epoch_times_and_line_time_without_timestamps():
     t0 = 1_700_000_000.0
     req, ret = encode_read(3, 42, 18), encode_return(3, 42, bytes(8) + (80).to_bytes(2, "little") + bytes(8),
