@@ -21,7 +21,7 @@ from .protocol.memmap import ModelError
 # Subcommands, in the order `--help` lists them; each is a module rs30x_sniff.commands.<name>
 # with add_parser(subparsers) and run(args) -> exit code.
 COMMANDS = ("decode", "lint", "rules", "info", "diff", "convert", "export", "table", "record", "simulate", "monitor",
-            "serve")
+            "serve", "plugin")
 
 
 # The largest value of each command-only numeric option, checked for every command here and said in its

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import struct
 import tomllib
 from collections.abc import Hashable
@@ -21,6 +22,15 @@ _REGISTER_KEYS = {"name", "address", "size", "signed", "scale", "offset", "unit"
                   "default", "range", "mode", "enum", "table", "format", "description"}
 _MODEL_KEYS = {"name", "model_number", "top_speed_s_per_60deg", "readable_to"}
 DEFAULT_MODEL = "RS303MR"
+# A map is data, never code: its names become filter terms, JSON keys, MCAP fields and the field names of
+# generated plug-ins (sigrok, Logic 2, Wireshark), so they are checked as the map loads. A register is a
+# snake_case word that is neither a filter key nor the label of an unnamed byte; a model, a word with - or _.
+REGISTER_NAME = re.compile(r"[a-z][a-z0-9_]{0,47}")
+MODEL_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,31}")
+UNIT = re.compile(r"[A-Za-z%/°µ][A-Za-z0-9%/°µ._^-]{0,15}")
+RESERVED_NAMES = frozenset({"id", "kind", "reg", "sev", "latency", "t"})  # the filter language's keys
+_UNNAMED_LABEL = re.compile(r"(reserved|addr)_\d+")
+TEXT_MAX = 500  # characters of a description or an enum label
 # Entries a Model's cache holds before it starts afresh: its line templates go by header bytes, and a
 # stream of odd headers would otherwise pile them up (what is dropped is made again when met).
 MAX_CACHED = 4096
@@ -346,7 +356,31 @@ def _fail(source: str, where: str, msg: str) -> ModelError:
     return ModelError(f"{source}: {where}: {msg}")
 
 
+def _text(source: str, where: str, value: Any, limit: int = TEXT_MAX) -> str:
+    """A free-text value (a description, an enum label): a string of printable characters on one line.
+    Plug-ins still escape it for their language; this keeps control bytes out of every report."""
+    if not isinstance(value, str):
+        raise _fail(source, where, "must be a string")
+    if len(value) > limit:
+        raise _fail(source, where, f"longer than {limit} characters")
+    bad = next((c for c in value if not c.isprintable()), None)
+    if bad is not None:
+        raise _fail(source, where, f"holds the control character {bad!r}: one printable line")
+    return value
+
+
+def _register_name(source: str, where: str, name: Any) -> str:
+    if not isinstance(name, str) or not REGISTER_NAME.fullmatch(name):
+        raise _fail(source, where, f"{name!r} is no register name: lower-case letters, digits and _, "
+                                   f"starting with a letter, at most 48 (present_temperature)")
+    if name in RESERVED_NAMES or _UNNAMED_LABEL.fullmatch(name):
+        raise _fail(source, where, f"{name!r} is taken (a filter key, or the label of an unnamed byte)")
+    return name
+
+
 def _int_keys(source: str, where: str, table: dict) -> dict[int, Any]:
+    if not isinstance(table, dict):
+        raise _fail(source, where, "must be a table of raw value = ...")
     try:
         return {int(k, 0): v for k, v in table.items()}
     except ValueError:
@@ -367,10 +401,27 @@ def parse_model(doc: dict[str, Any], source: str = "<memory map>") -> Model:
     for k in ("name", "model_number", "top_speed_s_per_60deg"):
         if k not in head:
             raise _fail(source, f"model.{k}", "missing")
+    if not isinstance(head["name"], str) or not MODEL_NAME.fullmatch(head["name"]):
+        raise _fail(source, "model.name", f"{head['name']!r} is no model name: letters, digits, - and _, "
+                                          f"at most 32 (RS303MR)")
+    number = head["model_number"]
+    if not isinstance(number, int) or isinstance(number, bool) or not 0 <= number <= 0xFFFF:
+        raise _fail(source, "model.model_number", "must be an integer 0-0xFFFF (address 0-1, table 4.5)")
+    speed = head["top_speed_s_per_60deg"]
+    if not isinstance(speed, (int, float)) or isinstance(speed, bool) or not 0 < speed < 100:
+        raise _fail(source, "model.top_speed_s_per_60deg", "must be a positive number of seconds")
+    readable = head.get("readable_to", MAX_READ_ADDRESS)
+    if not isinstance(readable, int) or isinstance(readable, bool) or not 0 <= readable <= 255:
+        raise _fail(source, "model.readable_to", "must be an integer 0-255")
+    names: dict[str, str] = {}
     regs: list[Register] = []
     owner: dict[int, str] = {}
     for n, r in enumerate(doc.get("register", [])):
+        if not isinstance(r, dict):
+            raise _fail(source, f"register[{n}]", "must be a table")
         label = r.get("name") or (f"address {r['address']}" if "address" in r else "?")
+        if "name" in r and not (isinstance(label, str) and REGISTER_NAME.fullmatch(label)):
+            label = repr(label)[:60]  # a bad name is said as a literal, never printed as it is
         where = f"register[{n}] ({label})"
         for k in r:
             if k not in _REGISTER_KEYS:
@@ -387,6 +438,20 @@ def parse_model(doc: dict[str, Any], source: str = "<memory map>") -> Model:
             raise _fail(source, f"{where}.access", f"must be one of {', '.join(ACCESS)}")
         if access != "reserved" and not r.get("name"):
             raise _fail(source, f"{where}.name", "missing (only reserved registers may be unnamed)")
+        if r.get("name"):
+            name = _register_name(source, f"{where}.name", r["name"])
+            if name in names:
+                raise _fail(source, f"{where}.name", f"{name!r} names {names[name]} already")
+            names[name] = f"register[{n}]"
+        unit = r.get("unit")
+        if unit is not None and (not isinstance(unit, str) or not UNIT.fullmatch(unit)):
+            raise _fail(source, f"{where}.unit", f"{unit!r} is no unit: a word such as deg, degC, mA, deg/s, %")
+        if r.get("format") not in (None, "hex"):
+            raise _fail(source, f"{where}.format", "must be \"hex\" (or left out)")
+        if "description" in r:
+            _text(source, f"{where}.description", r["description"])
+        if not isinstance(r.get("offset", 0), (int, float)) or isinstance(r.get("offset", 0), bool):
+            raise _fail(source, f"{where}.offset", "must be a number")
         if r.get("area", "ram") not in AREAS:
             raise _fail(source, f"{where}.area", f"must be one of {', '.join(AREAS)}")
         if r.get("mode", "both") not in MODES:
@@ -412,6 +477,11 @@ def parse_model(doc: dict[str, Any], source: str = "<memory map>") -> Model:
             owner[a] = label
         enum = _int_keys(source, f"{where}.enum", r["enum"]) if "enum" in r else None
         table = _int_keys(source, f"{where}.table", r["table"]) if "table" in r else None
+        for raw, text in (enum or {}).items():
+            _text(source, f"{where}.enum.{raw}", text, 64)
+        for raw, number in (table or {}).items():
+            if not isinstance(number, (int, float)) or isinstance(number, bool):
+                raise _fail(source, f"{where}.table.{raw}", "must be a number")
         regs.append(Register(
             r.get("name"), address, size, signed, scale, r.get("offset", 0), r.get("unit"), access,
             r.get("area", "ram"), default, rng, r.get("mode", "both"), enum, table, r.get("format"),

@@ -5,10 +5,11 @@ Every ``import`` and ``from ... import`` of every module under rs30x_sniff/ is r
 inside functions too (a lazy import is still a dependency), and each is placed by the folder (or
 top-level module) it names. The stages, lowest first:
 
-    version.py, protocol, schemas -> sources -> decode -> lint -> render -> filters.py -> sinks -> settings.py
+    version.py, protocol, schemas -> sources -> decode -> lint -> render, plugins -> filters.py -> sinks -> settings.py
         -> the top: cli.py, commands/, tui/, sim/, the package itself (__init__.py, __main__.py)
 
-``filters.py`` (the filter language) reads Records and render's words, and sinks (decode --filter's lines)
+``plugins/`` (the sigrok, Logic 2 and Wireshark plug-ins made from the maps) is an output form of the maps, as
+render's are, and sits beside it. ``filters.py`` (the filter language) reads Records and render's words, and sinks (decode --filter's lines)
 and the monitor filter with it: it sits between render and sinks. ``settings.py`` builds every stage's
 options (DecodeOptions, LintConfig, a source's time base) and only the commands read it: it sits just
 below the top, so that no stage depends on the command line's settings. ``schemas/`` (the MCAP
@@ -24,7 +25,8 @@ from pathlib import Path
 from .imports import PACKAGE, imported_from, module_name
 
 TOP = len(("protocol", "sources", "decode", "lint", "render", "filters", "sinks", "settings"))
-RANK = {"version": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "filters": 5,
+RANK = {"version": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "plugins": 4,
+        "filters": 5,
         "sinks": 6, "settings": 7, "user_rules": 7, "compare": 7, "expect": 7,
         "cli": TOP, "commands": TOP, "tui": TOP, "sim": TOP, "__main__": TOP, "": TOP}
 

@@ -111,3 +111,45 @@ def test_a_new_model_is_a_new_file(tmp_path, monkeypatch):
     monkeypatch.setenv("RS30X_DECODERS", str(tmp_path))
     reg = ModelRegistry.from_dirs(decoders_dirs())
     assert {"X1", "RS303MR", "RS304MD"} <= set(reg.models)
+
+
+# ---- a map is data, never code: names checked as it loads (issue 25) ------------------------------------------
+HOSTILE = 'present_position"); __import__("os").system("id"); ("'
+
+
+@pytest.mark.parametrize("edit,where", [
+    (lambda t: t.replace('name = "a"', f"name = '{HOSTILE}'"), "register[0] ('present_position\"); __import__"),
+    (lambda t: t.replace('name = "a"', 'name = "Present"'), "is no register name"),
+    (lambda t: t.replace('name = "a"', 'name = "id"'), "'id' is taken"),
+    (lambda t: t.replace('name = "a"', 'name = "reserved_3"'), "'reserved_3' is taken"),
+    (lambda t: t.replace('name = "X1"', 'name = "X1\\"]] --"'), "model.name: 'X1\"]] --' is no model name"),
+    (lambda t: t + 'unit = "deg\\"); os.exit()"\n', "register[0] (a).unit:"),
+    (lambda t: t + 'description = "two\\nlines"\n', "register[0] (a).description: holds the control character"),
+    (lambda t: t + 'enum = { 0 = "off\\u0000" }\n', "register[0] (a).enum.0: holds the control character"),
+    (lambda t: t + 'enum = { 0 = 5 }\n', "register[0] (a).enum.0: must be a string"),
+    (lambda t: t + 'table = { 0 = "9600" }\n', "register[0] (a).table.0: must be a number"),
+    (lambda t: t + 'enum = 3\n', "register[0] (a).enum: must be a table"),
+    (lambda t: t + 'format = "__import__"\n', "register[0] (a).format"),
+    (lambda t: t + '[[register]]\nname = "a"\naddress = 5\n', "register[1] (a).name: 'a' names register[0] already"),
+    (lambda t: t.replace("model_number = 1", "model_number = 70000"), "model.model_number"),
+    (lambda t: t.replace("model_number = 1", 'model_number = "1"'), "model.model_number"),
+])
+def test_names_are_checked_as_the_map_loads(tmp_path, edit, where):
+    path = tmp_path / "x.toml"
+    path.write_text(edit(GOOD))
+    with pytest.raises(ModelError) as e:
+        load_model(path)
+    assert str(e.value).startswith(f"{path}: ") and where in str(e.value), str(e.value)
+    assert "\n" not in str(e.value)
+
+
+def test_the_reserved_names_are_the_filter_keys():
+    from rs30x_sniff.filters import KEYS
+    from rs30x_sniff.protocol.memmap import RESERVED_NAMES
+
+    assert set(KEYS) <= RESERVED_NAMES
+
+
+def test_the_bundled_maps_pass_the_checks():
+    reg = default_registry()
+    assert {"RS303MR", "RS304MD"} <= set(reg.models)

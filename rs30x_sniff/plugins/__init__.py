@@ -1,0 +1,1 @@
+"""Plug-ins for other tools (sigrok/PulseView, Saleae Logic 2, Wireshark), generated from the memory maps."""
