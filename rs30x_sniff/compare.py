@@ -61,6 +61,9 @@ def _figures() -> dict[str, Figure]:
         Figure("errors", "bus", COUNT, UP, "findings of severity error"),
         Figure("warnings", "bus", COUNT, UP, "findings of severity warning"),
         Figure("poll_hz", "servo", HZ, DOWN, "requests asking this servo for a reply, per second"),
+        Figure("servo_latency_p50", "servo", SECONDS, UP, "median latency of this servo's replies"),
+        Figure("servo_latency_p95", "servo", SECONDS, UP, "95th percentile of this servo's reply latency"),
+        Figure("servo_latency_max", "servo", SECONDS, UP, "longest latency of this servo's replies"),
         Figure("missing_replies", "servo", COUNT, UP, "this servo's requests whose reply never came"),
         Figure("unsolicited_replies", "servo", COUNT, UP, "replies from this ID no request asked for (rule B003)"),
         Figure("nacks", "servo", COUNT, UP, "NACKs from this servo"),
@@ -226,6 +229,11 @@ def servo_values(d: Mapping[str, Any]) -> dict[str, dict[str, Value]]:
             rate = s.get("poll_rate_hz")
             row["poll_hz"] = Value(rate, None if rate is not None else
                                    _timing_reason(d, "fewer than two reads in one time segment"), HZ)
+            lat = s.get("latency_s") or {}
+            for p in ("p50", "p95", "max"):
+                v = lat.get(p)
+                row[f"servo_latency_{p}"] = Value(v, None if v is not None else (
+                    lat.get("absent") or _timing_reason(d, "no reply of it with a latency")), SECONDS)
             row["missing_replies"] = Value(s.get("missing", 0), None, COUNT)
             row["nacks"] = Value(s.get("nacks", 0), None, COUNT)
         row["unsolicited_replies"] = Value(None if unsolicited_why else

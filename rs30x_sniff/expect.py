@@ -101,9 +101,9 @@ _FIGURES = [
     Figure("segments", (BUS,), None, "time segments (the capture's clock restarts or resumes between them)"),
     Figure("bus_load", (BUS,), "%", "share of the capture's time the line was busy"),
     Figure("bus_load_peak", (BUS,), "%", "the busiest one-second window's load"),
-    Figure("latency_p50", (BUS,), "ms", "median reply latency, over every reply"),
-    Figure("latency_p95", (BUS,), "ms", "95th percentile of the reply latency"),
-    Figure("latency_max", (BUS,), "ms", "longest reply latency"),
+    Figure("latency_p50", (SERVO, BUS), "ms", "median reply latency (a servo's: over its replies)"),
+    Figure("latency_p95", (SERVO, BUS), "ms", "95th percentile of the reply latency"),
+    Figure("latency_max", (SERVO, BUS), "ms", "longest reply latency"),
 ]
 FIGURES: dict[str, Figure] = {f.name: f for f in _FIGURES}
 # min(register) / max(register): the range a servo's returns (goal_position: the host's writes) showed.
@@ -588,14 +588,18 @@ def _measure(ctx: _Context, op: Operand, sid: int | None) -> Measured:
         return None, ("the capture is shorter than one second" if name == "bus_load_peak"
                       else "the capture lasts no time")
     if name.startswith("latency_"):
-        lat = info.get("latency_s", {})
+        if sid is None:
+            lat = info.get("latency_s", {})
+        else:
+            lat = info["servos"].get(str(sid), {}).get("latency_s") or {}
         v = lat.get(name.split("_", 1)[1])
         if not info.get("timed"):
             return None, NO_TIMES
         if lat.get("absent"):  # some or all replies have no latency: a percentile over the rest is not true
             return None, str(lat["absent"])
         if v is None:
-            return None, "no reply was paired with its request"
+            return None, ("no reply was paired with its request" if sid is None
+                          else f"no reply of ID {sid} was paired with its request")
         return float(v) * 1e3, ""
     raise AssertionError(f"figure {name!r} has no measure")  # every name of FIGURES is measured above
 

@@ -263,8 +263,8 @@ def test_flags_and_ranges_of_a_servo_that_never_answered_are_not_checkable():
     ("present_temperature < 60", 1, "present_temperature is a register: write max(present_temperature)"),
     ("5 < 6", 1, "compares two numbers: one side must be a figure"),
     ("poll_hz > returns", 11, "poll_hz is a rate (Hz, kHz), returns is a count (no unit): they cannot be compared"),
-    ("latency_p95 < 1 ms", 1, "latency_p95 is a figure of the whole bus (not measured per servo): check it "
-                              "without 'for'"),
+    ("bus_load < 50%", 1, "bus_load is a figure of the whole bus (not measured per servo): check it "
+                          "without 'for'"),
     ("poll_hz >= 5 # x", 14, "unexpected '#'"),
     ("", 1, "empty check"),
     ("poll_hz >= 1e999", 12, "1e999 is not a finite number"),
@@ -350,3 +350,41 @@ def test_a_check_as_a_rule_of_the_registry():
     assert r.summary == "Figure check: poll_hz >= 5 (IDs 1, 2, 3, 4, 5, 6)."
     assert "The gait needs fresh positions." in r.doc
     assert r.check(None) is None
+
+
+# ---- a servo's own latency ---------------------------------------------------------------------------------------
+class OneSlowServoBus(SimBus):
+    """A bus on which ID 3 answers after 8 steps of its return delay (No. 7: 50 us each), the others at once."""
+
+    def attach(self, servo):
+        if servo.mem[4] == 3:
+            servo.mem[7] = 8
+        return super().attach(servo)
+
+
+@pytest.mark.parametrize("fmt", ["timestamped", "mcap"])
+def test_a_servos_latency_is_its_own_replies(tmp_path, fmt):
+    """Per-servo percentiles (info's servos.ID.latency_s) on the columnar path (a .thex) and the record path
+    (an MCAP's raw channel is read as records too): the slow servo alone fails a per-servo check."""
+    path = tmp_path / ("h.thex" if fmt == "timestamped" else "h.mcap")
+    write_file(str(path), scenarios.run("hexapod", duration=2.0, bus=OneSlowServoBus(115200)), fmt, 115200)
+    info, rules = info_figures(path)
+    per = {sid: s["latency_s"] for sid, s in info["servos"].items() if "latency_s" in s}
+    assert set(per) == {str(i) for i in range(1, 19)}
+    assert sum(lat["count"] for lat in per.values()) == info["latency_s"]["count"]
+    assert per["3"]["p50"] > 0.4e-3 > max(lat["max"] for sid, lat in per.items() if sid != "3")
+    assert info["latency_s"]["max"] == per["3"]["max"]
+    (check,) = load_checks([{"code": "U101", "name": "quick", "check": "latency_p95 < 0.3 ms", "for": "each"}], "t")
+    results = evaluate([check], info, rules)
+    failed = [r for r in results if r.status != PASS]
+    assert [r.status for r in failed] == [FAIL] and failed[0].message.startswith("ID 3: latency_p95 0.")
+    assert len(results) == 18
+
+
+def test_a_servo_with_no_timed_reply_has_no_latency_to_check():
+    info = {"timed": True, "health": {}, "latency_s": {"count": 4, "p50": 1e-4, "p95": 1e-4, "max": 1e-4},
+            "servos": {"1": {"latency_s": {"count": 4, "p50": 1e-4, "p95": 1e-4, "max": 1e-4}}, "2": {}}}
+    r1, r2 = evaluate(load_checks([{"code": "U101", "name": "q", "check": "latency_max < 1 ms", "for": "id:1-2"}],
+                                  "t.toml"), info)
+    assert (r1.status, r2.status) == (PASS, NOT_CHECKABLE)
+    assert r2.message == "ID 2: latency_max not checkable: no reply of ID 2 was paired with its request"

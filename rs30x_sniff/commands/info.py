@@ -98,12 +98,14 @@ def _print_text(out: Any, name: str, s: CaptureStats, linted: bool, time_ref: An
             con.print(f"             {n:>6} {rule}")
     if s.servos:
         table = Table(title=None, box=None, pad_edge=False, padding=(0, 2, 0, 0))
-        for col in ("id", "requests", "reads", "long writes", "returns", "acks", "nacks", "missing", "poll rate"):
+        for col in ("id", "requests", "reads", "long writes", "returns", "acks", "nacks", "missing", "poll rate",
+                    "latency p95"):
             table.add_column(col, justify="right")
         for sid, v in d["servos"].items():
             rate = "-" if v["poll_rate_hz"] is None else f"{v['poll_rate_hz']:.1f} Hz"
+            p95 = (v.get("latency_s") or {}).get("p95")  # absent: no reply of it had a latency (or none is whole)
             table.add_row(sid, *(str(v[k]) for k in ("requests", "reads", "long_writes", "returns", "acks", "nacks",
-                                                      "missing")), rate)
+                                                      "missing")), rate, "-" if p95 is None else _ms(p95))
         con.print()
         con.print(table)
     _print_health(con, d, linted)

@@ -80,3 +80,51 @@ class LatencyHistogram:
             out["absent"] = (f"{unmeasured} repl{'y' if unmeasured == 1 else 'ies'} stamped before "
                              f"{'its' if unmeasured == 1 else 'their'} request ended (F005/F006): no latency")
         return out
+
+
+# Replies a column form's latencies are held for before they are split by servo: a split costs a pass per
+# servo, so it is paid once per this many replies, not once per Block.
+SPLIT_EVERY = 1 << 16
+
+
+class ServoLatencies:
+    """Reply latencies per servo, a LatencyHistogram each (``by_id``): the record form adds one reply, the
+    column form a Block's replies at once (held, then split by servo every SPLIT_EVERY replies)."""
+
+    def __init__(self) -> None:
+        self.by_id: dict[int, LatencyHistogram] = {}
+        self._held: list[tuple[np.ndarray, np.ndarray]] = []
+        self._held_count = 0
+
+    def add(self, sid: int, latency: float) -> None:
+        h = self.by_id.get(sid)
+        if h is None:
+            h = self.by_id[sid] = LatencyHistogram()
+        h.add(latency)
+
+    def add_arrays(self, ids: np.ndarray, lat: np.ndarray) -> None:
+        """Replies of servos ``ids`` with latencies ``lat`` (same length)."""
+        if len(lat):
+            self._held.append((ids, lat))
+            self._held_count += len(lat)
+            if self._held_count >= SPLIT_EVERY:
+                self.split()
+
+    def split(self) -> None:
+        """Put the held replies into their servos' histograms (before any figure is read)."""
+        if not self._held:
+            return
+        ids = np.concatenate([i for i, _ in self._held])
+        lat = np.concatenate([x for _, x in self._held])
+        self._held, self._held_count = [], 0
+        for sid in np.unique(ids).tolist():
+            h = self.by_id.get(sid)
+            if h is None:
+                h = self.by_id[sid] = LatencyHistogram()
+            h.add_array(lat[ids == sid])
+
+    def as_dict(self, sid: int, unsupported: str | None = None) -> dict[str, Any] | None:
+        """Servo ``sid``'s count and percentiles (LatencyHistogram.as_dict); None when no reply of it had one."""
+        self.split()
+        h = self.by_id.get(sid)
+        return None if h is None else h.as_dict(unsupported)

@@ -23,7 +23,7 @@ from ..protocol.wire import BROADCAST_ID, byte_time
 from .bus_load import LOAD_WINDOW, LoadWindows, RecentLoad
 from .health import FLUSH_ROWS, HealthRecorder
 from .summary import servo_health, timer, what_happened
-from .latency import LatencyHistogram
+from .latency import LatencyHistogram, ServoLatencies
 from .pipeline import Sink
 from .segments import TimeSegments
 from .servos import ServoStats, ServoTraffic
@@ -69,6 +69,7 @@ class CaptureStats(Sink):
         self.per_servo = ServoTraffic()
         self.servos: dict[int, ServoStats] = self.per_servo.by_id
         self.latency = LatencyHistogram()
+        self.servo_latency = ServoLatencies()  # the same replies, per servo
         # Per-servo register ranges (unless ``ranges`` is False: nothing reads them), status flags, findings.
         self.health = HealthRecorder(ranges)
         self.timing_unsupported: str | None = None
@@ -163,7 +164,10 @@ class CaptureStats(Sink):
                 else:
                     self.per_servo.nacked(sid)
             if rec.status == "paired":
-                self.latency.add_paired(rec.latency, ts is not None)
+                lat = rec.latency
+                self.latency.add_paired(lat, ts is not None)
+                if lat is not None and sid is not None:
+                    self.servo_latency.add(sid, lat)
 
     # ---- the column form ---------------------------------------------------------------------------
     def add_block(self, blk: Block) -> None:
@@ -212,6 +216,7 @@ class CaptureStats(Sink):
             got = blk.reply_latencies()
             if got is not None and got[0].size:
                 self.latency.add_array(got[1])
+                self.servo_latency.add_arrays(sid[got[0]], got[1])  # a Block's replies are returns: their IDs
 
     def _reads(self, blk: Block, is_short: np.ndarray) -> np.ndarray:
         """The short packets of a Block counted by op; per row, whether its op asks for a return."""
@@ -313,6 +318,21 @@ class CaptureStats(Sink):
         """Reply latencies: count and percentiles, or none with the reason they cannot be given."""
         return self.latency.as_dict(self.timing_unsupported)
 
+    def servos_dict(self) -> dict[str, Any]:
+        """Per servo: its traffic (servos.py) and, where a reply of it had one, its reply latency."""
+        out = self.per_servo.as_dict()
+        # Replies stamped before their request ended are counted for the bus only: where there are any, no
+        # servo's percentiles are said to be whole.
+        absent = self.timing_unsupported or self.latency_dict().get("absent")
+        for key, row in out.items():
+            lat = self.servo_latency.as_dict(int(key), self.timing_unsupported)
+            if lat is not None:
+                del lat["unmeasured"]
+                if absent:
+                    lat.update(p50=None, p95=None, max=None, absent=absent)
+                row["latency_s"] = lat
+        return out
+
     @property
     def packets(self) -> int:
         return self.records - self.by_kind["garbage"]
@@ -335,7 +355,7 @@ class CaptureStats(Sink):
             "segments": self.segments.count(),
             "reader_stalls": [{"t": t, "seconds": sec, "bytes": n} for t, sec, n in self.stalls],
             "timing_unsupported": self.timing_unsupported,
-            "servos": self.per_servo.as_dict(),
+            "servos": self.servos_dict(),
             "findings": {sev: self.findings.get(sev, 0) for sev in ("error", "warning", "info")},
             "findings_by_rule": dict(self.finding_codes.most_common()),
             **self.health_dict(),

@@ -292,3 +292,18 @@ def test_an_output_file_is_not_replaced_without_force(capsys, captures, tmp_path
 def test_both_inputs_from_stdin_is_a_usage_error(capsys):
     assert main(["diff", "-", "-", "--isolated"]) == 2
     assert "at most one of them" in capsys.readouterr().err
+
+
+def test_a_servos_own_latency_is_a_figure_of_its_row(capsys, captures):
+    """servo_latency_p95: each servo's replies, held to a threshold per servo (silent-servo's ID 3 never
+    answers: no latency of its own, so its row is not checked, never passed)."""
+    code = main(["diff", str(captures["fast"]), str(captures["slow"]), "--threshold", "servo_latency_p95=+20%",
+                 "--fail-on-regress", "--format", "json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 1
+    crossed = {r["servo"] for r in report["regressions"]}
+    answering = {sid for sid, rows in report["servos"].items()
+                 if any(r["figure"] == "servo_latency_p95" and r["before"] is not None for r in rows)}
+    assert crossed == answering and len(answering) >= 2
+    unchecked = {u["servo"] for u in report["unchecked"] if u["figure"] == "servo_latency_p95"}
+    assert unchecked == set(report["servos"]) - answering
