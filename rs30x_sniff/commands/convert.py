@@ -1,4 +1,4 @@
-"""`rs30x-sniff convert`: a capture of any format into a Foxglove-ready MCAP file, streamed."""
+"""`rs30x-sniff convert`: a capture of any format into a Foxglove-ready MCAP file or a pcapng for Wireshark, streamed."""
 
 from __future__ import annotations
 
@@ -23,13 +23,28 @@ from .outputs import STDOUT, check_output, output_binary, report_end
 # chunk, so fewer chunks keep the writer's memory flat on long captures, and zstd compresses them better.
 CHUNK_SIZE = 1 << 20
 
+OUTPUT_KINDS = ("mcap", "pcapng")
+
+
+def output_kind(path: str, to: str | None) -> str:
+    """What ``convert`` writes: ``--to``, else pcapng for a file named *.pcapng, else MCAP."""
+    if to is not None:
+        return to
+    return "pcapng" if path.lower().endswith(".pcapng") else "mcap"
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("convert", help="convert a capture into an MCAP log for Foxglove",
+    p = sub.add_parser("convert", help="convert a capture into an MCAP log for Foxglove or a pcapng for Wireshark",
                        description="Convert a capture (bin, hex, timestamped hex or MCAP) into an MCAP file: raw "
-                                   "bytes, decoded packets, per-servo state, transactions and lint findings.")
+                                   "bytes, decoded packets, per-servo state, transactions and lint findings; or, "
+                                   "for OUT.pcapng (or --to pcapng), into a pcapng file for Wireshark and tshark "
+                                   "with the dissector of `rs30x-sniff plugin wireshark`: a packet per frame and "
+                                   "per garbage run, the findings as packet comments.")
     p.add_argument("input", metavar="INPUT", help="capture file, or - for raw bytes on stdin")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.mcap", help="MCAP file to write (- for stdout)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.mcap",
+                   help="MCAP or pcapng file to write (- for stdout)")
+    p.add_argument("--to", choices=OUTPUT_KINDS, default=None,
+                   help="what to write (default: pcapng for a name ending .pcapng, else mcap)")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     add_decode_options(p)
     add_lint_options(p)
@@ -88,9 +103,18 @@ def open_mcap_sink(path: str | IO[bytes], source: str, settings: Settings, *, ti
         raise  # the output's error: :func:`output_path` says what became of the file
 
 
+def open_pcapng_sink(out: IO[bytes], source: str, settings: Settings, *, timed: bool,
+                     start_time: float | None = None) -> Any:
+    """The pcapng sink of a converted capture (it only appends: stdout will do)."""
+    from ..sinks.pcapng import PcapngSink
+
+    return PcapngSink(out, source=source, baud=settings.baud, timed=timed, start_time=start_time)
+
+
 # ---- the command ---------------------------------------------------------------------------------
 def run(args: argparse.Namespace) -> int:
     check_output(args.output, args.force, (args.input,))
+    kind = output_kind(args.output, args.to)
     start_time = parse_start_time(args.start_time)
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)
@@ -113,7 +137,8 @@ def run(args: argparse.Namespace) -> int:
     stopped = None
     try:
         with output_binary(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as out:
-            sink = open_mcap_sink(out, source, settings, timed=first[1] is not None, start_time=start_time)
+            opener = open_pcapng_sink if kind == "pcapng" else open_mcap_sink
+            sink = opener(out, source, settings, timed=first[1] is not None, start_time=start_time)
             if bar is None:
                 drive(chunks, decoder, sink)
             else:
@@ -123,5 +148,6 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as e:
         stopped = str(e) or "Ctrl-C"  # the log of what was read so far is finished and kept
     name = "stdout" if args.output == STDOUT else args.output
-    summary = f"{name}: {decoder.bytes_in} bytes, {sink.messages} messages, {sink.bytes_written} bytes written"
+    count = f"{sink.packets} packets" if kind == "pcapng" else f"{sink.messages} messages"
+    summary = f"{name}: {decoder.bytes_in} bytes, {count}, {sink.bytes_written} bytes written"
     return report_end(summary, stopped)
