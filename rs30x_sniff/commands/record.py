@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 from typing import IO
 
 from ..sinks.mcap.writer import McapSink
@@ -18,9 +17,9 @@ from .common import (CliError, add_decode_options, add_lint_selection, check_pos
                      no_data, settings_for)
 from .outputs import STDOUT, check_output, write_error
 from .live import add_foxglove_option, start_foxglove
+from .parts import Parts, parse_keep, parse_span
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
-FLUSH_INTERVAL = 1.0    # an idle bus still gets its open MCAP chunk written within about a second
 IDLE_INTERVAL = 0.1     # a quiet port still hands the loop an empty chunk this often
 
 
@@ -39,66 +38,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="also print each decoded packet as a text line (like decode)")
     p.add_argument("--split-size", type=float, default=None, metavar="MB",
                    help="start a new numbered file (OUT-001.mcap, OUT-002.mcap, ...) after about MB megabytes")
+    p.add_argument("--split-time", default=None, metavar="TIME",
+                   help="start a new numbered file every TIME (30s, 10min, 1h), beside or instead of --split-size")
+    p.add_argument("--keep", default=None, metavar="AGE|SIZE",
+                   help="with numbered files: delete the oldest closed ones past an age (24h, 7d) or a total size "
+                        "(500MB, 5GB) as new ones open; numbering goes on after the parts already there")
     add_lint_selection(p)
     p.add_argument("--no-lint", action="store_true", help="do not run the linter while recording")
     add_foxglove_option(p)
     p.set_defaults(run=run)
-
-
-class _Files(Sink):
-    """The output: one MCAP file, or numbered ones rotated at a size; flushed about once a second."""
-
-    def __init__(self, path: str, split_bytes: int | None, make, force: bool = False) -> None:
-        self.base = Path(path)
-        self.split_bytes = split_bytes
-        self.make = make
-        self.force = force
-        self.index = 0
-        self.paths: list[str] = []
-        self.sink: McapSink = self._open()
-        self.dirty = False
-        self.last_flush = time.monotonic()
-
-    def _open(self) -> McapSink:
-        if str(self.base) == STDOUT:
-            # Streamed as it is recorded: the MCAP writer only appends, so a pipe takes it as a file does.
-            name, path = "stdout", None
-        elif self.split_bytes is None:
-            name = path = str(self.base)
-        else:
-            self.index += 1
-            name = path = str(self.base.with_name(f"{self.base.stem}-{self.index:03d}{self.base.suffix or '.mcap'}"))
-        if path is not None:
-            # Written in place, not renamed at the end: a recorder killed outright still leaves its log
-            # under the name asked for (readable up to its last chunk). So the check comes first.
-            check_output(path, self.force)
-        try:
-            sink = self.make(sys.stdout.buffer if path is None else path, self.index)
-        except OSError as e:
-            raise write_error(name, e, "nothing recorded") from None
-        self.paths.append(name)
-        return sink
-
-    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
-        if self.split_bytes is not None and self.sink.bytes_written >= self.split_bytes:
-            self.sink.finish()
-            self.sink = self._open()
-        # Raw bytes go to the file before decoding: nothing received is ever lost to a decoder error.
-        self.sink.chunk(data, t, sender, error)
-        self.dirty = True
-        self.idle()
-
-    def batch(self, step: Step) -> None:
-        self.sink.batch(step)
-
-    def idle(self) -> None:
-        now = time.monotonic()
-        if self.dirty and now - self.last_flush >= FLUSH_INTERVAL:
-            self.sink.flush()
-            self.last_flush, self.dirty = now, False
-
-    def close(self) -> None:
-        self.sink.finish()
 
 
 class _Status(Sink):
@@ -153,8 +101,13 @@ def run(args: argparse.Namespace) -> int:
     check_positive("--duration", args.duration)
     check_positive("--split-size", args.split_size)
     split = None if args.split_size is None else max(1, int(args.split_size * 1e6))
-    if args.output == STDOUT and split is not None:
-        raise CliError("--split-size: numbered files need a file name, not - (stdout)")
+    split_time = None if args.split_time is None else parse_span("--split-time", args.split_time)
+    keep = None if args.keep is None else parse_keep(args.keep)
+    if args.output == STDOUT and (split is not None or split_time is not None):
+        raise CliError(f"{'--split-size' if split is not None else '--split-time'}: numbered files need a file "
+                       f"name, not - (stdout)")
+    if keep is not None and split is None and split_time is None:
+        raise CliError("--keep: deletes old numbered files: give --split-size or --split-time too")
     if args.output == STDOUT and args.print_lines:
         raise CliError("--print: stdout carries the MCAP stream (-o -); leave out one of them")
 
@@ -176,7 +129,11 @@ def run(args: argparse.Namespace) -> int:
         # Same log times as the file (wall clock), so the live view and the recording line up; started
         # first, so a busy address leaves no empty file behind.
         fox = start_foxglove(args.foxglove, source=args.port, baud=opts.baud, models=opts.models)
-        files = _Files(args.output, split, make_sink, args.force)
+        # Deleted parts get a line each on stderr when it is no terminal (a service's journal), where the
+        # status line is not drawn.
+        say = None if sys.stderr.isatty() else (lambda line: print(line, file=sys.stderr, flush=True))
+        files = Parts(args.output, make_sink, split_bytes=split, split_seconds=split_time, keep=keep,
+                      force=args.force, say=say)
     except BaseException:
         src.close()
         if fox is not None:
@@ -197,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
         raise write_error(files.paths[-1], e, _what_is_left(files.sink, files.paths[-1], status.bytes)) from None
     no_data(args.port, dec, src)
 
-    where = ", ".join(files.paths)
+    where = files.describe()
     summary = f"{status.bytes:,} bytes, {status.packets:,} packets, {status.findings:,} findings in {where}"
     if src.reason == LOST:
         print(f"rs30x-sniff: error: {args.port}: port lost ({src.message}); {summary}", file=sys.stderr)

@@ -125,3 +125,23 @@ def test_a_silent_port_is_not_a_clean_pass(pty):
     proc = cli("lint", pty.path, "--duration", "1", "--isolated")
     rc, out, err = _finish(proc)
     assert rc == 2 and "no bytes received from the port" in err
+
+
+def test_split_time_and_keep_rotate_and_delete_the_oldest_parts(pty, tmp_path):
+    """--split-time 0.5s --keep 1.2s over about 4 s: many parts, each finalized, the oldest deleted with a line
+    each on stderr (no terminal), and the parts left hold the last of the bytes sent, in order."""
+    out = tmp_path / "box.mcap"
+    proc = cli("record", pty.path, "-o", str(out), "--duration", "4", "--split-time", "0.5s", "--keep", "1.2s",
+               "--no-lint")
+    wait_for(tmp_path / "box-001.mcap", proc)
+    sent = pty.write_sim("hexapod", duration=2.5)
+    rc, _, stderr = _finish(proc)
+    assert rc == 0, stderr
+    removed = [line for line in stderr.splitlines() if "removed" in line and "--keep 1.2s" in line]
+    parts = sorted(tmp_path.glob("box-*.mcap"))
+    assert removed and len(parts) >= 2
+    assert not any(str(p) in line for p in parts for line in removed)  # a removed part is gone
+    for p in parts:
+        assert_finalized_mcap(p)
+    kept = b"".join(recorded_bytes(p) for p in parts)
+    assert sent.endswith(kept) and "older part" in stderr.splitlines()[-1]

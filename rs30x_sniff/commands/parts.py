@@ -1,0 +1,206 @@
+"""`record`'s output files: one MCAP, or numbered parts split by size or time, the oldest deleted under --keep."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from ..decode.decoder import Step
+from ..sinks.mcap.writer import McapSink
+from ..sinks.pipeline import Sink
+from .common import CliError
+from .outputs import STDOUT, check_output, write_error
+
+FLUSH_INTERVAL = 1.0  # an idle bus still gets its open MCAP chunk written within about a second
+
+_SPAN = re.compile(r"\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([a-zA-Z]*)\s*")
+SPAN_UNITS = {"": 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "min": 60.0, "m": 60.0, "h": 3600.0, "d": 86400.0}
+SIZE_UNITS = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
+              "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
+
+
+def parse_span(option: str, text: str) -> float:
+    """Seconds of ``90``, ``90s``, ``500ms``, ``10min``, ``2h``, ``1d``; a one-line error otherwise."""
+    m = _SPAN.fullmatch(text)
+    unit = m.group(2).lower() if m else ""
+    if m is None or unit not in SPAN_UNITS:
+        raise CliError(f"{option} {text}: expected a time such as 30s, 10min, 2h or 1d")
+    seconds = float(m.group(1)) * SPAN_UNITS[unit]
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise CliError(f"{option} {text}: must be a finite, positive time")
+    return seconds
+
+
+@dataclass(frozen=True)
+class Keep:
+    """What ``--keep`` holds on to: parts younger than ``seconds``, or the newest up to ``bytes`` in all."""
+
+    text: str
+    seconds: float | None = None
+    bytes: int | None = None
+
+
+def parse_keep(text: str) -> Keep:
+    """``--keep 24h`` (an age: any time of :func:`parse_span`) or ``--keep 5GB`` (a size: B, kB, MB, GB, TB,
+    KiB, MiB, GiB, TiB)."""
+    m = _SPAN.fullmatch(text)
+    unit = m.group(2).lower() if m else ""
+    if m is not None and unit in SIZE_UNITS:
+        size = float(m.group(1)) * SIZE_UNITS[unit]
+        if not (math.isfinite(size) and size >= 1):
+            raise CliError(f"--keep {text}: must be a finite, positive size")
+        return Keep(text, bytes=int(size))
+    if m is not None and unit in SPAN_UNITS and unit:
+        return Keep(text, seconds=parse_span("--keep", text))
+    raise CliError(f"--keep {text}: expected an age (24h, 7d, 90min) or a size (500MB, 5GB)")
+
+
+class Parts(Sink):
+    """The recording's files: one MCAP, or numbered parts (OUT-001.mcap, ...) started after ``split_bytes``
+    or ``split_seconds``; each part is finalized before the next opens. With ``keep``, the closed parts past
+    its age or total size are deleted, oldest first, as a new one opens (the open part never), and the
+    numbers go on after the highest part already there (a restarted recorder adds to its folder).
+
+    ``make(path or stream, part number)`` opens an McapSink; ``clock`` (monotonic seconds) times the parts,
+    ``wall`` (epoch seconds) ages them; ``say`` gets a line per deleted part (None: silent)."""
+
+    def __init__(self, path: str, make: Callable[[Any, int], McapSink], *, split_bytes: int | None = None,
+                 split_seconds: float | None = None, keep: Keep | None = None, force: bool = False,
+                 clock: Callable[[], float] = time.monotonic, wall: Callable[[], float] = time.time,
+                 say: Callable[[str], None] | None = None) -> None:
+        self.base = Path(path)
+        self.make = make
+        self.split_bytes, self.split_seconds = split_bytes, split_seconds
+        self.keep, self.force = keep, force
+        self.clock, self.wall, self.say = clock, wall, say
+        self.numbered = split_bytes is not None or split_seconds is not None
+        self.closed: list[Path] = self._existing() if keep is not None else []  # oldest first
+        self.index = int(self.closed[-1].stem.rsplit("-", 1)[1]) if self.closed else 0
+        self.paths: list[str] = []  # the parts this run wrote
+        self.removed = 0
+        self.dirty = False
+        self.last_flush = clock()
+        self.sink: McapSink = self._open()
+
+    # ---- parts ----------------------------------------------------------------------------------------------
+    def part_path(self, index: int) -> Path:
+        return self.base.with_name(f"{self.base.stem}-{index:03d}{self.base.suffix or '.mcap'}")
+
+    def _existing(self) -> list[Path]:
+        """Parts of an earlier run in the folder, by number (what --keep counts and deletes first)."""
+        suffix = self.base.suffix or ".mcap"
+        pattern = re.compile(re.escape(self.base.stem) + r"-(\d{3,})" + re.escape(suffix))
+        found = []
+        folder = self.base.parent
+        for p in folder.iterdir() if folder.is_dir() else ():
+            m = pattern.fullmatch(p.name)
+            if m and p.is_file():
+                found.append((int(m.group(1)), p))
+        return [p for _, p in sorted(found)]
+
+    def _open(self) -> McapSink:
+        if str(self.base) == STDOUT:
+            # Streamed as it is recorded: the MCAP writer only appends, so a pipe takes it as a file does.
+            name, path = "stdout", None
+        elif not self.numbered:
+            name = path = str(self.base)
+        else:
+            self.index += 1
+            name = path = str(self.part_path(self.index))
+        if path is not None:
+            # Written in place, not renamed at the end: a recorder killed outright still leaves its log
+            # under the name asked for (readable up to its last chunk). So the check comes first.
+            check_output(path, self.force)
+        try:
+            sink = self.make(sys.stdout.buffer if path is None else path, self.index)
+        except OSError as e:
+            raise write_error(name, e, "nothing recorded") from None
+        self.paths.append(name)
+        self.opened = self.clock()
+        return sink
+
+    def _rotate(self) -> None:
+        self.sink.finish()  # a part always ends finalized
+        self.closed.append(Path(self.paths[-1]))
+        self.sink = self._open()
+        if self.keep is not None:
+            self._retire()
+
+    def _retire(self) -> None:
+        """Delete closed parts past --keep, oldest first (a part already gone is let be)."""
+        keep = self.keep
+        assert keep is not None
+        sizes = []
+        for p in self.closed:
+            try:
+                st = p.stat()
+            except OSError:
+                st = None
+            sizes.append(st)
+        now = self.wall()
+        # The open part counts at the size it will reach (--split-size), so the folder stays under the limit
+        # until the next part opens, not just at this moment.
+        total = (max(self.sink.bytes_written, self.split_bytes or 0)
+                 + sum(st.st_size for st in sizes if st is not None))
+        while self.closed:
+            st = sizes[0]
+            if st is not None and not (
+                    (keep.bytes is not None and total > keep.bytes)
+                    or (keep.seconds is not None and st.st_mtime < now - keep.seconds)):
+                break
+            p = self.closed.pop(0)
+            sizes.pop(0)
+            if st is None:
+                continue
+            try:
+                os.unlink(p)
+            except FileNotFoundError:
+                pass
+            total -= st.st_size
+            self.removed += 1
+            if self.say is not None:
+                self.say(f"rs30x-sniff: removed {p} (--keep {keep.text})")
+
+    # ---- as a sink -----------------------------------------------------------------------------------------
+    def _due(self) -> bool:
+        return self.numbered and ((self.split_bytes is not None and self.sink.bytes_written >= self.split_bytes)
+                                  or (self.split_seconds is not None
+                                      and self.clock() - self.opened >= self.split_seconds))
+
+    def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
+        if self._due():
+            self._rotate()
+        # Raw bytes go to the file before decoding: nothing received is ever lost to a decoder error.
+        self.sink.chunk(data, t, sender, error)
+        self.dirty = self.dirty or bool(data)
+        self.idle()
+
+    def batch(self, step: Step) -> None:
+        self.sink.batch(step)
+
+    def idle(self) -> None:
+        if self.split_seconds is not None and self._due():  # a quiet bus still gets a part per span
+            self._rotate()
+        now = self.clock()
+        if self.dirty and now - self.last_flush >= FLUSH_INTERVAL:
+            self.sink.flush()
+            self.last_flush, self.dirty = now, False
+
+    def close(self) -> None:
+        self.sink.finish()
+
+    def describe(self) -> str:
+        """Where the recording went, short even after a week of parts."""
+        if len(self.paths) <= 3:
+            where = ", ".join(self.paths)
+        else:
+            where = f"{len(self.paths)} parts, {self.paths[0]} to {self.paths[-1]}"
+        if self.removed:
+            where += f" ({self.removed} older part{'s' if self.removed != 1 else ''} removed by --keep)"
+        return where
