@@ -312,8 +312,9 @@ local function add_registers(tree, tvb, start, len, address, model, summary)
         local rf = REG_FIELDS[reg.name]
         local unit = reg.unit and (" " .. reg.unit) or ""
         if reg.enum then
-          tree:add(rf.field, range, raw)
+          -- The label of this model's map (the field's value strings are those of the first map naming it).
           local label = reg.enum[raw]
+          tree:add(rf.field, range, raw):set_text(reg.name .. ": " .. (label or "unknown") .. " (" .. raw .. ")")
           summary[#summary + 1] = reg.name .. "=" .. (label or tostring(raw))
         else
           local v = convert(reg, raw)
