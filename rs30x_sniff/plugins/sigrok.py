@@ -260,13 +260,15 @@ class Decoder(srd.Decoder):
 
 def value_text(field):
     # The core's text glues the unit on (90.0deg): here it stands apart.
-    text, unit = field['text'], field['unit']
+    text, unit = field.get('text'), field['unit']
+    if text is None:
+        text = str(field['value']) + (unit or '')
     if unit and text.endswith(unit):
         text = text[:-len(unit)] + ' ' + unit
     return text
 
 def field_texts(field):
-    name = field['name'] if field['name'] is not None else field['label']
+    name = field['name'] or field.get('label') or 'address %d' % field['address']
     value = value_text(field)
     return ['%s: %s (ID %d)' % (name, value, field['id']), '%s: %s' % (name, value), value]
 
@@ -288,9 +290,10 @@ def packet_texts(frame):
                     frame.id, frame.flag, ' (%s)' % flags if flags else '', frame.address,
                     frame.length, bad),
                 'Return ID %d' % frame.id, 'R']
-    if frame.kind == 'ack':
-        return ['ACK', 'A']
-    return ['NACK', 'N']
+    word = 'ACK' if frame.kind == 'ack' else 'NACK'
+    if frame.id is None:
+        return ['%s (no request asked for it)' % word, word, word[0]]
+    return ['%s from ID %d' % (word, frame.id), word, word[0]]
 
 def garbage_texts(frame):
     reason = ' (%s)' % frame.reason if frame.reason else ''
@@ -314,20 +317,29 @@ def readme(maps: dict[str, Any]) -> str:
     models = ", ".join(m["name"] for m in maps["models"])
     return f"""# rs30x: a sigrok protocol decoder for the Futaba RS30x servo bus
 
-Written by `{maps['generator']}` (`rs30x-sniff plugin sigrok`) from the memory maps it knew: {models}
-(default {maps['default_model']}). Write it again after changing a map (`$RS30X_DECODERS`); do not edit it.
+Written by `{maps['generator']}` (`rs30x-sniff plugin sigrok -o DIR`) from the memory maps it knew:
+{models} (default {maps['default_model']}). After changing a map (`$RS30X_DECODERS`) write it again; do
+not edit it.
 
-It stacks on sigrok's `uart` decoder: put this folder's parent on `SIGROKDECODE_DIR`, e.g.
+It stacks on sigrok's `uart` decoder. With `DIR` the folder that holds this `rs30x/` folder:
 
     SIGROKDECODE_DIR=DIR sigrok-cli -i capture.sr -P uart:rx=D0:baudrate=115200,rs30x -A rs30x
+    SIGROKDECODE_DIR=DIR sigrok-cli -i capture.sr -P uart:rx=D0:baudrate=115200,rs30x:model=RS304MD -A rs30x=register
+    SIGROKDECODE_DIR=DIR sigrok-cli -i capture.sr -P uart:rx=D0:baudrate=115200,rs30x -B rs30x=frames > frames.jsonl
 
-or copy the folder `rs30x` into `~/.local/share/libsigrokdecode/decoders/` for PulseView
-(add UART on the bus wire, then stack RS30x on it).
+For PulseView, copy `rs30x/` into `~/.local/share/libsigrokdecode/decoders/` (or start PulseView with
+`SIGROKDECODE_DIR=DIR`), add a UART decoder on the bus wire at the bus's baud rate, and stack RS30x on it.
 
-Options: `model` (the map naming the registers), `gap` (idle byte times that end a frame, default 20).
+Options: `model` (the memory map that names the registers until a servo's model number is read),
+`gap` (idle byte times that end a frame, default 20; the byte time is measured from the uart's frames).
+
 Rows: Packets (request, return, ACK, NACK), Fields (header bytes, registers with scaled values and units,
-checksum), Warnings (bad checksum, cut frames, garbage, UART frame errors). Binary output `frames`: one
-JSON object per frame (`sigrok-cli ... -B rs30x=frames`); stacked decoders get the same dict as Python output.
+checksum), Warnings (bad checksum, cut frames, garbage, framing errors, return flags). Binary output
+`frames`: one JSON object per frame; a decoder stacked on this one gets the same dict as Python output.
+With both uart lines (rx and tx) each line is framed on its own; the frame's `line` says which.
+
+A frame still open when the capture ends is shown only if the line stays idle for `gap` byte times
+after its last byte (libsigrokdecode 0.5 tells a stacked decoder nothing at the end of the data).
 """
 
 
@@ -343,8 +355,9 @@ def generate(maps: dict[str, Any]) -> dict[str, str]:
 
 
 def install_hint(out: Path) -> str:
-    """How to use the folder ``out`` just written."""
-    return (f"wrote the sigrok decoder '{PACKAGE}' in {out}\n"
+    """How to use the folder ``out`` just written (the decoders folder that holds ``rs30x/``)."""
+    return (f"wrote the sigrok protocol decoder '{PACKAGE}' in {out / PACKAGE}\n"
             f"run: SIGROKDECODE_DIR={out} sigrok-cli -i CAPTURE.sr -P uart:rx=D0:baudrate=115200,{PACKAGE} "
             f"-A {PACKAGE}\n"
-            f"or, for PulseView: copy {out / PACKAGE} into ~/.local/share/libsigrokdecode/decoders/")
+            f"or, for PulseView: copy {out / PACKAGE} into ~/.local/share/libsigrokdecode/decoders/ "
+            f"(or start it as SIGROKDECODE_DIR={out} pulseview) and stack RS30x on a UART decoder")

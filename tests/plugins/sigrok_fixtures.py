@@ -63,13 +63,18 @@ def lay_end_to_end(named: list[tuple[str, Chunks]], baud: int = BAUD,
 
 
 def write_sr(path: Path, chunks: Chunks, *, rate: int = RATE, baud: int = BAUD, trail: float = PAUSE,
-             tx: Chunks | None = None) -> Path:
+             tx: Chunks | None = None, broken_stop: list[tuple[float, int]] = ()) -> Path:
     """A .sr of ``chunks`` on D0 (and ``tx`` on D1 if given) made by sigrok-cli's binary input, as
-    captures/foreign/sigrok.md makes its sample."""
-    d0 = encode(chunks, rate, baud, lead=0.001, trail=trail)
+    captures/foreign/sigrok.md makes its sample; ``broken_stop``: (chunk time, byte index) of D0 bytes whose
+    stop bit is held low (a framing error)."""
+    lead = 0.001
+    d0 = encode(chunks, rate, baud, lead=lead, trail=trail)
+    for t, k in broken_stop:
+        stop = lead + t + (k * 10 + 9) / baud  # 8N1: the stop bit is a byte's tenth bit
+        d0[int(round(stop * rate)):int(round((stop + 1 / baud) * rate))] = False
     lines = [d0]
     if tx is not None:
-        d1 = encode(tx, rate, baud, lead=0.001, trail=trail)
+        d1 = encode(tx, rate, baud, lead=lead, trail=trail)
         n = max(len(d0), len(d1))
         lines = [np.pad(x, (0, n - len(x)), constant_values=True) for x in (d0, d1)]
     raw = np.zeros(len(lines[0]), np.uint8)

@@ -40,7 +40,7 @@ def packet(event: dict) -> tuple:
     """What must agree between the plug-in's frame and the reference's event."""
     kind = event.get("kind", event.get("type"))
     return (kind, event["raw"].lower(), event["checksum_ok"], event["id"], event["flag"], event["address"],
-            event["length"], event["count"])
+            event["length"], event["count"], event.get("reason"))
 
 
 def fields(event: dict) -> list[tuple]:
@@ -126,6 +126,8 @@ def test_same_packets_as_decode(decoded):
     assert a == b, first_difference(a, b)
     kinds = {e["type"] for e in theirs}
     assert {"short", "long", "return", "ack", "nack", "garbage"} <= kinds  # the inputs reach every kind
+    sides = {"short": "host", "long": "host", "return": "servo", "ack": "servo", "nack": "servo", "garbage": None}
+    assert all(e["direction"] == sides[e["kind"]] for e in ours)
 
 
 @needs_sigrok
@@ -180,6 +182,28 @@ def test_annotations_name_the_registers_with_values_and_units(plugin, everything
 
 
 @needs_sigrok
+def test_packets_row_has_a_packet_per_event_where_it_lies(plugin, everything, decoded):
+    sr, _ = everything
+    ours, theirs = decoded
+    rows = annotations(sr, plugin, "request:return:ack:nack")
+    packets = [(o, e) for o, e in zip(ours, theirs) if e["type"] != "garbage"]
+    assert [(ss, es) for ss, es, _ in rows] == [(o["start"], o["end"]) for o, _ in packets]
+    for (_, _, text), (_, e) in zip(rows, packets):
+        if e["type"] == "short":
+            assert text.startswith(f"Short packet to ID {e['id']}: flag {e['flag']:02X}"), (text, e)
+        elif e["type"] == "long":
+            assert text.startswith(f"Long packet: flag {e['flag']:02X}, address {e['address']}, "
+                                   f"length {e['length']}, count {e['count']}"), (text, e)
+        elif e["type"] == "return":
+            assert text.startswith(f"Return from ID {e['id']}: flags {e['flag']:02X}"), (text, e)
+        else:
+            word = e["type"].upper()
+            assert text == (f"{word} from ID {e['id']}" if e["id"] is not None
+                            else f"{word} (no request asked for it)"), (text, e)
+        assert text.endswith(" (bad checksum)") == (e["checksum_ok"] is False), (text, e)
+
+
+@needs_sigrok
 def test_warnings_row_shows_bad_sums_and_garbage(plugin, everything, decoded):
     sr, _ = everything
     _, theirs = decoded
@@ -189,6 +213,27 @@ def test_warnings_row_shows_bad_sums_and_garbage(plugin, everything, decoded):
     assert bad_sums and garbage
     assert sum(1 for *_, t in rows if t == "Bad checksum") == bad_sums
     assert sum(1 for *_, t in rows if t.startswith("Garbage: ")) == garbage
+
+
+# ---- the edges of a capture and a broken stop bit ------------------------------------------------------
+@needs_sigrok
+def test_cut_frames_and_a_framing_error_as_decode_has_them(plugin, tmp_path):
+    """A capture that starts in the middle of a frame, a byte with a low stop bit, a frame cut by an idle gap,
+    and a frame cut by the end of the line's bytes (idle for 20 ms after it, so the uart says IDLE)."""
+    goal = wire.encode_short(1, 0, 30, (900).to_bytes(2, "little"))
+    read = wire.encode_read(2, 42, 2)
+    chunks = [(goal[-5:], 0.0), (goal, 0.002), (b"\x55", 0.004), (read, 0.006), (goal[:6], 0.008), (goal, 0.010),
+              (read[:5], 0.012)]
+    sr = tmp_path / "edges.sr"
+    write_sr(sr, chunks, broken_stop=[(0.004, 0)])
+    ours = frames_json(sr, plugin)
+    theirs = reference(sr, env={"RS30X_DECODERS": ""})
+    assert [e["reason"] for e in theirs if e["type"] == "garbage"][:3] == ["capture-start", "framing-error",
+                                                                          "truncated"]
+    a, b = [packet(e) for e in ours], [packet(e) for e in theirs]
+    assert a[:-1] == b[:-1], first_difference(a, b)
+    # The last frame: sigrok's IDLE says the line stayed quiet (a cut frame); decode saw its input end.
+    assert (a[-1][:-1], a[-1][-1], b[-1][-1]) == (b[-1][:-1], "truncated", "capture-end")
 
 
 # ---- two lines: RX and TX each framed on its own --------------------------------------------------
