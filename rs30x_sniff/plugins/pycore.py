@@ -200,7 +200,6 @@ class Framer(object):
         self.last_end = None
         self.final = False        # nothing more comes (the end of input, or flagged bytes next)
         self.hard = False         # the line has gone idle after the last byte (idle())
-        self.idle_seen = False
 
     @property
     def offset(self):
