@@ -324,7 +324,8 @@ not edit it.
 It stacks on sigrok's `uart` decoder. With `DIR` the folder that holds this `rs30x/` folder:
 
     SIGROKDECODE_DIR=DIR sigrok-cli -i capture.sr -P uart:rx=D0:baudrate=115200,rs30x -A rs30x
-    SIGROKDECODE_DIR=DIR sigrok-cli -i capture.sr -P uart:rx=D0:baudrate=115200,rs30x:model=RS304MD -A rs30x=register
+    SIGROKDECODE_DIR=DIR sigrok-cli -i capture.sr -P uart:rx=D0:baudrate=115200,rs30x:model=MODEL \\
+        -A rs30x=register
     SIGROKDECODE_DIR=DIR sigrok-cli -i capture.sr -P uart:rx=D0:baudrate=115200,rs30x -B rs30x=frames > frames.jsonl
 
 For PulseView, copy `rs30x/` into `~/.local/share/libsigrokdecode/decoders/` (or start PulseView with
