@@ -102,7 +102,7 @@ class PcapngSink(Sink):
         self.out = out
         self.baud = baud
         self.timed = timed
-        self.origin = start_time or 0.0
+        self.origin_ns = round((start_time or 0.0) * 1e9)
         self.byte_time = byte_time(baud)
         self.offsets = array("q")  # each packet's stream offset, in order: frame number by bisect
         self.packets = 0
@@ -136,8 +136,9 @@ class PcapngSink(Sink):
         self.bytes_written += len(data)
 
     def time_ns(self, t: float | None, offset: int) -> int:
-        seconds = self.origin + (t if t is not None else offset * self.byte_time)
-        return max(0, round(seconds * 1e9))
+        # The anchor and the time since it are rounded apart: their sum in seconds (1.8e9 s) would keep
+        # only a quarter of a microsecond in a double.
+        return max(0, self.origin_ns + round((t if t is not None else offset * self.byte_time) * 1e9))
 
     def frame_of(self, offset: int) -> int:
         """The 1-based frame number of the packet holding stream ``offset`` (0: none written yet)."""
@@ -153,7 +154,7 @@ class PcapngSink(Sink):
             req = rec.request if kind in ("return", "ack", "nack") else None
             request_frame = self.frame_of(req.event.offset) if req is not None else 0
             reason = ev.reason if kind == "garbage" else ""
-            model = rec.model.name if rec.model is not None else ""
+            model = rec.model.name if rec.model is not None and kind != "garbage" else ""  # as decode's JSON
             payload = tags + rs30x_header(kind, request_frame, reason, model) + ev.raw
             ns = self.time_ns(ev.t_start, ev.offset)
             if self.first_ns is None:

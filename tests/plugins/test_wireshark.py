@@ -154,7 +154,7 @@ def plugin(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def converted(tmp_path_factory):
-    """name -> (pcapng, decode's records) for every input, converted and decoded in process."""
+    """name -> (pcapng, decode's records, the input) for every input, converted and decoded in process."""
     tmp = tmp_path_factory.mktemp("converted")
     out = {}
     for k, (name, path) in enumerate(input_files(tmp).items()):
@@ -162,7 +162,7 @@ def converted(tmp_path_factory):
         assert main(["convert", str(path), "-o", str(pcapng), "--isolated"]) == 0
         assert main(["decode", str(path), "--format", "jsonl", "-o", str(jsonl), "--isolated"]) == 0
         records = [json.loads(line) for line in jsonl.read_text().splitlines()]
-        out[name] = (pcapng, [r for r in records if r.get("type") != "diagnostic"])
+        out[name] = (pcapng, [r for r in records if r.get("type") != "diagnostic"], path)
     return out
 
 
@@ -171,7 +171,7 @@ def dissections(plugin, converted):
     """name -> tshark's packets, the runs two at a time."""
     lua, _ = plugin
     with ThreadPoolExecutor(2) as pool:
-        runs = {name: pool.submit(dissected, lua, pcapng) for name, (pcapng, _) in converted.items()}
+        runs = {name: pool.submit(dissected, lua, pcapng) for name, (pcapng, *_) in converted.items()}
         return {name: run.result() for name, run in runs.items()}
 
 
@@ -181,7 +181,7 @@ def test_every_input_is_dissected_as_decode_reads_it(plugin, converted, dissecti
     _, maps = plugin
     assert len(converted) >= 40 + len(SCENARIOS)
     differ = []
-    for name, (_, records) in converted.items():
+    for name, (_, records, _) in converted.items():
         packets = dissections[name]
         assert len(packets) == len(records), name
         for k, (p, rec) in enumerate(zip(packets, records)):
@@ -194,16 +194,16 @@ def test_every_input_is_dissected_as_decode_reads_it(plugin, converted, dissecti
 @needs_tshark
 def test_the_inputs_hold_every_kind_and_many_registers(converted):
     """The differential test above means something: every kind of packet and many registers are in it."""
-    kinds = {r["type"] for _, recs in converted.values() for r in recs}
+    kinds = {r["type"] for _, recs, _ in converted.values() for r in recs}
     assert kinds >= {"short", "long", "return", "ack", "nack", "garbage"}
-    names = {f["name"] for _, recs in converted.values() for r in recs for f in r["fields"] if f["name"]}
+    names = {f["name"] for _, recs, _ in converted.values() for r in recs for f in r["fields"] if f["name"]}
     assert {"present_temperature", "goal_position", "torque_enable", "present_voltage"} <= names
 
 
 @needs_tshark
 def test_a_reply_names_its_request_as_decode_pairs_them(plugin, converted):
     lua, _ = plugin
-    pcapng, records = converted["sim:hexapod"]
+    pcapng, records, _ = converted["sim:hexapod"]
     text = tshark(lua, pcapng, "-2", "-T", "fields", "-e", "frame.number", "-e", "rs30x.request",
                   "-e", "rs30x.response")
     rows = [line.split("\t") for line in text.splitlines()]
@@ -218,12 +218,11 @@ def test_a_reply_names_its_request_as_decode_pairs_them(plugin, converted):
 @needs_tshark
 def test_a_display_filter_selects_what_decode_filter_selects(plugin, converted, tmp_path):
     lua, _ = plugin
-    pcapng, records = converted["sim:overheat"]
+    pcapng, records, path = converted["sim:overheat"]
     text = tshark(lua, pcapng, "-Y", "rs30x.id == 2 && rs30x.present_temperature > 60", "-T", "fields",
                   "-e", "frame.number")
     got = [int(x) for x in text.split()]
     out = tmp_path / "f.jsonl"
-    path = next(p for p in (tmp_path.parent.glob("**/sim-overheat.thex")))
     assert main(["decode", str(path), "--format", "jsonl", "--filter", "id:2 present_temperature>60",
                  "-o", str(out), "--isolated"]) == 0
     frame_of = {r["offset"]: k + 1 for k, r in enumerate(records)}
