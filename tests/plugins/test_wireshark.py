@@ -270,6 +270,8 @@ def user_maps(tmp_path_factory):
     hostile = hostile.replace('description = "Torque off, on, or brake mode"',
                               f"description = {toml_string(evil + ' ]] [[ ' + chr(92))}")
     assert hostile.count(toml_string(evil)[1:-1]) == 2
+    # A register named like a header field (rs30x.count) gets a field of its own name, rs30x.reg_count.
+    hostile = hostile.replace('name = "present_temperature"', 'name = "count"')
     (folder / "evil1.toml").write_text(hostile)
     renamed = bundled.replace('name = "present_temperature"', 'name = "case_temperature"')
     assert renamed != bundled
@@ -313,6 +315,23 @@ def test_hostile_labels_load_as_data_and_show_verbatim(user_maps, user_run):
     shown = [f.get("showname") for f in ET.fromstring(text).iter("field") if f.get("name") == "rs30x.torque_enable"]
     assert shown == [f"torque_enable: {labels[k]} ({n})" for n, k in enumerate(("off", "on", "brake"))]
     assert not sentinel.exists()
+
+
+@needs_tshark
+def test_a_register_named_like_a_header_field_gets_its_own_field(user_run):
+    lua, pcapngs = user_run
+    text = tshark(lua, pcapngs["EVIL1"], "-Y", "rs30x.reg_count == 41", "-T", "fields", "-e", "frame.number",
+                  "-e", "rs30x.count")
+    assert text.split("\n")[0].split("\t") == ["5", "1"]  # the return's Count byte is 1
+
+
+@needs_tshark
+def test_the_model_preference_decodes_with_the_map_it_names(plugin, converted):
+    lua, _ = plugin
+    pcapng, records, _ = converted["manual-examples.hex"]
+    for model in ("RS304MD", "RS303MR"):
+        text = tshark(lua, pcapng, "-o", f"rs30x.model:{model}", "-T", "fields", "-e", "rs30x.model")
+        assert {x for x in text.split("\n") if x} == {model}
 
 
 @needs_tshark
