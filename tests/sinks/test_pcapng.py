@@ -128,7 +128,7 @@ def test_every_byte_is_in_one_packet_in_order_with_its_kind_direction_and_time(c
             assert flags == [DIRECTION[rec["type"]]]
             seconds = rec["t"] if rec["t"] is not None else rec["offset"] * BYTE_SECONDS
             assert p["ns"] == round(seconds * 1e9), (path, k)
-            assert head["reason"] == rec.get("reason", "") if rec["type"] == "garbage" else head["reason"] == ""
+            assert head["reason"] == (rec["reason"] if rec["type"] == "garbage" else "")
             assert head["model"] == (rec["model"] or "")
 
 
