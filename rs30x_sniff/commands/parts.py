@@ -184,6 +184,10 @@ class Parts(Sink):
     def batch(self, step: Step) -> None:
         self.sink.batch(step)
 
+    def gap(self, t: float, lost_at: float | None, note: str) -> None:
+        """A gap in the port's bytes (rs30x_sniff.sources.reconnect): in the open part's metadata."""
+        self.sink.gap(t, lost_at, note)
+
     def idle(self) -> None:
         if self.split_seconds is not None and self._due():  # a quiet bus still gets a part per span
             self._rotate()

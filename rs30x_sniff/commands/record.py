@@ -18,6 +18,7 @@ from .common import (CliError, add_decode_options, add_lint_selection, check_pos
 from .outputs import STDOUT, check_output, write_error
 from .live import add_foxglove_option, start_foxglove
 from .parts import Parts, parse_keep, parse_span
+from ..sources.reconnect import ReconnectingSource
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 IDLE_INTERVAL = 0.1     # a quiet port still hands the loop an empty chunk this often
@@ -43,6 +44,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--keep", default=None, metavar="AGE|SIZE",
                    help="with numbered files: delete the oldest closed ones past an age (24h, 7d) or a total size "
                         "(500MB, 5GB) as new ones open; numbering goes on after the parts already there")
+    p.add_argument("--no-reconnect", action="store_true",
+                   help="stop when the port goes away (by default the recorder waits for it, by its path or its "
+                        "/dev/serial/by-id link, and goes on, marking the gap)")
     add_lint_selection(p)
     p.add_argument("--no-lint", action="store_true", help="do not run the linter while recording")
     add_foxglove_option(p)
@@ -111,9 +115,22 @@ def run(args: argparse.Namespace) -> int:
     if args.output == STDOUT and args.print_lines:
         raise CliError("--print: stdout carries the MCAP stream (-o -); leave out one of them")
 
-    src = LiveSource(args.port, opts.baud, duration=args.duration, announce=False,
-                     tap=SerialTap(args.port, opts.baud))
-    src.start()  # a port that cannot be opened fails here, before any file is created
+    status: _Status | None = None
+
+    def say(line: str) -> None:
+        """A line for the log (a lost port, one found again, a part deleted), above the status line if any."""
+        if status is not None and status.live is not None:
+            status.live.console.print(line, markup=False, highlight=False)
+        else:
+            print(line, file=sys.stderr, flush=True)
+
+    # A port that cannot be opened fails here, before any file is created.
+    if args.no_reconnect:
+        src: LiveSource | ReconnectingSource = LiveSource(args.port, opts.baud, duration=args.duration,
+                                                          announce=False, tap=SerialTap(args.port, opts.baud))
+        src.start()
+    else:
+        src = ReconnectingSource(args.port, opts.baud, duration=args.duration, say=say)
 
     def make_sink(path: str | IO[bytes], part: int) -> McapSink:
         extra = dict(src.metadata)
@@ -129,9 +146,7 @@ def run(args: argparse.Namespace) -> int:
         # Same log times as the file (wall clock), so the live view and the recording line up; started
         # first, so a busy address leaves no empty file behind.
         fox = start_foxglove(args.foxglove, source=args.port, baud=opts.baud, models=opts.models)
-        # Deleted parts get a line each on stderr when it is no terminal (a service's journal), where the
-        # status line is not drawn.
-        say = None if sys.stderr.isatty() else (lambda line: print(line, file=sys.stderr, flush=True))
+        # Each deleted part gets a line (say): in a service's journal, or above the status line.
         files = Parts(args.output, make_sink, split_bytes=split, split_seconds=split_time, keep=keep,
                       force=args.force, say=say)
     except BaseException:
@@ -156,6 +171,10 @@ def run(args: argparse.Namespace) -> int:
 
     where = files.describe()
     summary = f"{status.bytes:,} bytes, {status.packets:,} packets, {status.findings:,} findings in {where}"
+    gaps = getattr(src, "gaps", ())
+    if gaps:
+        lost = sum(back - (gone or back) for gone, back, _ in gaps)
+        summary += f"; the port was lost {len(gaps)} time{'s' if len(gaps) != 1 else ''} ({lost:.1f} s without it)"
     if src.reason == LOST:
         print(f"rs30x-sniff: error: {args.port}: port lost ({src.message}); {summary}", file=sys.stderr)
         return 1

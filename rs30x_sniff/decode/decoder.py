@@ -145,6 +145,11 @@ class Decoder:
         events = self.frames.feed(data, t) if error is None else self.frames.feed_fault(data, t, error)
         return self._decided(events)
 
+    def mark_gap(self, note: str) -> None:
+        """The source lost bytes here (a port lost and reopened, ``note`` says so): the next chunk begins a new
+        time segment (FrameDecoder.mark_gap), reported as F010 like any seam of the capture's clock."""
+        self.frames.mark_gap(note)
+
     def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> Step:
         """Decode several plain chunks (nothing said of their sender or errors) at once: the same
         records as feeding them one by one, in one step (the columnar path's way in)."""

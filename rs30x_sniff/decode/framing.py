@@ -49,6 +49,7 @@ TIME_TOO_CLOSE = "too-close"
 # Nothing is paired, timed or counted across a seam (Seam).
 SEAM_RESTART = "restart"
 SEAM_GAP = "gap"
+SEAM_SOURCE = "source"  # the source says its bytes stopped here (a port lost and reopened): Decoder.mark_gap
 SEAM_BACK_S = 0.010
 SEAM_GAP_S = 10.0
 
@@ -58,11 +59,15 @@ class Seam:
     """Where a capture's clock restarts or resumes: a new time segment begins at stream ``offset``."""
 
     offset: int                 # stream offset of the new segment's first byte
-    kind: str                   # SEAM_RESTART or SEAM_GAP
+    kind: str                   # SEAM_RESTART, SEAM_GAP or SEAM_SOURCE
     t_end: float | None         # end of the last byte before the seam (None: that segment had no time)
     t_start: float              # the new segment's first time
+    note: str = ""              # SEAM_SOURCE: what the source said of its gap (a port re-plugged)
 
     def describe(self) -> str:
+        if self.kind == SEAM_SOURCE:
+            idle = "" if self.t_end is None else f" ({self.t_start - self.t_end:.3f} s from the last byte before)"
+            return f"{self.note}{idle}: a new time segment begins (nothing is paired or timed across it)"
         if self.kind == SEAM_RESTART:
             back = "" if self.t_end is None else f", {self.t_end - self.t_start:.3f} s back"
             return f"the capture's clock restarts here (stamped {self.t_start:.6f} s{back}): a new time segment begins"
@@ -127,6 +132,7 @@ class FrameDecoder:
         # latency is ever negative (the linter reports these as F005/F006).
         self.time_faults: dict[str, TimeFault] = {}
         self.seams: list[Seam] = []  # every seam so far, in stream order
+        self._source_gap: str | None = None  # mark_gap's note, for the next timed chunk's seam
         # Until the first frame of the input (or of a time segment), garbage is the tail of a frame
         # whose start came before the capture did (CAPTURE_START), unless it runs on for longer than
         # any frame: then it is what it looks like.
@@ -155,8 +161,16 @@ class FrameDecoder:
         return None if self._last_t is None else self._last_t + self.byte_time
 
     # ---- seams -------------------------------------------------------------------------------
+    def mark_gap(self, note: str) -> None:
+        """The source lost bytes here (a port that went away and came back): the next timed chunk opens a
+        seam (SEAM_SOURCE, said with ``note``) however short the silence was, so nothing pairs across it."""
+        if self._chunk_t is not None:  # no byte before the gap: nothing to part from
+            self._source_gap = note
+
     def _seam_kind(self, t: float) -> str | None:
         """The seam a chunk stamped ``t`` opens, if any (the previous chunk had a time)."""
+        if self._source_gap is not None:
+            return SEAM_SOURCE
         if t < self._chunk_t - SEAM_BACK_S:
             return SEAM_RESTART
         if self._last_t is not None and t - self._last_t > SEAM_GAP_S:
@@ -171,7 +185,8 @@ class FrameDecoder:
         if kind is None:
             return []
         out = self._parse(final=True, ended=True)
-        self.seams.append(Seam(self.offset, kind, self.end_time, t))
+        self.seams.append(Seam(self.offset, kind, self.end_time, t, self._source_gap or ""))
+        self._source_gap = None
         self._last_t = self._chunk_t = self._start_t = None
         self._lead = True
         self._seg_start = self.offset
@@ -217,7 +232,7 @@ class FrameDecoder:
         (no time fault); False, having changed nothing, otherwise. Same floating-point operations in
         the same order as ``_add``, so every time is bit-identical."""
         times = [c[1] for c in chunks]
-        if None in times:
+        if None in times or self._source_gap is not None:
             return False
         bt = self.byte_time
         lens = np.array(sizes, dtype=np.int64)

@@ -46,6 +46,25 @@ def _marked(data: bytes, t: float | None, sender: str | None, error: str | None)
     return Marked(data, t, sender=sender, error=error)
 
 
+class SourceGap(tuple):
+    """Not bytes but a gap in them: ``(b"", t)`` said by a source that lost the line for a while (a port
+    unplugged and found again). ``t`` is when it came back, ``lost_at`` when it went (epoch seconds, None if
+    unknown), ``note`` the words for the log. The drive loop hands it to the decoder (a new time segment)
+    and to the sinks that keep a list of gaps (``gap(...)``)."""
+
+    lost_at: float | None
+    note: str
+
+    def __new__(cls, t: float, lost_at: float | None, note: str):
+        self = tuple.__new__(cls, (b"", t))
+        self.lost_at = lost_at
+        self.note = note
+        return self
+
+    def __reduce__(self) -> Any:
+        return (SourceGap, (self[1], self.lost_at, self.note))
+
+
 def marks(chunk: Chunk) -> tuple[str | None, str | None]:
     """``(sender, error)`` of a chunk (both None for a plain pair)."""
     if type(chunk) is Marked:

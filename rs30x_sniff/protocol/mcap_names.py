@@ -25,6 +25,7 @@ RAW_ENCODING = "json"
 METADATA_NAME = "rs30x"               # written first: a killed writer still leaves it
 MODELS_METADATA_NAME = "rs30x.models"  # written by finish(): what the bus taught us
 STATS_METADATA_NAME = "rs30x.stats"    # written by finish(): `info`'s figures for the whole log, as JSON
+GAPS_METADATA_NAME = "rs30x.gaps"      # written by finish() if the port was lost and found again: the gaps, as JSON
 
 # capture: the capture's own times; synthetic: byte positions at the baud rate (no timestamps);
 # wall: a live port, in wall-clock time; monotonic: older live logs, seconds since the port opened.

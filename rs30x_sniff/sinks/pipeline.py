@@ -6,7 +6,7 @@ from typing import Any, Iterable, Iterator
 
 from ..decode.blocks import Block
 from ..decode.decoder import DecodeOptions, Decoder, Sink, Step
-from ..protocol.chunks import Marked
+from ..protocol.chunks import Marked, SourceGap
 
 # Sink (what a Step goes to) is declared beside the Step, in rs30x_sniff.decode.decoder, so that the decode
 # stage's rate watches can be sinks without importing this later stage; every sink imports it from here.
@@ -74,6 +74,15 @@ class Pipeline:
             self._hand_out(step)
         return step
 
+    def gap(self, gap: SourceGap) -> None:
+        """The source lost the line until ``gap``'s time: the decoder starts a new time segment at the next
+        chunk, and each sink that keeps gaps (``gap(t, lost_at, note)``: the MCAP's metadata) is told."""
+        self.decoder.mark_gap(gap.note)
+        for s in self.sinks:
+            tell = getattr(s, "gap", None)
+            if tell is not None:
+                tell(gap[1], gap.lost_at, gap.note)
+
     def close(self) -> Step:
         """End of input: the decoder's last records and late findings, then every sink closes (once)."""
         if self.closed:
@@ -104,6 +113,8 @@ class Pipeline:
                 for chunk in chunks:
                     if type(chunk) is Marked:
                         feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+                    elif type(chunk) is SourceGap:
+                        self.gap(chunk)
                     else:
                         feed(*chunk)
         except BaseException:
@@ -136,6 +147,8 @@ class Pipeline:
                         feed_many(pending)
                     if type(chunk) is Marked:
                         self.feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+                    elif type(chunk) is SourceGap:
+                        self.gap(chunk)
                     else:
                         self.feed(*chunk)
                     continue
@@ -180,6 +193,8 @@ def decode_records(chunks: Iterable[tuple[bytes, float | None]], options: Decode
     for chunk in chunks:
         if type(chunk) is Marked:
             yield from dec.feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+        elif type(chunk) is SourceGap:
+            dec.mark_gap(chunk.note)
         else:
             yield from dec.feed(*chunk)
     yield from dec.close()

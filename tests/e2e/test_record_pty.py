@@ -47,7 +47,7 @@ def test_stop_by_signal_keeps_every_byte(pty, tmp_path, sig, word):
 
 def test_far_end_closed_mid_frame_is_a_lost_port(pty, tmp_path):
     out = tmp_path / "cut.mcap"
-    proc = cli("record", pty.path, "-o", str(out))
+    proc = cli("record", pty.path, "-o", str(out), "--no-reconnect")
     wait_for(out, proc)
     sent = pty.write_sim("noise", duration=1.2)
     half = bytes.fromhex("FA AF 03 09 00")  # a poll cut after its fifth byte
@@ -145,3 +145,48 @@ def test_split_time_and_keep_rotate_and_delete_the_oldest_parts(pty, tmp_path):
         assert_finalized_mcap(p)
     kept = b"".join(recorded_bytes(p) for p in parts)
     assert sent.endswith(kept) and "older part" in stderr.splitlines()[-1]
+
+
+def test_a_port_that_comes_back_under_its_link_is_recorded_on_with_one_gap(tmp_path):
+    """The pty pair killed and a new one made under the same link name while recording (a USB adapter
+    re-plugged): one F010 finding and one rs30x.gaps entry for the gap, every byte before and after in the
+    file, no reply missed across it, and recording goes on until --duration."""
+    import json
+
+    from mcap.reader import make_reader
+
+    link = tmp_path / "ttyRIG"
+    first = Pty()
+    link.symlink_to(first.path)
+    out = tmp_path / "rig.mcap"
+    proc = cli("record", str(link), "-o", str(out), "--duration", "6")
+    second = None
+    try:
+        wait_for(out, proc)
+        before = first.write_sim("hexapod", duration=1.0)
+        time.sleep(0.3)
+        link.unlink()  # the adapter is gone: its node first, then the line
+        first.close()
+        time.sleep(1.0)
+        second = Pty()
+        link.symlink_to(second.path)
+        time.sleep(1.0)  # found within WAIT_STEP and opened; its input is flushed before the first read
+        after = second.write_sim("hexapod", duration=1.0, seed=1)
+        rc, _, stderr = _finish(proc)
+    finally:
+        first.close()
+        if second is not None:
+            second.close()
+    assert rc == 0, stderr
+    assert "port lost" in stderr and "back after" in stderr and "lost 1 time" in stderr.splitlines()[-1]
+    assert recorded_bytes(out) == before + after
+    with open(out, "rb") as f:
+        reader = make_reader(f)
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+        diagnostics = [json.loads(m.data) for _, _, m in reader.iter_messages(topics=["/rs30x/diagnostics"])]
+    gaps = json.loads(meta["rs30x.gaps"]["gaps"])
+    assert len(gaps) == 1 and 1.0 < gaps[0]["seconds"] < 10
+    codes = [d["name"].split()[0] if "name" in d else d.get("message", "") for d in diagnostics]
+    stats = json.loads(meta["rs30x.stats"]["stats"])
+    assert stats["findings_by_rule"] == {"F010 capture-seam": 1}, (stats["findings_by_rule"], codes)
+    assert stats["segments"] == 2

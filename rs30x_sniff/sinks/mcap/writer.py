@@ -15,10 +15,10 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from ...version import __version__
 from ...protocol.events import Garbage
-from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, LOG_SCHEMA, MCAP_MAGIC, METADATA_NAME, MODELS_METADATA_NAME,
-                                    PACKET_SCHEMA, PACKETS_TOPIC, RAW_SCHEMA, RAW_TOPIC, SERVO_STATE_SCHEMA,
-                                    STATE_TOPIC, STATS_METADATA_NAME, TIME_BASES, TRANSACTION_SCHEMA,
-                                    TRANSACTIONS_TOPIC, log_time_ns)
+from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, GAPS_METADATA_NAME, LOG_SCHEMA, MCAP_MAGIC, METADATA_NAME,
+                                    MODELS_METADATA_NAME, PACKET_SCHEMA, PACKETS_TOPIC, RAW_SCHEMA, RAW_TOPIC,
+                                    SERVO_STATE_SCHEMA, STATE_TOPIC, STATS_METADATA_NAME, TIME_BASES,
+                                    TRANSACTION_SCHEMA, TRANSACTIONS_TOPIC, log_time_ns)
 from ...render.block_json import record_json_line
 from ...schemas import schema_bytes
 from ...decode.blocks import Block
@@ -281,6 +281,7 @@ class McapSink(JsonChannels):
         super().__init__(source=source, baud=baud, models=models, start_time=start_time)
         self.path = path
         self.time_base = time_base
+        self.gaps: list[dict] = []  # where the source lost the line (gap()): the rs30x.gaps metadata
         self._chunk_ns = int(chunk_seconds * 1e9)
         self._chunk_size = chunk_size
         self._out = _SdkFile(self._file, library=f"rs30x-sniff {__version__}")
@@ -422,6 +423,12 @@ class McapSink(JsonChannels):
         super().batch(step)
         self.stats.batch(step)  # a CaptureStats: it takes Blocks as they are (takes_blocks)
 
+    def gap(self, t: float, lost_at: float | None, note: str) -> None:
+        """The source lost the line from ``lost_at`` to ``t`` (epoch seconds): kept for the metadata (the
+        decoder's F010 finding marks the same place in the diagnostics)."""
+        self.gaps.append({"lost_at": lost_at, "back_at": t,
+                          "seconds": None if lost_at is None else round(t - lost_at, 6), "why": note})
+
     def close(self) -> None:
         self.flush_held()
         self.finish()
@@ -440,6 +447,8 @@ class McapSink(JsonChannels):
             self._finished = True
             try:
                 self._sdk(self._writer.write_metadata, MODELS_METADATA_NAME, {"models": _models_text(self.model_names)})
+                if self.gaps:
+                    self._sdk(self._writer.write_metadata, GAPS_METADATA_NAME, {"gaps": json.dumps(self.gaps)})
                 if self.stats.bytes_in:
                     self.stats.close()
                     self._sdk(self._writer.write_metadata, STATS_METADATA_NAME,
