@@ -63,11 +63,13 @@ def write_folder(out: Path, files: dict[str, str], force: bool) -> None:
             old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=parent))
             os.rename(out, old / "was")
         os.rename(tmp, out)
-    except OSError as e:
+    except BaseException as e:  # a full disk, Ctrl-C, a generator's bad path: nothing half-written is left
         shutil.rmtree(tmp, ignore_errors=True)
         if old is not None and (old / "was").exists() and not os.path.lexists(out):
-            os.rename(old / "was", out)  # put the old one back: nothing half-written in its place
-        raise CliError(f"{out}: cannot write: {e.strerror or e}; nothing written") from None
+            os.rename(old / "was", out)  # put the old one back
+        if isinstance(e, OSError):
+            raise CliError(f"{out}: cannot write: {e.strerror or e}; nothing written") from None
+        raise
     finally:
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
