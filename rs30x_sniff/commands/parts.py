@@ -61,6 +61,36 @@ def parse_keep(text: str) -> Keep:
     raise CliError(f"--keep {text}: expected an age (24h, 7d, 90min) or a size (500MB, 5GB)")
 
 
+def retire(paths: list[Path], keep: Keep, now: float, reserve: int = 0,
+           say: Callable[[str], None] | None = None) -> list[Path]:
+    """Delete the oldest of ``paths`` (oldest first) while they hold more than ``keep.bytes`` with ``reserve``
+    bytes more to come, or are older than ``keep.seconds`` by their last write (epoch ``now``); the ones
+    deleted (or already gone). The newest is never older than its last write, and what is kept is a suffix."""
+    sizes = []
+    for p in paths:
+        try:
+            sizes.append(p.stat())
+        except OSError:
+            sizes.append(None)
+    total = reserve + sum(st.st_size for st in sizes if st is not None)
+    gone: list[Path] = []
+    for p, st in zip(paths, sizes):
+        if st is not None and not ((keep.bytes is not None and total > keep.bytes)
+                                   or (keep.seconds is not None and st.st_mtime < now - keep.seconds)):
+            break
+        gone.append(p)
+        if st is None:
+            continue
+        try:
+            os.unlink(p)
+        except FileNotFoundError:
+            pass
+        total -= st.st_size
+        if say is not None:
+            say(f"rs30x-sniff: removed {p} (--keep {keep.text})")
+    return gone
+
+
 class Parts(Sink):
     """The recording's files: one MCAP, or numbered parts (OUT-001.mcap, ...) started after ``split_bytes``
     or ``split_seconds``; each part is finalized before the next opens. With ``keep``, the closed parts past
@@ -133,39 +163,13 @@ class Parts(Sink):
             self._retire()
 
     def _retire(self) -> None:
-        """Delete closed parts past --keep, oldest first (a part already gone is let be)."""
-        keep = self.keep
-        assert keep is not None
-        sizes = []
-        for p in self.closed:
-            try:
-                st = p.stat()
-            except OSError:
-                st = None
-            sizes.append(st)
-        now = self.wall()
-        # The open part counts at the size it will reach (--split-size), so the folder stays under the limit
-        # until the next part opens, not just at this moment.
-        total = (max(self.sink.bytes_written, self.split_bytes or 0)
-                 + sum(st.st_size for st in sizes if st is not None))
-        while self.closed:
-            st = sizes[0]
-            if st is not None and not (
-                    (keep.bytes is not None and total > keep.bytes)
-                    or (keep.seconds is not None and st.st_mtime < now - keep.seconds)):
-                break
-            p = self.closed.pop(0)
-            sizes.pop(0)
-            if st is None:
-                continue
-            try:
-                os.unlink(p)
-            except FileNotFoundError:
-                pass
-            total -= st.st_size
-            self.removed += 1
-            if self.say is not None:
-                self.say(f"rs30x-sniff: removed {p} (--keep {keep.text})")
+        """Delete closed parts past --keep, oldest first; the open part counts at the size it will reach
+        (--split-size), so the folder stays under the limit until the next part opens."""
+        assert self.keep is not None
+        reserve = max(self.sink.bytes_written, self.split_bytes or 0)
+        gone = retire(self.closed, self.keep, self.wall(), reserve, self.say)
+        self.removed += len(gone)
+        self.closed = [p for p in self.closed if p not in gone]
 
     # ---- as a sink -----------------------------------------------------------------------------------------
     def _due(self) -> bool:

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
-from typing import IO
+from typing import IO, Any
 
 from ..sinks.mcap.writer import McapSink
 from ..sources.serial_tap import LOST, STOPPED, LiveSource, SerialTap
@@ -13,11 +14,15 @@ from ..decode.decoder import Decoder, Step
 from ..sinks.pipeline import Sink, drive
 from ..sinks.lines import TextSink
 from ..sinks.stats import RecentLoad
-from .common import (CliError, add_decode_options, add_lint_selection, check_positive, live_sinks, make_linter,
-                     no_data, settings_for)
+from .common import (CliError, add_decode_options, add_lint_selection, check_positive, lint_config, live_sinks,
+                     make_linter, no_data, settings_for)
 from .outputs import STDOUT, check_output, write_error
 from .live import add_foxglove_option, start_foxglove
 from .parts import Parts, parse_keep, parse_span
+from .blackbox import add_trigger_options, parse_max_saves, triggers_of, window_folder, window_writer
+from ..lint import Linter
+from ..sinks.blackbox import BlackBox
+from ..sinks.pipeline import Pipeline
 from ..sources.reconnect import ReconnectingSource
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
@@ -47,6 +52,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-reconnect", action="store_true",
                    help="stop when the port goes away (by default the recorder waits for it, by its path or its "
                         "/dev/serial/by-id link, and goes on, marking the gap)")
+    add_trigger_options(p)
     add_lint_selection(p)
     p.add_argument("--no-lint", action="store_true", help="do not run the linter while recording")
     add_foxglove_option(p)
@@ -98,6 +104,8 @@ class _Status(Sink):
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.trigger:
+        return run_black_box(args)
     check_output(args.output, args.force)  # before the port is opened
     settings = settings_for(args, args.port)
     opts = settings.decode_options()
@@ -124,13 +132,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             print(line, file=sys.stderr, flush=True)
 
-    # A port that cannot be opened fails here, before any file is created.
-    if args.no_reconnect:
-        src: LiveSource | ReconnectingSource = LiveSource(args.port, opts.baud, duration=args.duration,
-                                                          announce=False, tap=SerialTap(args.port, opts.baud))
-        src.start()
-    else:
-        src = ReconnectingSource(args.port, opts.baud, duration=args.duration, say=say)
+    src = open_port(args, opts.baud, say)
 
     def make_sink(path: str | IO[bytes], part: int) -> McapSink:
         extra = dict(src.metadata)
@@ -171,6 +173,21 @@ def run(args: argparse.Namespace) -> int:
 
     where = files.describe()
     summary = f"{status.bytes:,} bytes, {status.packets:,} packets, {status.findings:,} findings in {where}"
+    return _end_line(args, src, summary)
+
+
+def open_port(args: argparse.Namespace, baud: int, say) -> LiveSource | ReconnectingSource:
+    """The port as a source: one that waits for a lost port to come back, or (--no-reconnect) one that stops.
+    A port that cannot be opened fails here, before any file is made."""
+    if args.no_reconnect:
+        src = LiveSource(args.port, baud, duration=args.duration, announce=False, tap=SerialTap(args.port, baud))
+        src.start()
+        return src
+    return ReconnectingSource(args.port, baud, duration=args.duration, say=say)
+
+
+def _end_line(args: argparse.Namespace, src: Any, summary: str) -> int:
+    """The last line on stderr, and the exit code: 1 for a lost port (--no-reconnect), else 0."""
     gaps = getattr(src, "gaps", ())
     if gaps:
         lost = sum(back - (gone or back) for gone, back, _ in gaps)
@@ -181,6 +198,57 @@ def run(args: argparse.Namespace) -> int:
     why = src.message if src.reason == STOPPED else f"{args.duration:g} s recorded"
     print(f"rs30x-sniff: {why}: {summary}", file=sys.stderr)
     return 0
+
+
+def run_black_box(args: argparse.Namespace) -> int:
+    """record --trigger: the last --pre of the bus in a ring, each window around a fire saved to -o DIR/."""
+    for option in ("split_size", "split_time", "print_lines", "foxglove"):
+        if getattr(args, option, None):
+            raise CliError(f"--{option.replace('_', '-').replace('print-lines', 'print')}: not with --trigger "
+                           f"(the black box saves windows, not the whole bus)")
+    folder = window_folder(args.output)
+    settings = settings_for(args, args.port)
+    opts = settings.decode_options()
+    check_positive("--duration", args.duration)
+    pre, post = parse_span("--pre", args.pre), parse_span("--post", args.post)
+    keep = None if args.keep is None else parse_keep(args.keep)
+    max_saves = parse_max_saves(args.max_saves)
+    config = lint_config(settings)
+    triggers = triggers_of(args.trigger, [r.code for r in Linter(config).rules])
+    # The bus is linted as it goes only for triggers that fire on findings; each window is linted in full as it
+    # is saved.
+    linter = make_linter(args, settings) if any(t.needs_lint for t in triggers) else None
+    if linter is None and any(t.needs_lint for t in triggers):
+        raise CliError("--no-lint: a trigger fires on findings (a rule code, sev:): it needs the linter")
+
+    status: _Status | None = None
+
+    def say(line: str) -> None:
+        if status is not None and status.live is not None:
+            status.live.console.print(line, markup=False, highlight=False)
+        else:
+            print(line, file=sys.stderr, flush=True)
+
+    src = open_port(args, opts.baud, say)
+    try:
+        window_folder(args.output, make=True)
+    except BaseException:
+        src.close()
+        raise
+    save = window_writer(folder, opts=opts, lint_config=config, source=args.port, metadata=lambda: src.metadata,
+                         keep=keep, now=time.time, say=say)
+    box = BlackBox(triggers, pre, post, save, max_per_hour=max_saves, now=time.time, say=say)
+    status = _Status(sys.stderr.isatty(), opts.baud, str(folder) + os.sep)
+    # The columnar path, a quarter second of the line at a time: the triggers read Blocks' columns.
+    group = max(256, opts.baud // 40)
+    pipeline = Pipeline(Decoder(opts, linter, columnar=True), [box, status, *live_sinks(settings, src, args.port)],
+                        group_bytes=group)
+    dec = pipeline.run(src.chunks(IDLE_INTERVAL))
+    no_data(args.port, dec, src)
+    n = len(box.saved)
+    summary = (f"{status.bytes:,} bytes, {n} window{'s' if n != 1 else ''} saved in {folder}"
+               + (f" ({box.suppressed} fires over --max-saves not saved)" if box.suppressed else ""))
+    return _end_line(args, src, summary)
 
 
 def _what_is_left(sink: McapSink, name: str, received: int) -> str:

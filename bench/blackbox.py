@@ -1,0 +1,137 @@
+"""The black box's cost: `record` with triggers and a ring against a bare pyserial loop, on one saturated pty.
+
+The simulator plays a scenario onto a pty at its baud-rate pacing (230400 baud, the hexapod: the bus near
+full) three times, read each time by one of: a bare pyserial loop that appends what `in_waiting` says to a
+file (the floor: what reading the port costs at all), `record` with triggers, a pre-trigger ring and windows
+saved to a folder (the black box), and plain `record` to one MCAP (for reference). Each reader's CPU time is
+taken from /proc while the bytes flow, and its resident memory every half second (flat: bounded by --pre).
+
+Target (issue 26): the black box at most 1.5x the bare loop's CPU; memory flat over the run.
+Run: .venv/bin/python bench/blackbox.py [--duration 30] [--baud 230400] [--scenario hexapod]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import tty
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from rs30x_sniff.protocol.wire import byte_time  # noqa: E402
+from rs30x_sniff.sim import run  # noqa: E402
+from rs30x_sniff.sim.port import play  # noqa: E402
+
+TICK = os.sysconf("SC_CLK_TCK")
+PAGE = os.sysconf("SC_PAGE_SIZE")
+
+# The floor: read what has arrived (at least one byte, waiting for it), append it to a file.
+BARE_LOOP = """
+import sys, serial
+ser = serial.serial_for_url(sys.argv[1], baudrate=int(sys.argv[2]), timeout=0.05)
+with open(sys.argv[3], "ab", buffering=0) as out:
+    print("ready", flush=True)
+    while True:
+        data = ser.read(ser.in_waiting or 1)
+        if data:
+            out.write(data)
+"""
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a running process so far (Linux /proc)."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / TICK
+
+
+def rss_mb(pid: int) -> float:
+    with open(f"/proc/{pid}/statm") as f:
+        return int(f.read().split()[1]) * PAGE / 1e6
+
+
+def measure(cmd: list[str], ready: Path | None, chunks, master: int) -> dict:
+    """Start ``cmd``, wait until it reads the port (``ready`` exists, or it prints "ready"), play the chunks,
+    and return its CPU seconds over the playing, the wall time and its memory samples."""
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        if ready is None:
+            assert proc.stdout.readline().strip() == b"ready", proc.stderr.read().decode()
+        else:
+            while not ready.exists():
+                if proc.poll() is not None:
+                    raise SystemExit(proc.stderr.read().decode())
+                time.sleep(0.02)
+        time.sleep(0.5)  # its start-up is not what is measured
+        rss: list[float] = []
+        done = threading.Event()
+
+        def sample() -> None:
+            while not done.wait(0.5):
+                rss.append(rss_mb(proc.pid))
+
+        sampler = threading.Thread(target=sample)
+        sampler.start()
+        cpu0, t0 = cpu_seconds(proc.pid), time.monotonic()
+        play(chunks, lambda b: os.write(master, b))
+        time.sleep(0.3)  # the last bytes read
+        cpu1, t1 = cpu_seconds(proc.pid), time.monotonic()
+        done.set()
+        sampler.join()
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=60)
+    return {"cpu": cpu1 - cpu0, "wall": t1 - t0, "rss": rss, "stderr": err.decode()}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration", type=float, default=30.0, help="simulated (and real) seconds per reader")
+    ap.add_argument("--baud", type=int, default=230400)
+    ap.add_argument("--scenario", default="hexapod")
+    ap.add_argument("--trigger", action="append", default=None,
+                    help="the black box's triggers (default: present_temperature>70, sev>=error)")
+    args = ap.parse_args()
+    triggers = args.trigger or ["present_temperature>70", "sev>=error"]
+    chunks = list(run(args.scenario, baud=args.baud, duration=args.duration))
+    total = sum(len(d) for d, _ in chunks)
+    span = chunks[-1][1] + len(chunks[-1][0]) * byte_time(args.baud)
+    tmp = Path(tempfile.mkdtemp(prefix="blackbox-"))
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    port = os.ttyname(slave)
+    py = sys.executable
+    runs = {
+        "bare pyserial loop": ([py, "-c", BARE_LOOP, port, str(args.baud), str(tmp / "bare.bin")], None),
+        "record, triggers + ring": ([py, "-m", "rs30x_sniff", "record", port, "--baud", str(args.baud),
+                                     "-o", str(tmp / "windows") + "/", "--pre", "60s", "--post", "10s",
+                                     *[a for t in triggers for a in ("--trigger", t)]],
+                                    tmp / "windows"),
+        "record, plain MCAP": ([py, "-m", "rs30x_sniff", "record", port, "--baud", str(args.baud),
+                                "-o", str(tmp / "plain.mcap")], tmp / "plain.mcap"),
+    }
+    got = {}
+    for name, (cmd, ready) in runs.items():
+        got[name] = measure(cmd, ready, chunks, master)
+    os.close(master)
+    os.close(slave)
+    print(f"{args.scenario} at {args.baud} baud, {args.duration:g} s per reader: {total:,} bytes, "
+          f"bus load {total * byte_time(args.baud) / span * 100:.0f} %")
+    floor = got["bare pyserial loop"]["cpu"]
+    for name, r in got.items():
+        rss = r["rss"]
+        mem = f"RSS {rss[0]:.0f} -> {rss[-1]:.0f} MB (max {max(rss):.0f})" if rss else "RSS -"
+        print(f"  {name:26s} CPU {r['cpu']:6.2f} s = {r['cpu'] / r['wall'] * 100:5.1f} % of a core, "
+              f"{r['cpu'] / floor:4.2f}x the bare loop; {mem}")
+    print("target: record with triggers + ring <= 1.50x the bare loop; memory flat")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

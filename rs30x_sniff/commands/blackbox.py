@@ -1,0 +1,146 @@
+"""`record --trigger`: the black box's options, its folder, and the writing of each saved window as an MCAP."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import signal
+import threading
+from contextlib import contextmanager
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Callable
+
+from ..decode.decoder import Decoder
+from ..lint import Linter
+from ..sinks.blackbox import Trigger, TriggerError, Window, parse_trigger
+from ..sinks.mcap.writer import McapSink
+from ..sinks.pipeline import drive
+from ..sources.serial_tap import STOP_SIGNALS
+from .common import CliError
+from .parts import Keep, retire
+
+WINDOW_FILE = re.compile(r"\d{4}-\d\d-\d\dT\d\d-\d\d-\d\d\.\d{3}Z-.+\.mcap")
+_MAX_SAVES = re.compile(r"\s*(\d+)\s*(?:/\s*h(?:our)?)?\s*")
+
+
+def add_trigger_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--trigger", action="append", default=None, metavar="EXPR",
+                   help="black box: keep the last --pre of the bus, and save [t - pre, t + post] around each time "
+                        "EXPR fires, to the folder -o DIR/ (a filter such as 'present_temperature>70', "
+                        "'sev>=error', 'id:3 latency>5ms', or a rule code such as S001); repeatable")
+    p.add_argument("--pre", default="60s", metavar="TIME", help="with --trigger: the bus kept before a fire (60s)")
+    p.add_argument("--post", default="10s", metavar="TIME", help="with --trigger: the bus kept after a fire (10s)")
+    p.add_argument("--max-saves", default=None, metavar="N/h",
+                   help="with --trigger: at most N windows saved in any hour (a storm of fires is counted, not saved)")
+
+
+def parse_max_saves(text: str | None) -> int | None:
+    if text is None:
+        return None
+    m = _MAX_SAVES.fullmatch(text)
+    if m is None or int(m.group(1)) < 1:
+        raise CliError(f"--max-saves {text}: expected a count per hour, such as 6/h")
+    return int(m.group(1))
+
+
+def triggers_of(texts: list[str], codes: list[str]) -> list[Trigger]:
+    try:
+        return [parse_trigger(t, codes) for t in texts]
+    except TriggerError as e:
+        raise CliError(str(e)) from None
+
+
+def window_folder(path: str, make: bool = False) -> Path:
+    """The black box's folder: -o DIR/, checked (and with ``make``, made if missing: once the port is open, so
+    a failed start leaves nothing behind). Saved windows are never replaced, so --force is not needed."""
+    if path == "-":
+        raise CliError("--trigger: windows are files in a folder: give -o DIR/, not - (stdout)")
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise CliError(f"{path}: with --trigger, -o names a folder for the saved windows (DIR/), not a file")
+    if not folder.exists():
+        if not path.endswith(("/", os.sep)):
+            raise CliError(f"{path}: with --trigger, -o names a folder: end it with / to have it made")
+        if not make:
+            return folder
+        try:
+            folder.mkdir(parents=True)
+        except OSError as e:
+            raise CliError(f"{path}: cannot make the folder: {e.strerror or e}") from None
+    return folder
+
+
+def saved_windows(folder: Path) -> list[Path]:
+    """The windows in ``folder``, oldest first (their names begin with the wall time of the first fire)."""
+    return sorted(p for p in folder.iterdir() if WINDOW_FILE.fullmatch(p.name) and p.is_file())
+
+
+def window_writer(folder: Path, *, opts: Any, lint_config: Any, source: str, metadata: Callable[[], dict],
+                  keep: Keep | None, now: Callable[[], float], say: Callable[[str], None]) -> Callable:
+    """The BlackBox's ``save``: the window's chunks decoded and linted afresh into a complete MCAP (raw bytes,
+    decoded channels, findings, stats), written under a temporary name and renamed into ``folder``, then the
+    oldest windows past ``keep`` deleted."""
+
+    def save(chunks: list, w: Window, name: str) -> None:
+        path = folder / name
+        n = 2
+        while path.exists():
+            path = folder / f"{name[:-5]}-{n}.mcap"
+            n += 1
+        tmp = folder / f".{path.name}.part"
+        meta = dict(metadata())
+        meta.update({
+            "trigger": w.first.text, "fired_at": _iso(w.first_t), "fires": str(len(w.fires)),
+            "triggers_fired": ", ".join(sorted({text for _, text in w.fires})),
+            "window_start": _iso(w.start), "window_end": _iso(w.end),
+        })
+        with held_signals():  # a stop asked for during the save comes after it: the window is written whole
+            sink = McapSink(str(tmp), source=source, baud=opts.baud, time_base="wall", models=opts.models,
+                            extra_metadata=meta)
+            try:
+                drive(chunks, Decoder(opts, Linter(lint_config), columnar=True), sink)
+                os.replace(tmp, path)
+            except BaseException:
+                sink.finish()
+                try:
+                    os.unlink(tmp)
+                except OSError:
+                    pass
+                raise
+        size = path.stat().st_size
+        say(f"rs30x-sniff: saved {path}: {w.first.text} at {_iso(w.first_t)}"
+            f"{'' if len(w.fires) == 1 else f' ({len(w.fires)} fires)'}, {w.end - w.start:.1f} s of the bus, "
+            f"{size:,} bytes")
+        if keep is not None:
+            others = [p for p in saved_windows(folder) if p != path]
+            retire(others, keep, now(), size, say)
+
+    return save
+
+
+@contextmanager
+def held_signals():
+    """SIGINT, SIGTERM and SIGHUP wait until the block is done, then go to the handlers that were in place (in the
+    main thread; elsewhere nothing is held)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    saved = {sig: signal.signal(sig, lambda signum, frame: came.append(signum)) for sig in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+        for signum in came[:1]:
+            handler = saved[signum]
+            if callable(handler):
+                handler(signum, None)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)
+
+
+def _iso(t: float) -> str:
+    return datetime.fromtimestamp(t, tz=timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
