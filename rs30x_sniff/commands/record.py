@@ -9,7 +9,8 @@ import time
 from typing import IO, Any
 
 from ..sinks.mcap.writer import McapSink
-from ..sources.serial_tap import LOST, STOPPED, LiveSource, SerialTap
+from ..sources.serial_tap import GATHER_SECONDS, LOST, STOPPED, LiveSource, SerialTap
+from ..decode.blocks import Block
 from ..decode.decoder import Decoder, Step
 from ..sinks.pipeline import Sink, drive
 from ..sinks.lines import TextSink
@@ -27,6 +28,7 @@ from ..sources.reconnect import ReconnectingSource
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 IDLE_INTERVAL = 0.1     # a quiet port still hands the loop an empty chunk this often
+BLACK_BOX_GATHER = 0.1  # record --trigger: the busy bus's chunks handed to the loop this often (no live output)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -83,8 +85,10 @@ class _Status(Sink):
                 self.load.add(t, len(data))
             self.idle()
 
+    takes_blocks = True  # it counts rows: a Block is never made into Records for it
+
     def batch(self, step: Step) -> None:
-        self.packets += len(step)
+        self.packets += sum(len(x) if type(x) is Block else 1 for x in step) if step.blocks else len(step)
         self.findings += len(step.findings)
 
     def idle(self) -> None:
@@ -176,14 +180,17 @@ def run(args: argparse.Namespace) -> int:
     return _end_line(args, src, summary)
 
 
-def open_port(args: argparse.Namespace, baud: int, say) -> LiveSource | ReconnectingSource:
+def open_port(args: argparse.Namespace, baud: int, say: Any,
+              gather: float = GATHER_SECONDS) -> LiveSource | ReconnectingSource:
     """The port as a source: one that waits for a lost port to come back, or (--no-reconnect) one that stops.
-    A port that cannot be opened fails here, before any file is made."""
+    A port that cannot be opened fails here, before any file is made. ``gather``: how long the bytes of a
+    busy bus are let pile up between passes of the drive loop (LiveSource)."""
     if args.no_reconnect:
-        src = LiveSource(args.port, baud, duration=args.duration, announce=False, tap=SerialTap(args.port, baud))
+        src = LiveSource(args.port, baud, duration=args.duration, announce=False, tap=SerialTap(args.port, baud),
+                         gather=gather)
         src.start()
         return src
-    return ReconnectingSource(args.port, baud, duration=args.duration, say=say)
+    return ReconnectingSource(args.port, baud, duration=args.duration, say=say, gather=gather)
 
 
 def _end_line(args: argparse.Namespace, src: Any, summary: str) -> int:
@@ -229,7 +236,8 @@ def run_black_box(args: argparse.Namespace) -> int:
         else:
             print(line, file=sys.stderr, flush=True)
 
-    src = open_port(args, opts.baud, say)
+    # Nothing is shown as it comes: the bus is taken a tenth of a second at a time, for fewer passes of the loop.
+    src = open_port(args, opts.baud, say, gather=BLACK_BOX_GATHER)
     try:
         window_folder(args.output, make=True)
     except BaseException:
@@ -239,8 +247,8 @@ def run_black_box(args: argparse.Namespace) -> int:
                          keep=keep, now=time.time, say=say)
     box = BlackBox(triggers, pre, post, save, max_per_hour=max_saves, now=time.time, say=say)
     status = _Status(sys.stderr.isatty(), opts.baud, str(folder) + os.sep)
-    # The columnar path, a quarter second of the line at a time: the triggers read Blocks' columns.
-    group = max(256, opts.baud // 40)
+    # The columnar path, about a second of the line at a time: the triggers read Blocks' columns.
+    group = max(256, opts.baud // 10)
     pipeline = Pipeline(Decoder(opts, linter, columnar=True), [box, status, *live_sinks(settings, src, args.port)],
                         group_bytes=group)
     dec = pipeline.run(src.chunks(IDLE_INTERVAL))

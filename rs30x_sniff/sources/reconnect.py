@@ -10,7 +10,7 @@ import time
 from typing import Callable, Iterator
 
 from ..protocol.chunks import SourceGap
-from .serial_tap import DURATION, LOST, STOP_SIGNALS, STOPPED, LiveSource, SerialTap, is_port
+from .serial_tap import DURATION, GATHER_SECONDS, LOST, STOP_SIGNALS, STOPPED, LiveSource, SerialTap, is_port
 
 BY_ID = "/dev/serial/by-id"
 WAIT_STEP = 0.2  # seconds between looks for the port while it is gone
@@ -42,9 +42,11 @@ class ReconnectingSource:
 
     def __init__(self, port: str, baud: int, *, duration: float | None = None,
                  open_source: Callable[[str, float | None], LiveSource] | None = None,
-                 say: Callable[[str], None] | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+                 say: Callable[[str], None] | None = None, clock: Callable[[], float] = time.monotonic,
+                 gather: float = GATHER_SECONDS) -> None:
         self.port = port
         self.baud = baud
+        self.gather = gather
         self.duration = duration
         self.open_source = open_source or self._open
         self.say = say
@@ -59,7 +61,8 @@ class ReconnectingSource:
         self.source: LiveSource = self.open_source(port, duration)  # the first open fails as LiveSource's does
 
     def _open(self, path: str, duration: float | None) -> LiveSource:
-        return LiveSource(path, self.baud, duration=duration, announce=False, tap=SerialTap(path, self.baud)).start()
+        return LiveSource(path, self.baud, duration=duration, announce=False, tap=SerialTap(path, self.baud),
+                          gather=self.gather).start()
 
     @property
     def metadata(self) -> dict[str, str]:

@@ -9,6 +9,7 @@ import stat
 import sys
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass
 from typing import Callable, Iterator
 
@@ -66,6 +67,52 @@ class _End:
     message: str
 
 
+class ChunkQueue:
+    """The reader thread's chunks for the main thread, cheaper than queue.Queue on a busy bus: a deque (its
+    append and popleft are atomic) and an Event set only when the queue goes from empty to not, so the reader
+    takes no lock per chunk and the main thread takes what a gather period brought in one go.
+
+    ``put``, ``get(timeout)``, ``get_nowait`` and ``empty`` as queue.Queue's (raising queue.Empty); ``take_all``
+    empties it."""
+
+    def __init__(self) -> None:
+        self._items: deque = deque()
+        self._ready = threading.Event()
+
+    def put(self, item: object) -> None:
+        self._items.append(item)
+        if not self._ready.is_set():
+            self._ready.set()
+
+    def get_nowait(self) -> object:
+        try:
+            return self._items.popleft()
+        except IndexError:
+            raise queue.Empty from None
+
+    def get(self, timeout: float | None = None) -> object:
+        end = None if timeout is None else time.monotonic() + timeout
+        while True:
+            try:
+                return self._items.popleft()
+            except IndexError:
+                pass
+            self._ready.clear()
+            if self._items:  # put between the popleft and the clear: its set() may have come first
+                continue
+            left = None if end is None else end - time.monotonic()
+            if left is not None and left <= 0:
+                raise queue.Empty
+            self._ready.wait(left)
+
+    def empty(self) -> bool:
+        return not self._items
+
+    def take_all(self) -> list:
+        items = self._items
+        return [items.popleft() for _ in range(len(items))]
+
+
 class SerialTap:
     """Opens ``port`` at ``baud`` 8N1 for reading only, and reads it on a daemon thread into an
     unbounded queue, so a slow consumer (decoder, screen, disk) never makes it drop bytes.
@@ -96,9 +143,9 @@ class SerialTap:
         self.byte_time = byte_time(baud)
         self.read_timeout = read_timeout
         self.clock = clock
-        # queue.Queue, not SimpleQueue: CPython 3.11's SimpleQueue.get(timeout) can block for good when
-        # a signal (Ctrl-C) interrupts it, and the main thread waits on this queue with signals live.
-        self.queue: queue.Queue = queue.Queue()
+        # Not SimpleQueue: CPython 3.11's SimpleQueue.get(timeout) can block for good when a signal (Ctrl-C)
+        # interrupts it, and the main thread waits on this queue with signals live.
+        self.queue = ChunkQueue()
         self.bytes_read = 0
         self.start_ns = 0
         self.wall_start_ns = 0
@@ -158,7 +205,9 @@ class SerialTap:
             signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             while not self._stop.is_set():
-                first = ser.read(1)  # blocks until a byte arrives or the read timeout passes
+                # What has arrived, or (nothing yet) the next byte, waiting for it up to the read timeout: one
+                # read call for a chunk already in the OS's buffer, as a plain reading loop would make.
+                first = ser.read(min(ser.in_waiting, DRAIN_MAX) or 1)
                 if not first:
                     continue
                 data = bytearray(first)
@@ -321,20 +370,13 @@ class LiveSource:
                 if wait <= 0:
                     return out
                 continue
-            if type(item) is _End:
-                self._close(item)
-                return out
-            out.append(item)
-            # Take everything already queued without waiting again.
-            while True:
-                try:
-                    item = q.get_nowait()
-                except queue.Empty:
-                    return out
+            # Everything already queued, without waiting again.
+            for item in (item, *q.take_all()):
                 if type(item) is _End:
                     self._close(item)
                     return out
                 out.append(item)
+            return out
 
     def _finish(self) -> list[Chunk]:
         """A requested stop or the duration: stop the reader, then hand out everything it read."""
