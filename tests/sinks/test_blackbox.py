@@ -34,16 +34,17 @@ def fire_times(chunks, text) -> list[float]:
 
 
 @pytest.mark.parametrize("columnar", [True, False])
-def test_overheat_saves_one_window_from_pre_before_the_first_fire_to_post_after_the_last(columnar):
+@pytest.mark.parametrize("pre", [1.0, 5.0])
+def test_overheat_saves_one_window_from_pre_before_the_first_fire_to_post_after_the_last(columnar, pre):
     chunks = traffic("overheat")
     fires = fire_times(chunks, "present_temperature>70")
     assert len(fires) > 10
-    box, saved = box_run(chunks, ["present_temperature>70"], 1.0, 2.0, columnar=columnar)
+    box, saved = box_run(chunks, ["present_temperature>70"], pre, 2.0, columnar=columnar)
     assert len(saved) == 1
     got, w, name = saved[0]
-    assert (w.start, w.end) == (fires[0] - 1.0, fires[-1] + 2.0)
+    assert (w.start, w.end) == (fires[0] - pre, fires[-1] + 2.0)
     assert [t for t, _ in w.fires] == fires
-    assert got == [c for c in chunks if fires[0] - 1.0 <= c[1] <= fires[-1] + 2.0]  # the bus's bytes, as they came
+    assert got == [c for c in chunks if fires[0] - pre <= c[1] <= fires[-1] + 2.0]  # the bus's bytes, as they came
     assert name == f"{wall_name(fires[0])}-present_temperature-gt-70.mcap"
 
 
