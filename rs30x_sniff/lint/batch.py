@@ -130,8 +130,6 @@ class BlockLinter:
             return False  # a status flag: P013, S001-S004, and the temperature lock Q009 reads
         if follows_cut(lint.prev, int(blk.offsets[0])):
             return False  # B007 ("after-cut"): the first row starts where a cut-short frame ended
-        if blk.vid_models is not None:
-            return False  # servos of mixed models in long packets: per-record plans
         # Q008: the servo IDs the bus has seen, with these.
         length = view.length
         long_rows = np.flatnonzero(is_long & (length > 0))
@@ -211,7 +209,8 @@ def _headers_quiet(lint: Any, memo: dict, blk: Any, run: tuple, vid_groups: list
         ev = rec.event
         raw = ev[RAW]
         asked = rec.request.event[RAW] if rec.request is not None else b""
-        key = (raw[:HEADER_SIZE], len(raw), id(rec.model),
+        vm = rec.vid_models
+        key = (raw[:HEADER_SIZE], len(raw), id(rec.model) if vm is None else tuple(map(id, vm)),
                raw[AT_DATA:-SUM_SIZE:ev.length or 1] if ev.kind == "long" else b"", asked[:HEADER_SIZE], len(asked))
         quiet = memo.get(key)
         if quiet is None:
@@ -249,7 +248,8 @@ def _header_sample_quiet(lint: Any, header_rules: list, rec: Any, ev: Any) -> bo
     if kind != "return" and data and rec.model is not None:
         n = len(data) if kind == "short" else ev.length - 1
         if n > 0:
-            plan = lint.plan(rec.model, ev.address, n)
+            vm = rec.vid_models  # a long packet to servos of mixed models: planned as the linter's _long plans it
+            plan = lint.plan(rec.model if vm is None or kind != "long" else vm[0], ev.address, n)
             ids = (ev.id,) if kind == "short" else tuple(r[0] for r in ev.records)
             for r in header_rules:
                 if "write" in r.kinds:
@@ -284,16 +284,27 @@ def _writes(view: BlockView, run: tuple, vid_groups: list) -> list[int] | None:
         for model, r2 in _by_model(blk, short_rows[skey == key], sid):
             groups.append((model, key // 4096, key % 4096, r2, np.zeros(len(r2), np.int64), sid[r2],
                            starts[r2] + AT_DATA, "write"))
+    vid_models = blk.vid_models
     for rows, vids, ln in vid_groups:
         if ln <= VID_SIZE:  # a record with its VID and no data
             continue
         cnt = vids.shape[1]
         for ad in np.unique(address[rows]).tolist():
             r2 = rows[address[rows] == ad]
-            v2 = vids[address[rows] == ad]
+            v2 = vids[address[rows] == ad].ravel()
             at = (starts[r2][:, None] + AT_DATA + VID_SIZE + np.arange(cnt) * ln).ravel()
-            groups.append((blk.default, ad, ln - VID_SIZE, np.repeat(r2, cnt), np.tile(np.arange(1, cnt + 1), len(r2)),
-                           v2.ravel(), at, "write"))
+            r3, subs = np.repeat(r2, cnt), np.tile(np.arange(1, cnt + 1), len(r2))
+            if vid_models is None:
+                groups.append((blk.default, ad, ln - VID_SIZE, r3, subs, v2, at, "write"))
+                continue
+            # Servos of mixed models: each record in its own servo's model, as the record form plans them.
+            by: dict[int, tuple[Any, list[int]]] = {}
+            for v in np.unique(v2).tolist():
+                m = vid_models[v]
+                by.setdefault(id(m), (m, []))[1].append(v)
+            for m, vs in by.values():
+                mine = np.isin(v2, vs)
+                groups.append((m, ad, ln - VID_SIZE, r3[mine], subs[mine], v2[mine], at[mine], "write"))
     ret_rows = np.flatnonzero(view.is_return)
     rkey = address[ret_rows] * 4096 + dlen[ret_rows]
     mentions.append((ret_rows.astype(np.int64) * 512, sid[ret_rows].astype(np.int64)))

@@ -136,3 +136,65 @@ def test_blocks_longer_than_the_spacings_f007_keeps():
     assert len(chunks) > 2 * 512
     blocks, codes = compare(chunks, groups=(len(chunks),))
     assert blocks and not codes
+
+
+# ---- servos of mixed models: long packets planned per servo's model ---------------------------------------------
+def mixed_models(chunks: list, timed: bool = True) -> list:
+    """``chunks`` after a model-number read of each servo: odd IDs answer RS304MD (0x3040), even RS303MR (0x3030),
+    so long packets go to servos of mixed models (Block.vid_models) and Q007 holds each to its own top speed."""
+    head, t = [], 0.1
+    for v in SERVOS:
+        for frame in (encode_short(v, 0x0F, 0, b"", length=2, count=0),
+                      encode_return(v, 0, (0x3040 if v % 2 else 0x3030).to_bytes(2, "little"))):
+            head.append((frame, t if timed else None))
+            t += len(frame) * BT + 0.0001
+    return head + chunks
+
+
+@pytest.fixture
+def quiet_calls(monkeypatch):
+    """(Block has servos of mixed models, quiet's verdict) of each BlockLinter.quiet call."""
+    calls = []
+    real = batch.BlockLinter.quiet
+
+    def quiet(self, blk):
+        calls.append((blk.vid_models is not None, real(self, blk)))
+        return calls[-1][1]
+
+    monkeypatch.setattr(batch.BlockLinter, "quiet", quiet)
+    return calls
+
+
+def test_mixed_models_are_linted_on_the_columns(quiet_calls):
+    blocks, codes = compare(mixed_models(capture("P001", at=-1)))
+    mixed = [verdict for is_mixed, verdict in quiet_calls if is_mixed]
+    assert blocks and mixed and all(mixed) and not codes  # every Block of mixed models stays on the columns
+
+
+@pytest.mark.parametrize("anomaly", sorted(a for a in ANOMALIES if a not in ("B006", "F004")))
+@pytest.mark.parametrize("at", [3, 150])
+def test_an_anomaly_among_servos_of_mixed_models(quiet_calls, anomaly, at):
+    blocks, codes = compare(mixed_models(capture(anomaly, at)))
+    assert anomaly in codes and any(is_mixed for is_mixed, _ in quiet_calls)
+
+
+def test_q007_holds_each_servo_of_a_long_packet_to_its_own_models_speed():
+    """From 10 deg (the cycle's goal) to -15 deg in 50 ms, 500 deg/s: within the RS303MR's top speed (60 deg in
+    0.11 s, 545 deg/s), past the RS304MD's (0.16 s, 375 deg/s), so Q007 names the odd IDs (RS304MD) only, on
+    both paths."""
+    ANOMALIES["Q007-mixed"] = [encode_long(30, [(v, _goal(-150, 5)) for v in SERVOS])]
+    try:
+        a, da = record_path(mixed_models(capture("Q007-mixed", 100)), lint=True)
+        blocks, codes = compare(mixed_models(capture("Q007-mixed", 100)))
+    finally:
+        del ANOMALIES["Q007-mixed"]
+    assert "Q007" in codes
+    assert sorted({f.id for f in da.linter.findings if f.code == "Q007"}) == [v for v in SERVOS if v % 2]
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])
+@given(picks=st.dictionaries(st.integers(0, 119), st.sampled_from(sorted(ANOMALIES)), max_size=6),
+       groups=st.lists(st.integers(1, 400), min_size=1, max_size=3), timed=st.booleans())
+def test_anomalies_anywhere_among_servos_of_mixed_models(picks, groups, timed):
+    compare(mixed_models(capture("P001", -1, cycles=120, timed=timed, more=picks), timed), groups)
