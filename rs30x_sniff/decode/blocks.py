@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .pairing import ANSWERED, PAIRED, BusTracker, Record, reply_latency
+from .pairing import ANSWERED, MIN_REPLY_LATENCY, PAIRED, BusTracker, Record, reply_latency
 from .frame_runs import LONG, RETURN, SHORT, FrameRun
 from ..protocol.events import ID, LONG_RECORDS
 from ..protocol.wire import AT_DATA, BROADCAST_ID, FLAG_WANTS_REPLY
@@ -70,7 +70,7 @@ class Block:
         if got is None and self.run.t0 is not None:
             t0, t1 = self.t0, self.t1
             replies = np.flatnonzero(self.answered) + 1
-            got = self._latencies = (replies, t0[replies] - t1[replies - 1])  # none below 0 (feed_run)
+            got = self._latencies = (replies, t0[replies] - t1[replies - 1])  # none below the minimum (feed_run)
         return got
 
     def latencies(self) -> np.ndarray | None:
@@ -255,9 +255,9 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     if run.t0 is not None and n > 1:
         in_time = np.zeros(n, dtype=bool)
         gap = run.t0[1:] - run.t1[:-1]
-        # Within the timeout, and not before the request ended: a reply the clock puts earlier has no
-        # latency to give (bus.reply_latency); the tracker takes that pair.
-        in_time[:-1] = (gap >= 0.0) & ~(gap > tracker.reply_timeout)
+        # Within the timeout, and no sooner than a servo can answer: a reply the clock puts earlier has no
+        # latency to give (pairing.reply_latency); the tracker takes that pair.
+        in_time[:-1] = (gap >= MIN_REPLY_LATENCY) & ~(gap > tracker.reply_timeout)
         ok_pair &= in_time
     answered_return = np.zeros(n, dtype=bool)
     answered_return[1:] = ok_pair[:-1]

@@ -90,18 +90,27 @@ def frame_cases(columns: Mapping[str, np.ndarray], id_address: int, configured: 
     return case
 
 
+# A servo answers no sooner than 100 us after a request's last byte (table 4.6 No. 7, return delay 0). A reply
+# the times put closer than half that was not timed by the clock but laid out by it: the bytes of one read (a
+# USB adapter's packet, a pty's write) placed back to back at the line rate, so the return delay between them
+# is lost and would read as 0.
+MIN_REPLY_LATENCY = 50e-6
+
+
 def reply_latency(request: AnyEvent, reply: AnyEvent) -> float | None:
     """Seconds from the end of ``request`` to the start of ``reply`` (None without times).
 
-    None also where the clock cannot support one: a reply cannot start before its request ended, so stamps that say otherwise (a logger's arrival times read as first-byte times, a wrong
-    baud, a held clock) give no latency rather than a false 0; F005/F006 report them. Blocks
-    (rs30x_sniff.decode.blocks) hold only replies with a latency of zero or more: ``Block.reply_latencies``.
+    None also where the clock cannot support one. A reply cannot start before its request ended, so stamps
+    that say otherwise (a logger's arrival times read as first-byte times, a wrong baud) give no latency
+    rather than a false 0; F005/F006 report them. Nor can it start sooner than MIN_REPLY_LATENCY after it:
+    closer times were computed for bytes that came in one read, not measured. Blocks
+    (rs30x_sniff.decode.blocks) hold only replies with a latency: ``Block.reply_latencies``.
     """
     t0, t1 = reply[T_START], request[T_END]
     if t0 is None or t1 is None:
         return None
     latency = t0 - t1
-    return latency if latency >= 0.0 else None
+    return latency if latency >= MIN_REPLY_LATENCY else None
 
 
 class Record:

@@ -16,7 +16,8 @@ LATENCY_BIN = 1e-6
 @dataclass
 class LatencyHistogram:
     """Reply latencies in 1 us bins: percentiles and maximum in bounded memory; ``unmeasured`` counts
-    the paired replies whose times give no latency (stamped before their request ended)."""
+    the paired replies whose times give no latency (pairing.reply_latency: stamped before their request
+    ended, or closer to it than a servo can answer)."""
 
     bins: Counter = field(default_factory=Counter)
     count: int = 0
@@ -31,7 +32,7 @@ class LatencyHistogram:
             self.max = latency
 
     def add_paired(self, latency: float | None, timed: bool) -> None:
-        """A paired reply's latency; None from a timed reply is one stamped before its request ended."""
+        """A paired reply's latency; None from a timed reply is one its times cannot measure (reply_latency)."""
         if latency is not None:  # add(), inlined: once a reply
             self.bins[round(latency / LATENCY_BIN)] += 1
             self.count += 1
@@ -77,8 +78,10 @@ class LatencyHistogram:
         out = {"count": self.count, "p50": self.percentile(50), "p95": self.percentile(95), "max": self.max,
                "unmeasured": unmeasured}
         if unmeasured:
-            out["absent"] = (f"{unmeasured} repl{'y' if unmeasured == 1 else 'ies'} stamped before "
-                             f"{'its' if unmeasured == 1 else 'their'} request ended (F005/F006): no latency")
+            one = unmeasured == 1
+            out["absent"] = (f"{unmeasured} repl{'y' if one else 'ies'} timed sooner after {'its' if one else 'their'} "
+                             f"request than a servo answers (stamped before it ended, F005/F006, or laid out with it "
+                             f"at the line rate, read in one piece): no latency")
         return out
 
 

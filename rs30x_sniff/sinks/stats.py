@@ -274,7 +274,7 @@ class CaptureStats(Sink):
 
     @property
     def unmeasured(self) -> int:
-        """Paired replies whose times give no latency (stamped before their request ended)."""
+        """Paired replies whose times give no latency (pairing.reply_latency)."""
         return self.latency.unmeasured
 
     @property
@@ -321,7 +321,7 @@ class CaptureStats(Sink):
     def servos_dict(self) -> dict[str, Any]:
         """Per servo: its traffic (servos.py) and, where a reply of it had one, its reply latency."""
         out = self.per_servo.as_dict()
-        # Replies stamped before their request ended are counted for the bus only: where there are any, no
+        # Replies whose times give no latency are counted for the bus only: where there are any, no
         # servo's percentiles are said to be whole.
         absent = self.timing_unsupported or self.latency_dict().get("absent")
         for key, row in out.items():

@@ -104,7 +104,10 @@ def traffic(seed: int, n: int, *, timed: bool, gaps: bool, faults: bool, rare: f
     for _ in range(n):
         for frame in transaction(rng, clean=rng.random() > rare):
             chunks.append((frame, t if timed else None))
-            t += len(frame) * BT + rng.choice([0.0, 0.0001, 0.0002] + ([0.004, 0.08] if gaps else []))
+            # Mostly a servo's return delay or more (table 4.6 No. 7: 100 us at least); now and then none, as
+            # bytes of one read laid out at the line rate give (a reply then has no latency: pairing.MIN_REPLY_LATENCY).
+            t += len(frame) * BT + rng.choice([0.0, 0.0001, 0.0001, 0.0002, 0.0002]
+                                              + ([0.004, 0.08] if gaps else []))
             if faults and rng.random() < 0.02:
                 t -= rng.choice([0.001, 0.5 * BT])
     return chunks
