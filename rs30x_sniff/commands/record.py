@@ -107,6 +107,21 @@ class _Status(Sink):
             self.live = None
 
 
+class _Log:
+    """Lines for the log (a lost port, one found again, a part or window saved or deleted): above the status line
+    once there is one on a terminal, else on stderr (a service's journal)."""
+
+    def __init__(self) -> None:
+        self.status: _Status | None = None
+
+    def say(self, line: str) -> None:
+        status = self.status
+        if status is not None and status.live is not None:
+            status.live.console.print(line, markup=False, highlight=False)
+        else:
+            print(line, file=sys.stderr, flush=True)
+
+
 def run(args: argparse.Namespace) -> int:
     if args.trigger:
         return run_black_box(args)
@@ -127,14 +142,8 @@ def run(args: argparse.Namespace) -> int:
     if args.output == STDOUT and args.print_lines:
         raise CliError("--print: stdout carries the MCAP stream (-o -); leave out one of them")
 
-    status: _Status | None = None
-
-    def say(line: str) -> None:
-        """A line for the log (a lost port, one found again, a part deleted), above the status line if any."""
-        if status is not None and status.live is not None:
-            status.live.console.print(line, markup=False, highlight=False)
-        else:
-            print(line, file=sys.stderr, flush=True)
+    log = _Log()
+    say = log.say
 
     src = open_port(args, opts.baud, say)
 
@@ -160,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
         if fox is not None:
             fox.close()
         raise
-    status = _Status(sys.stderr.isatty(), opts.baud, args.output)
+    status = log.status = _Status(sys.stderr.isatty(), opts.baud, args.output)
     sinks: list[Sink] = [files, status, *live_sinks(settings, src, args.port)]
     if fox is not None:
         sinks.append(fox)
@@ -228,13 +237,8 @@ def run_black_box(args: argparse.Namespace) -> int:
     if linter is None and any(t.needs_lint for t in triggers):
         raise CliError("--no-lint: a trigger fires on findings (a rule code, sev:): it needs the linter")
 
-    status: _Status | None = None
-
-    def say(line: str) -> None:
-        if status is not None and status.live is not None:
-            status.live.console.print(line, markup=False, highlight=False)
-        else:
-            print(line, file=sys.stderr, flush=True)
+    log = _Log()
+    say = log.say
 
     # Nothing is shown as it comes: the bus is taken a tenth of a second at a time, for fewer passes of the loop.
     src = open_port(args, opts.baud, say, gather=BLACK_BOX_GATHER)
@@ -246,7 +250,7 @@ def run_black_box(args: argparse.Namespace) -> int:
     save = window_writer(folder, opts=opts, lint_config=config, source=args.port, metadata=lambda: src.metadata,
                          keep=keep, now=time.time, say=say)
     box = BlackBox(triggers, pre, post, save, max_per_hour=max_saves, now=time.time, say=say)
-    status = _Status(sys.stderr.isatty(), opts.baud, str(folder) + os.sep)
+    status = log.status = _Status(sys.stderr.isatty(), opts.baud, str(folder) + os.sep)
     # The columnar path, about a second of the line at a time: the triggers read Blocks' columns.
     group = max(256, opts.baud // 10)
     pipeline = Pipeline(Decoder(opts, linter, columnar=True), [box, status, *live_sinks(settings, src, args.port)],

@@ -88,18 +88,6 @@ def maps() -> dict:
     return plugin_maps()
 
 
-@pytest.fixture(scope="module")
-def scenario_files(tmp_path_factory) -> list[Path]:
-    d = tmp_path_factory.mktemp("scenarios")
-    paths = []
-    for name in SCENARIOS:
-        p = d / f"{name}.thex"
-        with contextlib.redirect_stdout(io.StringIO()):
-            assert main(["simulate", "--scenario", name, "--duration", "1.5", "--seed", "0", "-o", str(p)]) == 0
-        paths.append(p)
-    return paths
-
-
 def check_same(path: Path, maps: dict) -> None:
     frames = core_frames(path, maps)
     want = [expected(ev) for ev in jsonl(path)]

@@ -69,18 +69,6 @@ def plugin(saleae, tmp_path_factory):
     return folder, load(folder, "rs30x_hla_bundled"), hint
 
 
-@pytest.fixture(scope="module")
-def scenario_files(tmp_path_factory) -> list[Path]:
-    d = tmp_path_factory.mktemp("scenarios")
-    paths = []
-    for name in SCENARIOS:
-        p = d / f"{name}.thex"
-        with contextlib.redirect_stdout(io.StringIO()):
-            assert main(["simulate", "--scenario", name, "--duration", "1.5", "--seed", "0", "-o", str(p)]) == 0
-        paths.append(p)
-    return paths
-
-
 # ---- driving the analyzer ---------------------------------------------------------------------------
 def serial_frames(saleae, chunks: list, baud: int) -> list:
     """The Async Serial analyzer's frames for our reader's chunks: one per byte, flagged bytes with an error."""

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import ast
-import json
 import os
 import re
 import subprocess
@@ -19,6 +18,7 @@ from rs30x_sniff.plugins.sigrok import install_hint  # noqa: E402
 from rs30x_sniff.protocol import wire  # noqa: E402
 from rs30x_sniff.protocol.memmap import ModelRegistry, decoders_dirs  # noqa: E402
 from tests.conftest import ROOT  # noqa: E402
+from tests.plugins.user_maps import write_user_maps  # noqa: E402
 from tests.plugins.sigrok_fixtures import (  # noqa: E402
     BAUD, RATE, SIGROK_CLI, annotations, frames_json, inputs, lay_end_to_end, reference, write_sr,
 )
@@ -255,10 +255,6 @@ def test_rx_and_tx_lines_are_framed_apart(plugin, tmp_path):
 HOSTILE = '"""); open({path!r}, "w"); ("'
 
 
-def toml_string(text: str) -> str:
-    return json.dumps(text)  # a JSON string is a TOML basic string
-
-
 @pytest.fixture(scope="module")
 def user_maps(tmp_path_factory):
     """$RS30X_DECODERS with a hostile model EVIL1 (code-like enum labels and descriptions) and an RS303MR whose
@@ -266,21 +262,10 @@ def user_maps(tmp_path_factory):
     folder = tmp_path_factory.mktemp("maps")
     sentinel = Path(f"/tmp/rs30x-pwned-{os.getpid()}")  # short: an enum label holds at most 64 characters
     sentinel.unlink(missing_ok=True)
-    bundled = (ROOT / "decoders" / "rs303mr.toml").read_text()
     evil = HOSTILE.format(path=str(sentinel))
     labels = {"on": evil, "brake": "'''", "off": "back\\slash \\"}
-    hostile = bundled.replace('name = "RS303MR"', 'name = "EVIL1"').replace("model_number = 0x3030",
-                                                                             "model_number = 0x7E71")
-    hostile = hostile.replace('enum = { 0 = "off", 1 = "on", 2 = "brake" }\nmode = "command"',
-                              "enum = { " + ", ".join(f"{k} = {toml_string(labels[v])}" for k, v in
-                                                      ((0, "off"), (1, "on"), (2, "brake"))) + ' }\nmode = "command"')
     description = evil + " ''' \\ "  # one printable line: the loader refuses control characters
-    hostile = hostile.replace('description = "Torque off, on, or brake mode"',
-                              f"description = {toml_string(description)}")
-    (folder / "evil1.toml").write_text(hostile)
-    renamed = bundled.replace('name = "present_temperature"', 'name = "case_temperature"')
-    assert renamed != bundled
-    (folder / "rs303mr.toml").write_text(renamed)
+    write_user_maps(folder, labels, description)
     registry = ModelRegistry.from_dirs([folder, *decoders_dirs()])
     torque = registry.get("EVIL1").register("torque_enable")
     assert (torque.enum, torque.description) == ({0: labels["off"], 1: evil, 2: labels["brake"]}, description)

@@ -19,10 +19,11 @@ from rs30x_sniff.plugins.wireshark import generate, install_hint, lua_value
 from rs30x_sniff.protocol import wire
 from rs30x_sniff.sim import SCENARIOS
 from tests.conftest import CAPTURES, ROOT
+from tests.plugins.conftest import SIM_SECONDS
+from tests.plugins.user_maps import toml_string, write_user_maps
 
 TSHARK = shutil.which("tshark")
 needs_tshark = pytest.mark.skipif(TSHARK is None, reason="tshark is not installed (apt-get install tshark)")
-SIM_SECONDS = "1.5"  # long enough for the overheat scenario's servo 2 to pass 60 degC
 
 
 def write_plugin(folder: Path, maps: dict) -> Path:
@@ -248,10 +249,6 @@ def test_expert_info_on_bad_sums_cut_frames_and_noise(plugin, converted):
 
 
 # ---- maps from $RS30X_DECODERS --------------------------------------------------------------------
-def toml_string(text: str) -> str:
-    return json.dumps(text)  # a JSON string is a TOML basic string
-
-
 @pytest.fixture(scope="module")
 def user_maps(tmp_path_factory):
     """$RS30X_DECODERS with a hostile model EVIL1 (code-like enum labels and descriptions) and an RS303MR whose
@@ -261,21 +258,13 @@ def user_maps(tmp_path_factory):
     sentinel.unlink(missing_ok=True)
     evil = f'"); os.execute("touch {sentinel}") --'
     labels = {"off": "]]", "on": evil, "brake": "back\\slash \\ 'quote' \"dq\" ]=] é"}
-    bundled = (ROOT / "decoders" / "rs303mr.toml").read_text()
-    hostile = bundled.replace('name = "RS303MR"', 'name = "EVIL1"').replace("model_number = 0x3030",
-                                                                             "model_number = 0x7E71")
-    hostile = hostile.replace('enum = { 0 = "off", 1 = "on", 2 = "brake" }',
-                              "enum = { " + ", ".join(f"{k} = {toml_string(labels[v])}" for k, v in
-                                                      ((0, "off"), (1, "on"), (2, "brake"))) + " }")
-    hostile = hostile.replace('description = "Torque off, on, or brake mode"',
-                              f"description = {toml_string(evil + ' ]] [[ ' + chr(92))}")
-    assert hostile.count(toml_string(evil)[1:-1]) == 2
-    # A register named like a header field (rs30x.count) gets a field of its own name, rs30x.reg_count.
-    hostile = hostile.replace('name = "present_temperature"', 'name = "count"')
-    (folder / "evil1.toml").write_text(hostile)
-    renamed = bundled.replace('name = "present_temperature"', 'name = "case_temperature"')
-    assert renamed != bundled
-    (folder / "rs303mr.toml").write_text(renamed)
+
+    def edit(hostile: str) -> str:
+        assert hostile.count(toml_string(evil)[1:-1]) == 2
+        # A register named like a header field (rs30x.count) gets a field of its own name, rs30x.reg_count.
+        return hostile.replace('name = "present_temperature"', 'name = "count"')
+
+    write_user_maps(folder, labels, evil + " ]] [[ " + chr(92), edit)
     return folder, sentinel, labels
 
 
