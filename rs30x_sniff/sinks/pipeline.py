@@ -14,7 +14,7 @@ __all__ = ["GROUP_BYTES", "Pipeline", "Sink", "columnar_for", "decode_records", 
 
 # A columnar Pipeline decodes a file's chunks this many bytes at a time (unless told otherwise): each group is a
 # pass of the decoder and a Block per clean stretch, so the linter, the statistics and the writers work once per
-# Block. 256 KiB, as the monitor loads a file (tui/feed.py): a quarter fewer passes than 64 KiB took the user
+# Block. 256 KiB, as the monitor loads a file (tui/feed.py): a fourth as many passes as with 64 KiB took the user
 # rules' timestamped path of bench/lint.py from 0.49-0.53 to 0.63 of the bare loop; convert's peak memory on a
 # 100 MB capture stays at 106 MB (bench/convert.py).
 GROUP_BYTES = 1 << 18
