@@ -374,7 +374,11 @@ def test_a_client_that_subscribes_late_gets_the_files_bodies():
         known = set(fox._channels)
         for data, t in chunks[half:]:
             pipeline.feed(data, t)
-        pipeline.close()
+        # The end of input to both sinks, but the server kept open until the client has it all: closing the
+        # pipeline would stop the server at once, and the last messages still queued for the client with it.
+        last = pipeline.decoder.close()
+        for sink in (mcap, fox):
+            sink.batch(last)
         end = time.monotonic() + 120
         while len(client.messages) < fox.messages and time.monotonic() < end:
             time.sleep(0.05)
