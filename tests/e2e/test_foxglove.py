@@ -502,3 +502,34 @@ def test_monitor_takes_foxglove():
     args = build_parser().parse_args(["record", "/dev/ttyUSB0", "-o", "x.mcap", "--foxglove", "9001"])
     assert args.foxglove == ("127.0.0.1", 9001)
     assert build_parser().parse_args(["record", "/dev/ttyUSB0", "-o", "x.mcap"]).foxglove is None
+
+
+def test_a_subscribed_client_gets_the_last_messages_before_the_server_stops():
+    """Closing the pipeline closes the server, right after the end of input's messages are logged: a client
+    still subscribed gets those too (FoxgloveSink lingers for it), then sees the server close."""
+    from rs30x_sniff.sinks.mcap.foxglove import FoxgloveSink
+    from rs30x_sniff.lint import Linter
+    from rs30x_sniff.decode.decoder import Decoder
+    from rs30x_sniff.sinks.pipeline import Pipeline
+    from rs30x_sniff.sim import run
+
+    chunks = list(run("bad-checksum", baud=115200, seed=2, duration=1.0))
+    fox = FoxgloveSink("127.0.0.1", 0, source="bad-checksum", baud=115200, backlog=1 << 20)
+    pipeline = Pipeline(Decoder(linter=Linter()), [fox])
+    try:
+        client = Client(fox.ws_url)
+        # Until the server closes the connection; its own deadline only guards a hung test.
+        thread = in_thread(client, lambda c: False, seconds=300)
+        channels = list(fox._channels.values())
+        end = time.monotonic() + 60
+        while not all(ch.has_sinks() for ch in channels) and time.monotonic() < end:
+            time.sleep(0.02)
+        assert all(ch.has_sinks() for ch in channels)
+        for data, t in chunks:
+            pipeline.feed(data, t)
+        pipeline.close()  # the last records and findings, then the server stops
+        thread.join(timeout=60)
+    finally:
+        fox.close()
+    assert not thread.is_alive()
+    assert fox.messages > 20 and len(client.messages) == fox.messages

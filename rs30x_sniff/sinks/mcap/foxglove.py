@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 from typing import Any
 
 import foxglove
@@ -35,6 +37,10 @@ def parse_address(text: str) -> tuple[str, int]:
     if not 0 <= number <= 65535:
         raise ValueError(f"{text!r}: port must be 0-65535")
     return host, number
+
+
+# How long a server with a subscribed client stays up after the last message, so that the client gets it.
+LINGER_S = 0.5
 
 
 class FoxgloveSink(JsonChannels):
@@ -99,8 +105,12 @@ class FoxgloveSink(JsonChannels):
 
     # chunk, batch and idle (the drive loop's sink protocol) are JsonChannels'.
     def close(self) -> None:
-        """Stop the server (clients see it close); idempotent."""
+        """Stop the server (clients see it close); idempotent. A client still subscribed is given LINGER_S
+        first: the server sends from its own thread, and stopping it drops what is still queued (the last
+        records and the end-of-input findings, logged just before)."""
         if self._closed:
             return
         self._closed = True
+        if any(ch.has_sinks() for ch in self._channels.values()):
+            time.sleep(LINGER_S)
         self.server.stop()
