@@ -21,6 +21,11 @@ from ..sources.serial_tap import STOP_SIGNALS
 from .common import CliError
 from .parts import Keep, retire
 
+PRE, POST = "60s", "10s"  # --pre and --post unless given
+# The options of the black box alone, and those of recording the whole bus: each is refused in the other mode.
+TRIGGER_ONLY = {"pre": "--pre", "post": "--post", "max_saves": "--max-saves"}
+WHOLE_BUS_ONLY = {"split_size": "--split-size", "split_time": "--split-time", "print_lines": "--print",
+                  "foxglove": "--foxglove"}
 WINDOW_FILE = re.compile(r"\d{4}-\d\d-\d\dT\d\d-\d\d-\d\d\.\d{3}Z-.+\.mcap")
 _MAX_SAVES = re.compile(r"\s*(\d+)\s*(?:/\s*h(?:our)?)?\s*")
 
@@ -30,10 +35,22 @@ def add_trigger_options(p: argparse.ArgumentParser) -> None:
                    help="black box: keep the last --pre of the bus, and save [t - pre, t + post] around each time "
                         "EXPR fires, to the folder -o DIR/ (a filter such as 'present_temperature>70', "
                         "'sev>=error', 'id:3 latency>5ms', or a rule code such as S001); repeatable")
-    p.add_argument("--pre", default="60s", metavar="TIME", help="with --trigger: the bus kept before a fire (60s)")
-    p.add_argument("--post", default="10s", metavar="TIME", help="with --trigger: the bus kept after a fire (10s)")
+    p.add_argument("--pre", default=None, metavar="TIME", help=f"with --trigger: the bus kept before a fire ({PRE})")
+    p.add_argument("--post", default=None, metavar="TIME", help=f"with --trigger: the bus kept after a fire ({POST})")
     p.add_argument("--max-saves", default=None, metavar="N/h",
                    help="with --trigger: at most N windows saved in any hour (a storm of fires is counted, not saved)")
+
+
+def check_mode(args: argparse.Namespace) -> None:
+    """No option of one mode given to the other (one line): a --pre without --trigger would do nothing."""
+    if args.trigger:
+        for dest, option in WHOLE_BUS_ONLY.items():
+            if getattr(args, dest, None):
+                raise CliError(f"{option}: not with --trigger (the black box saves windows, not the whole bus)")
+        return
+    for dest, option in TRIGGER_ONLY.items():
+        if getattr(args, dest, None) is not None:
+            raise CliError(f"{option}: only with --trigger (it shapes the windows a trigger saves)")
 
 
 def parse_max_saves(text: str | None) -> int | None:

@@ -20,7 +20,8 @@ from .common import (CliError, add_decode_options, add_lint_selection, check_pos
 from .outputs import STDOUT, check_output, write_error
 from .live import add_foxglove_option, start_foxglove
 from .parts import Parts, parse_keep, parse_span
-from .blackbox import add_trigger_options, parse_max_saves, triggers_of, window_folder, window_writer
+from .blackbox import (POST, PRE, add_trigger_options, check_mode, parse_max_saves, triggers_of, window_folder,
+                       window_writer)
 from ..lint import Linter
 from ..sinks.blackbox import BlackBox
 from ..sinks.pipeline import Pipeline
@@ -123,6 +124,7 @@ class _Log:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_mode(args)
     if args.trigger:
         return run_black_box(args)
     check_output(args.output, args.force)  # before the port is opened
@@ -218,15 +220,11 @@ def _end_line(args: argparse.Namespace, src: Any, summary: str) -> int:
 
 def run_black_box(args: argparse.Namespace) -> int:
     """record --trigger: the last --pre of the bus in a ring, each window around a fire saved to -o DIR/."""
-    for option in ("split_size", "split_time", "print_lines", "foxglove"):
-        if getattr(args, option, None):
-            raise CliError(f"--{option.replace('_', '-').replace('print-lines', 'print')}: not with --trigger "
-                           f"(the black box saves windows, not the whole bus)")
     folder = window_folder(args.output)
     settings = settings_for(args, args.port)
     opts = settings.decode_options()
     check_positive("--duration", args.duration)
-    pre, post = parse_span("--pre", args.pre), parse_span("--post", args.post)
+    pre, post = parse_span("--pre", args.pre or PRE), parse_span("--post", args.post or POST)
     keep = None if args.keep is None else parse_keep(args.keep)
     max_saves = parse_max_saves(args.max_saves)
     config = lint_config(settings)

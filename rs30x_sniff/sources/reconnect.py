@@ -61,8 +61,10 @@ class ReconnectingSource:
         self.source: LiveSource = self.open_source(port, duration)  # the first open fails as LiveSource's does
 
     def _open(self, path: str, duration: float | None) -> LiveSource:
-        return LiveSource(path, self.baud, duration=duration, announce=False, tap=SerialTap(path, self.baud),
-                          gather=self.gather).start()
+        tap = SerialTap(path, self.baud)
+        # One list for every tap: a part finished mid-run (record --split-time) already knows this tap's stalls.
+        tap.stalls = self.stalls
+        return LiveSource(path, self.baud, duration=duration, announce=False, tap=tap, gather=self.gather).start()
 
     @property
     def metadata(self) -> dict[str, str]:
@@ -145,7 +147,9 @@ class ReconnectingSource:
         self._stop = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
 
     def _take_stalls(self, src: LiveSource) -> None:
-        self.stalls.extend(s for s in src.stalls if s not in self.stalls)
+        """A source made by ``open_source`` keeps its own list: its stalls join ours when it ends."""
+        if src.stalls is not self.stalls:
+            self.stalls.extend(src.stalls)
 
     def close(self) -> None:
         self.source.close()

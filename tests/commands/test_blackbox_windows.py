@@ -97,6 +97,8 @@ def test_keep_deletes_the_oldest_windows(tmp_path):
     (["--trigger", "S001", "--max-saves", "many", "-o", "{tmp}/w/"], "--max-saves many"),
     (["--trigger", "S001", "--split-time", "1min", "-o", "{tmp}/w/"], "--split-time: not with --trigger"),
     (["--trigger", "S001", "-o", "{tmp}/w/"], "cannot open port"),
+    (["--pre", "30s", "-o", "{tmp}/w.mcap"], "--pre: only with --trigger"),
+    (["--max-saves", "3/h", "-o", "{tmp}/w.mcap"], "--max-saves: only with --trigger"),
 ])
 def test_bad_black_box_options_are_one_line_before_the_port_opens(tmp_path, capsys, argv, why):
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]

@@ -19,7 +19,6 @@ from rs30x_sniff.plugins.wireshark import generate, install_hint, lua_value
 from rs30x_sniff.protocol import wire
 from rs30x_sniff.sim import SCENARIOS
 from tests.conftest import CAPTURES, ROOT
-from tests.plugins.conftest import SIM_SECONDS
 from tests.plugins.user_maps import toml_string, write_user_maps
 
 TSHARK = shutil.which("tshark")
@@ -129,16 +128,12 @@ def same(a: dict, b: dict) -> bool:
 
 
 # ---- the inputs -----------------------------------------------------------------------------------
-def input_files(tmp: Path) -> dict[str, Path]:
-    """Every bundled capture, the manual's examples and each simulator scenario (1 s)."""
+def input_files(scenario_files: list[Path]) -> dict[str, Path]:
+    """Every bundled capture, the manual's examples and each simulator scenario (conftest's scenario_files)."""
     files = {str(p.relative_to(CAPTURES)): p for p in
              [*sorted(CAPTURES.glob("*.hex")), *sorted(CAPTURES.glob("*.thex")),
               *sorted((CAPTURES / "lint").iterdir())] if p.is_file()}
-    for name in SCENARIOS:
-        path = tmp / f"sim-{name}.thex"
-        assert main(["simulate", "--scenario", name, "--duration", SIM_SECONDS, "--seed", "0",
-                     "-o", str(path)]) == 0
-        files[f"sim:{name}"] = path
+    files.update({f"sim:{p.stem}": p for p in scenario_files})
     return files
 
 
@@ -154,11 +149,11 @@ def plugin(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def converted(tmp_path_factory):
+def converted(tmp_path_factory, scenario_files):
     """name -> (pcapng, decode's records, the input) for every input, converted and decoded in process."""
     tmp = tmp_path_factory.mktemp("converted")
     out = {}
-    for k, (name, path) in enumerate(input_files(tmp).items()):
+    for k, (name, path) in enumerate(input_files(scenario_files).items()):
         pcapng, jsonl = tmp / f"{k}.pcapng", tmp / f"{k}.jsonl"
         assert main(["convert", str(path), "-o", str(pcapng), "--isolated"]) == 0
         assert main(["decode", str(path), "--format", "jsonl", "-o", str(jsonl), "--isolated"]) == 0
