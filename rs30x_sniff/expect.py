@@ -25,6 +25,8 @@ from difflib import get_close_matches
 from typing import Any, Callable, Collection, Iterable, Mapping
 
 from .lint.config import ConfigError
+from .lint.params import MASK, Message
+from .lint.params import Measured as Quantity
 from .lint.registry import SEVERITIES, Finding, Rule
 from .protocol.memmap import ModelError, default_registry
 from .protocol.wire import RETURN_FLAG_BITS
@@ -622,17 +624,18 @@ def _fmt(v: float, keeps: Callable[[float], bool] | None = None) -> str:
     return repr(v)
 
 
-def _compare(ctx: _Context, c: Comparison, sid: int | None) -> tuple[str, str]:
+def _compare(ctx: _Context, c: Comparison, sid: int | None) -> tuple[str, Message]:
     """(status, text) of one comparison for servo ``sid`` (None: the bus)."""
     left, why = _measure(ctx, c.left, sid)
     if left is None:
-        return NOT_CHECKABLE, f"{c.left.text} not checkable: {why}"
+        return NOT_CHECKABLE, Message(f"{c.left.text} not checkable: {why}")
     test = _TEST[c.op]
     if c.right.is_figure:
         right, why = _measure(ctx, c.right, sid)
         if right is None:
-            return NOT_CHECKABLE, f"{c.right.text} not checkable: {why}"
+            return NOT_CHECKABLE, Message(f"{c.right.text} not checkable: {why}")
         limit_text = f"{c.right.text} {_fmt(right)}" + (f" {c.right.unit}" if c.right.unit else "")
+        limit_key = f"{c.right.text} {MASK}" + (f" {c.right.unit}" if c.right.unit else "")
         shown = c.left.unit
         if c.right.unit in UNITS and shown in UNITS:
             right = _scaled(right, c.right, shown)
@@ -642,12 +645,15 @@ def _compare(ctx: _Context, c: Comparison, sid: int | None) -> tuple[str, str]:
         shown = c.right.unit                # the unit the check was written in (None: the figure's own)
         if shown in UNITS and c.left.unit in UNITS:
             left = _scaled(left, c.left, shown)
-        limit_text = c.right.text
+        limit_text = limit_key = c.right.text
     ok = test(left, right)
     op = c.op if ok else _NEGATED[c.op]
     value = _fmt(left, lambda x: test(x, right) == ok)
     unit = f" {shown}" if shown else ""
-    return (PASS if ok else FAIL), f"{c.left.text} {value}{unit} {op} {limit_text}"
+    # The measured value (and a figure the check compares it with) is no part of the finding's key.
+    return (PASS if ok else FAIL), Message(f"{c.left.text} {value}{unit} {op} {limit_text}",
+                                           f"{c.left.text} {MASK}{unit} {op} {limit_key}",
+                                           {c.left.text: Quantity(left, shown or "")})
 
 
 def _judge(ctx: _Context, check: Check, sid: int | None) -> Result:
@@ -656,10 +662,18 @@ def _judge(ctx: _Context, check: Check, sid: int | None) -> Result:
     failed = [t for s, t in outcomes if s == FAIL]
     unknown = [t for s, t in outcomes if s == NOT_CHECKABLE]
     if failed:
-        return Result(check, sid, FAIL, who + "; ".join(failed + unknown))
+        return Result(check, sid, FAIL, _joined(who, failed + unknown))
     if unknown:
-        return Result(check, sid, NOT_CHECKABLE, who + "; ".join(unknown))
-    return Result(check, sid, PASS, who + "; ".join(t for _, t in outcomes))
+        return Result(check, sid, NOT_CHECKABLE, _joined(who, unknown))
+    return Result(check, sid, PASS, _joined(who, [t for _, t in outcomes]))
+
+
+def _joined(who: str, parts: list[Message]) -> Message:
+    """One result's message from its comparisons' (``who``: the servo), its key from theirs."""
+    params: dict[str, Any] = {}
+    for p in parts:
+        params.update(p.params)
+    return Message(who + "; ".join(parts), who + "; ".join(p.key for p in parts), params)
 
 
 def evaluate(checks: Iterable[Check], info: Mapping[str, Any], rules: Collection[str] | None = None) -> list[Result]:
@@ -696,7 +710,8 @@ def findings(results: Iterable[Result], offset: int, t: float | None = None) -> 
         if r.status == FAIL:
             out.append(Finding(c.code, c.name, c.severity, r.message, offset, t, r.id))
         else:
-            out.append(Finding(c.code, c.name, c.unknown_severity, f"not checkable: {r.message}", offset, t, r.id))
+            said = r.message if isinstance(r.message, Message) else Message(r.message)
+            out.append(Finding(c.code, c.name, c.unknown_severity, said.prefixed("not checkable: "), offset, t, r.id))
     return out
 
 

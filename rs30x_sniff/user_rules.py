@@ -18,7 +18,10 @@ Block, rs30x_sniff.lint.batch) is the filter's own (:meth:`rs30x_sniff.filters.F
 of whose rows may match is quiet for the rule; one that may is linted record by record.
 
 ``message`` is filled by name only (``{id}``, ``{present_temperature:.1f}``): no attribute or index access,
-and a field a record does not carry reads ``?``.
+and a field a record does not carry reads ``?``. Measured values (``{t}``, ``{latency}``, ``{offset}``, the
+registers) are typed parameters (rs30x_sniff.lint.params): written with their unit (``0.080 ms``,
+``61 degC``; not again when the message writes the unit right after the field) and no float noise, and
+left out of a baseline's fingerprint, so a reading that moves never makes a known finding new.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from typing import Any, Mapping
 
 from .filters import FilterError, parse_filter
 from .lint.config import ConfigError
+from .lint.params import DURATION, OFFSET, TIME, Measured, Message, said
 from .lint.registry import FAMILIES, KEBAB, RULES, SEVERITIES, USER_CODE, Rule
 from .protocol.memmap import ModelRegistry, default_registry
 
@@ -158,45 +162,54 @@ def _quiet(flt: Any):
 def _check(code: str, when: str, flt: Any, message: str | None, registers: frozenset[str]):
     matches = flt.matches
     named = [w for w in _words(when) if w in registers]
+    template = message if message is not None else None
 
     def check(lint: Any, rec: Any, ev: Any) -> None:
         if matches(rec):
             lint.emit(code, rec, render(rec, lint))
 
-    def render(rec: Any, lint: Any) -> str:
-        values = _register_values(rec)
-        if message is None:
-            shown = [f"{n} {_with_unit(rec, n, values[n])}" for n in named if n in values]
-            return (", ".join(shown) + f" (when: {when})") if shown else f"matches when: {when}"
-        base = {"id": rec.id, "kind": rec.kind, "offset": rec.offset, "t": rec.t, "latency": rec.latency,
+    def render(rec: Any, lint: Any) -> Message:
+        values = measured_values(rec)
+        if template is None:
+            shown = [n for n in named if n in values]
+            text = ", ".join(f"{n} {{{n}}}" for n in shown) + f" (when: {_braced(when)})" if shown else \
+                f"matches when: {_braced(when)}"
+            return said(text, values)
+        base = {"id": rec.id, "kind": rec.kind, "offset": Measured(rec.offset, OFFSET),
+                "t": None if rec.t is None else Measured(rec.t, TIME),
+                "latency": None if rec.latency is None else Measured(rec.latency, DURATION),
                 "address": getattr(rec.event, "address", None), "code": code, "name": RULES[code].name,
                 "severity": lint.severity_of(code), "when": when}
-        return fill(message, {**values, **base})
+        return said(template, {**values, **base})
 
     return check
 
 
+def _braced(text: str) -> str:
+    return text.replace("{", "{{").replace("}", "}}")
+
+
 def fill(message: str, values: Mapping[str, Any]) -> str:
     """``message`` with its ``{fields}`` from ``values`` (checked by :func:`check_message`): a missing or
-    None value reads ``?``; a value its format spec does not fit is written plainly."""
-    out = []
-    for literal, field, spec, conv in string.Formatter().parse(message):
-        out.append(literal)
-        if field is None:
-            continue
-        v = values.get(field)
-        if v is None:
-            out.append(UNKNOWN)
-            continue
-        if conv == "r":
-            v = repr(v)
-        elif conv in ("s", "a"):
-            v = str(v) if conv == "s" else ascii(v)
-        try:
-            out.append(format(v, spec or ""))
-        except (TypeError, ValueError):
-            out.append(str(v))
-    return "".join(out)
+    None value reads ``?``; a value its format spec does not fit is written plainly; a :class:`Measured`
+    value with its unit (rs30x_sniff.lint.params.said)."""
+    return str(said(message, values, UNKNOWN))
+
+
+def measured_values(rec: Any) -> dict[str, Measured]:
+    """The registers a record carries (:func:`_register_values`), each a measurement in its register's unit:
+    written with that unit in a message, and never part of a baseline's fingerprint."""
+    model = rec.model
+    out: dict[str, Measured] = {}
+    for name, v in _register_values(rec).items():
+        unit = ""
+        if model is not None:
+            try:
+                unit = model.register(name).unit or ""
+            except KeyError:
+                unit = ""
+        out[name] = Measured(v, unit)
+    return out
 
 
 def _register_values(rec: Any) -> dict[str, Any]:
@@ -209,17 +222,6 @@ def _register_values(rec: Any) -> dict[str, Any]:
     for _, n, v in items:
         out.setdefault(n, v)
     return out
-
-
-def _with_unit(rec: Any, name: str, value: Any) -> str:
-    unit = None
-    model = rec.model
-    if model is not None:
-        try:
-            unit = model.register(name).unit
-        except KeyError:
-            unit = None
-    return f"{value} {unit}" if unit and not isinstance(value, str) else f"{value}"
 
 
 def _words(text: str) -> list[str]:

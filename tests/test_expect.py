@@ -388,3 +388,24 @@ def test_a_servo_with_no_timed_reply_has_no_latency_to_check():
                                   "t.toml"), info)
     assert (r1.status, r2.status) == (PASS, NOT_CHECKABLE)
     assert r2.message == "ID 2: latency_max not checkable: no reply of ID 2 was paired with its request"
+
+
+def test_a_failed_check_keeps_its_fingerprint_when_its_value_moves():
+    """The measured value is a typed parameter: in the message, never in a baseline's fingerprint (issue 32)."""
+    from rs30x_sniff.lint.baseline import fingerprint
+
+    def finding_for(missing: int, hz: float | None):
+        info = {"timed": hz is not None, "servos": {"1": {"poll_rate_hz": hz, "reads": 9, "missing": missing}},
+                "health": {}}
+        (r,) = _one({"check": "missing_replies == 0 and poll_hz > 50", "for": "id:1"}, info)
+        return findings([r], 100, None)[0]
+
+    a, b = finding_for(2, 10.0), finding_for(5, 12.5)
+    assert a.message == "ID 1: missing_replies 2 != 0; poll_hz 10 <= 50"
+    assert fingerprint(a) == fingerprint(b) == "U101:1:ID 1: missing_replies * != 0; poll_hz * <= 50"
+    assert fingerprint(finding_for(0, 10.0)) != fingerprint(a)  # another comparison failing is another finding
+    c, d = finding_for(2, None), finding_for(3, None)  # a fail beside a figure not checkable
+    assert fingerprint(c) == fingerprint(d) == \
+        "U101:1:ID 1: missing_replies * != 0; poll_hz not checkable: the capture has no timestamps"
+    e = finding_for(0, None)
+    assert fingerprint(e) == "U101:1:not checkable: ID 1: poll_hz not checkable: the capture has no timestamps"

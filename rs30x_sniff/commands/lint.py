@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..sources.captures import CaptureError
-from ..lint.baseline import Baseline, BaselineError, BaselineReport
+from ..lint.baseline import BASELINE_VERSION, Baseline, BaselineError, BaselineReport
 from ..lint.config import FAIL_ON, FORMATS
 from ..lint.linter import Linter
 from ..lint.report import FileResult, append_step_summary, fails, write_report, write_step_summary
@@ -204,9 +204,14 @@ def _baseline_options(args: argparse.Namespace) -> Baseline | None:
     if not args.baseline:
         return None
     try:
-        return Baseline.load(args.baseline)
+        baseline = Baseline.load(args.baseline)
     except BaselineError as e:
         raise CliError(str(e)) from None
+    if baseline.version < BASELINE_VERSION:  # still read, by the fingerprints its version made
+        print(f"rs30x-sniff: {args.baseline}: baseline version {baseline.version}, matched as that version "
+              f"fingerprinted (by the text); user rules' messages now carry units: lint --write-baseline to "
+              f"write version {BASELINE_VERSION}", file=sys.stderr)
+    return baseline
 
 
 def apply_baseline(baseline: Baseline, results: list[FileResult]) -> BaselineReport:

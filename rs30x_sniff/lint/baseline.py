@@ -5,9 +5,17 @@ does not hold, counts the ones it absorbed and lists its entries no longer seen 
 
 A fingerprint is the rule's code, the servo ID and the stable part of the message: what the finding says
 (the IDs, register names, addresses, flag and model codes in it), without what varies from one recording of
-the same bus to the next: stream offsets (``@N``), times and latencies, byte counts of noise, values measured
-or written (a checksum that did not match, a goal position, an out-of-range value), counts of repeats. The
-file is JSON, its entries sorted, one shape for every version of the tool that writes ``version`` 1.
+the same bus to the next (stream offsets, times and latencies, values measured or written, counts).
+
+A finding made from typed parameters (rs30x_sniff.lint.params: the user rules, the figure checks, and the
+built-in rules that give them) is fingerprinted by its key: its template with every measured value left
+out, never by reading its text. A message given as plain text is still read by the per-rule patterns
+below (``_SHAPES``), which say what in it is a measurement.
+
+The file is JSON, its entries sorted, with a ``version``: version 2 (written since the typed parameters)
+keys the findings that have them; a version 1 file is still read, and matched by the fingerprints version
+1 made (patterns over the text). A user rule's message now writes its measured values with units, so its
+findings do not match a version 1 entry: write the baseline anew (``lint --write-baseline``).
 """
 
 from __future__ import annotations
@@ -17,9 +25,11 @@ import re
 from dataclasses import dataclass, field
 from typing import IO, Iterable
 
+from .params import key_of
 from .registry import Finding
 
-BASELINE_VERSION = 1
+BASELINE_VERSION = 2
+READS = (1, 2)  # the versions this rs30x-sniff reads (see above)
 BASELINE_KIND = "rs30x-sniff lint baseline"
 
 # What every message loses: offsets in the stream, times, angles, percentages, byte times.
@@ -75,9 +85,13 @@ def stable_message(code: str, message: str) -> str:
     return "".join(parts)
 
 
-def fingerprint(f: Finding) -> str:
-    """``CODE:ID:stable message`` (``-`` for a finding of no one servo)."""
-    return f"{f.code}:{'-' if f.id is None else f.id}:{stable_message(f.code, f.message)}"
+def fingerprint(f: Finding, version: int = BASELINE_VERSION) -> str:
+    """``CODE:ID:stable message`` (``-`` for a finding of no one servo): by the message's key when it was
+    made from typed parameters, else by :func:`stable_message`; ``version`` 1: as version 1 made it (by
+    the text alone)."""
+    key = key_of(f.message) if version >= 2 else None
+    stable = key if key is not None else stable_message(f.code, str(f.message))
+    return f"{f.code}:{'-' if f.id is None else f.id}:{stable}"
 
 
 @dataclass
@@ -101,6 +115,7 @@ class Baseline:
 
     entries: dict[str, Entry] = field(default_factory=dict)
     path: str | None = None
+    version: int = BASELINE_VERSION  # how its fingerprints were made (a version 1 file: by the text)
 
     @classmethod
     def of(cls, findings: Iterable[Finding]) -> "Baseline":
@@ -119,7 +134,7 @@ class Baseline:
         return sorted(self.entries.values(), key=lambda e: (e.code, -1 if e.id is None else e.id, e.fingerprint))
 
     def as_json(self) -> dict:
-        return {"kind": BASELINE_KIND, "version": BASELINE_VERSION,
+        return {"kind": BASELINE_KIND, "version": self.version,
                 "entries": [e.as_json() for e in self.sorted_entries()]}
 
     def dump(self, out: IO[str]) -> None:
@@ -150,9 +165,9 @@ class Baseline:
             raise BaselineError(f"{path}: not a baseline (no \"kind\": \"{BASELINE_KIND}\"; write one with "
                                 f"lint --write-baseline)")
         version = data.get("version")
-        if version != BASELINE_VERSION:
+        if isinstance(version, bool) or version not in READS:
             raise BaselineError(f"{path}: baseline version {version!r} is not one this rs30x-sniff reads "
-                                f"({BASELINE_VERSION}); write it anew with lint --write-baseline")
+                                f"({', '.join(map(str, READS))}); write it anew with lint --write-baseline")
         items = data.get("entries")
         if not isinstance(items, list):
             raise BaselineError(f"{path}: \"entries\" must be a list")
@@ -175,19 +190,19 @@ class Baseline:
             if fp in entries:
                 raise BaselineError(f"{path}: entry {k}: fingerprint {fp!r} is there twice")
             entries[fp] = Entry(fp, code, sid, message, count)
-        return cls(entries, path)
+        return cls(entries, path, version)
 
     def split(self, findings: Iterable[Finding]) -> tuple[list[Finding], list[Finding]]:
         """``(new, absorbed)``: the findings whose fingerprint this baseline does not hold, and those it does."""
         new: list[Finding] = []
         absorbed: list[Finding] = []
         for f in findings:
-            (absorbed if fingerprint(f) in self.entries else new).append(f)
+            (absorbed if fingerprint(f, self.version) in self.entries else new).append(f)
         return new, absorbed
 
     def stale(self, absorbed: Iterable[Finding]) -> list[Entry]:
         """The entries none of ``absorbed`` matched: behaviour no longer seen."""
-        seen = {fingerprint(f) for f in absorbed}
+        seen = {fingerprint(f, self.version) for f in absorbed}
         return [e for e in self.sorted_entries() if e.fingerprint not in seen]
 
 

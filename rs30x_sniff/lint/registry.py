@@ -102,7 +102,8 @@ _ALIASES = {"request": ("short", "long"), "reply": ("return", "ack", "nack"), "p
 
 @dataclass(frozen=True, slots=True)
 class Finding:
-    """One lint finding, attached to the record it concerns."""
+    """One lint finding, attached to the record it concerns. ``message`` may be a
+    :class:`rs30x_sniff.lint.params.Message`: made from typed parameters, it carries them and its key."""
 
     code: str
     name: str
@@ -112,6 +113,12 @@ class Finding:
     t: float | None
     id: int | None
     raw: bytes = field(default=b"", repr=False, compare=False)  # the record's bytes, for reports
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """The typed parameters the message was made from (rs30x_sniff.lint.params: measured values with
+        their units); {} for a message given as plain text."""
+        return dict(getattr(self.message, "params", {}))
 
     def as_json(self) -> dict[str, Any]:
         return {"offset": self.offset, "t": self.t, "code": self.code, "name": self.name,

@@ -4,15 +4,19 @@ new findings only toward the exit code, absorbed and stale counts in every repor
 from __future__ import annotations
 
 import json
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import jsonschema
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from rs30x_sniff.cli import main
 from rs30x_sniff.lint import Finding
-from rs30x_sniff.lint.baseline import BASELINE_KIND, Baseline, fingerprint, stable_message
+from rs30x_sniff.lint.params import DURATION, TIME, Measured, said
+from rs30x_sniff.lint.baseline import BASELINE_KIND, BASELINE_VERSION, Baseline, fingerprint, stable_message
 from rs30x_sniff.protocol.wire import RETURN_FIRST, encode_short
 from rs30x_sniff.sim import SimBus, run as sim_run
 from rs30x_sniff.sim.scenarios import get as get_scenario
@@ -112,7 +116,7 @@ def test_the_file_is_sorted_stable_and_counts_what_it_saw():
     Baseline.of(list(reversed(fs))).dump(b)
     assert a.getvalue() == b.getvalue() and a.getvalue().endswith("}\n")
     data = json.loads(a.getvalue())
-    assert data["kind"] == BASELINE_KIND and data["version"] == 1
+    assert data["kind"] == BASELINE_KIND and data["version"] == BASELINE_VERSION == 2
     assert [(e["code"], e["id"], e["count"]) for e in data["entries"]] == [("B002", 1, 1), ("B002", 4, 2),
                                                                           ("S004", 2, 1)]
     assert data["entries"][1] == {"fingerprint": "B002:4:ID 4 did not answer", "code": "B002", "id": 4,
@@ -344,3 +348,89 @@ def test_baseline_options_that_cannot_go_together(capsys, tmp_path):
     code, _, err = lint(capsys, capture, "--write-baseline", base, "-o", tmp_path / "r.txt")
     assert code == 2 and "-o and --write-baseline" in err
     assert not base.exists() and not (tmp_path / "r.txt").exists()
+
+
+# ---- typed parameters (issue 32): the fingerprint is the message's key, not a reading of its text ----------
+SLOW = ('[[rule]]\ncode = "U001"\nname = "slow-reply"\nwhen = "kind:return latency>0.01ms"\n'
+        'message = "ID {id} replied {latency} after its request, at {t}"\n')
+
+
+def _shift_replies(src: Path, dst: Path, by: float) -> Path:
+    """The capture with every return packet stamped ``by`` seconds later: each latency moves by ``by``."""
+    lines = []
+    for line in src.read_text().splitlines():
+        t, _, rest = line.partition(" ")
+        if rest.startswith("FD DF"):
+            line = f"{float(t) + by:.6f} {rest}"
+        lines.append(line)
+    dst.write_text("\n".join(lines) + "\n")
+    return dst
+
+
+@pytest.mark.parametrize("by", [10e-6, -10e-6, 1e-6])
+def test_a_user_rules_latency_moving_never_makes_its_finding_new(capsys, tmp_path, by):
+    (tmp_path / "rs30x-sniff.toml").write_text(SLOW)
+    first = simulate(capsys, tmp_path, "overheat", 1, 1.0)
+    found = findings_json(capsys, first, "--select", "U001")
+    assert found and all(" ms after its request, at " in f["message"] for f in found)
+    assert not any("e-0" in f["message"] for f in found)  # units, never float noise (7.955555555555548e-05)
+    base = tmp_path / "baseline.json"
+    assert lint(capsys, first, "--select", "U001", "--write-baseline", base)[0] == 0
+    entries = json.loads(base.read_text())["entries"]
+    assert entries and all(e["fingerprint"] == f"U001:{e['id']}:ID {e['id']} replied * after its request, at *"
+                           for e in entries)
+    moved = _shift_replies(first, tmp_path / "moved.thex", by)
+    assert findings_json(capsys, moved, "--select", "U001") != found  # the messages did change
+    code, out, _ = lint(capsys, moved, "--select", "U001", "--baseline", base)
+    assert code == 0 and "\n0 findings in 1 file.\n" in out
+
+
+@given(st.floats(min_value=1e-6, max_value=0.05), st.floats(min_value=-20e-6, max_value=20e-6),
+       st.floats(min_value=0, max_value=1e6), st.floats(min_value=-50, max_value=150))
+def test_a_measured_value_is_written_with_its_unit_and_left_out_of_the_key(latency, moved, t, temperature):
+    template = "ID {id} at {present_temperature}, {latency} after its request, at {t}"
+    a = said(template, {"id": 3, "latency": Measured(latency, DURATION), "t": Measured(t, TIME),
+                        "present_temperature": Measured(temperature, "degC")})
+    b = said(template, {"id": 3, "latency": Measured(latency + moved, DURATION), "t": Measured(t + 1, TIME),
+                        "present_temperature": Measured(temperature + 1.5, "degC")})
+    assert a.key == b.key == "ID 3 at *, * after its request, at *"
+    assert re.fullmatch(r"ID 3 at -?[\d.]+ degC, -?\d+\.\d{3} ms after its request, at \d+\.\d{6} s", a), a
+    f, g = finding("U001", a, 3), finding("U001", b, 3)
+    assert fingerprint(f) == fingerprint(g)
+    assert fingerprint(finding("U001", a, 4)) != fingerprint(f)  # the servo stays in it
+
+
+def test_a_unit_the_message_writes_itself_is_not_written_twice():
+    m = said("ID {id} at {present_temperature} degC, {latency} ms", {"id": 2, "present_temperature": Measured(61, "degC"),
+                                                                      "latency": Measured(8e-05, DURATION)})
+    assert m == "ID 2 at 61 degC, 0.080 ms" and m.key == "ID 2 at * degC, * ms"
+    assert said("{x}", {"x": Measured(12.300000000000001, "deg")}) == "12.3 deg"
+
+
+def test_a_version_1_baseline_is_still_read_with_its_own_fingerprints(capsys, tmp_path):
+    capture = simulate(capsys, tmp_path, "silent-servo", 1)
+    base = tmp_path / "v2.json"
+    assert lint(capsys, capture, "--write-baseline", base)[0] == 0
+    data = json.loads(base.read_text())
+    assert data["version"] == 2
+    # What version 1 wrote: the same entries, fingerprinted by the text (built-in messages are plain text).
+    old = Baseline({k: v for k, v in Baseline.load(str(base)).entries.items()}, version=1)
+    v1 = tmp_path / "v1.json"
+    with open(v1, "w") as fh:
+        old.dump(fh)
+    assert json.loads(v1.read_text())["version"] == 1
+    code, out, _ = lint(capsys, capture, "--baseline", v1)
+    assert code == 0 and "\n0 findings in 1 file.\n" in out
+    # A typed message in a version 1 baseline matches by its text, as version 1 did.
+    f = finding("U001", said("ID {id} at {v}", {"id": 3, "v": Measured(61, "degC")}), 3)
+    assert fingerprint(f, 1) == "U001:3:ID 3 at * degC" and fingerprint(f) == "U001:3:ID 3 at *"
+    assert Baseline({fingerprint(f, 1): None}, version=1).split([f]) == ([], [f])
+
+
+def test_findings_carry_their_typed_parameters_across_processes():
+    import pickle
+    m = said("ID {id} {latency}", {"id": 3, "latency": Measured(8e-05, DURATION)})
+    f = pickle.loads(pickle.dumps(finding("U001", m, 3)))
+    assert f.message == "ID 3 0.080 ms" and fingerprint(f) == "U001:3:ID 3 *"
+    assert f.params == {"id": 3, "latency": Measured(8e-05, DURATION)}
+    assert finding().params == {}
