@@ -101,6 +101,7 @@ def write_file(path: str | IO[bytes], chunks, fmt: str, baud: int) -> int:
 
 
 def play_port(port: str, baud: int, chunks, name: str) -> int:
+    from ..protocol.wire import byte_time
     from ..sim.port import open_port, play
 
     try:
@@ -116,7 +117,8 @@ def play_port(port: str, baud: int, chunks, name: str) -> int:
         return n
 
     try:
-        play(chunks, counted_write)
+        # Each frame when its last byte is in, as a UART hands it over: a reader stamping arrivals times it true.
+        play(chunks, counted_write, byte_seconds=byte_time(baud))
         ser.flush()
     except KeyboardInterrupt:
         print(f"rs30x-sniff: {name}: stopped (Ctrl-C) after {sent:,} bytes to {port}", file=sys.stderr)

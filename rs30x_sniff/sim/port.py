@@ -7,15 +7,22 @@ from typing import Callable, Iterable
 
 Chunk = tuple[bytes, float]
 
-# Chunks due within this much of each other go out in one write: fewer syscalls, and still far
-# finer timing than a USB adapter's latency timer (1-16 ms) gives a real capture.
+# Chunks due within this much of the first one held go out in one write: fewer syscalls, and still far
+# finer timing than a USB adapter's latency timer (1-16 ms) gives a real capture. Well under the gap
+# between a request's end and its reply's end (the reply's own bytes plus the servo's 100 us return delay,
+# table 4.6 No. 7), so a reader can still tell the two apart.
 COALESCE = 0.0005
 
 
 def play(chunks: Iterable[Chunk], write: Callable[[bytes], object], *, speed: float = 1.0,
-         clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
-         on_write: Callable[[int, float], None] | None = None) -> int:
-    """Write each chunk when its time comes (``t`` seconds after the start, divided by ``speed``).
+         byte_seconds: float = 0.0, clock: Callable[[], float] = time.monotonic,
+         sleep: Callable[[float], None] = time.sleep, on_write: Callable[[int, float], None] | None = None) -> int:
+    """Write each chunk when its time comes, ``(t + len(data) x byte_seconds) / speed`` seconds after the start.
+
+    A chunk's ``t`` is its first byte's time on the line. Given ``byte_seconds`` (the line's byte time), a
+    chunk is written when its last byte has been on the line, as a UART hands over a frame it has finished
+    receiving: a reader that stamps bytes on arrival and lays them back at the line rate then finds each
+    frame where it was. Without it, a chunk is written at its first byte's time.
 
     ``write`` takes bytes (``os.write`` on a pty, a pyserial port's ``write``). ``on_write(offset,
     wall_time)`` is told the stream offset of every write's first byte and when it was written
@@ -24,13 +31,14 @@ def play(chunks: Iterable[Chunk], write: Callable[[bytes], object], *, speed: fl
     start = clock()
     sent = 0
     buf = bytearray()
-    due = 0.0
+    first = due = 0.0
     for data, t in chunks:
-        target = start + t / speed
-        if buf and target - due > COALESCE:
+        target = start + (t + len(data) * byte_seconds) / speed
+        if buf and target - first > COALESCE:
             sent += _flush(buf, write, due, clock, sleep, sent, on_write)
         if not buf:
-            due = target
+            first = target
+        due = max(due, target) if buf else target  # the group goes out when its last byte is due
         buf += data
     if buf:
         sent += _flush(buf, write, due, clock, sleep, sent, on_write)
