@@ -7,7 +7,9 @@ configuration's ``[regress]`` table. Nothing here reads a capture or a file.
 
 A figure one capture cannot give (no timestamps: no latency, no bus load, no poll rate; not linted: no
 findings) is absent, with the reason, on its own side; a change needs both sides, so a threshold on it is
-listed as not checked, never as crossed nor as passed.
+listed as not checked, never as crossed nor as passed. A threshold checked on nothing at all (every row it
+applies to absent, or no row) is in ``Comparison.blind``: ``diff --fail-on-regress`` fails on it as "not
+checkable", as a figure check (``[[expect]]``) that cannot be measured does.
 
 Thresholds, one per figure (``[regress]`` in rs30x-sniff.toml, ``[tool.rs30x-sniff.regress]`` in pyproject):
 
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import math
 import re
+from difflib import get_close_matches
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -114,7 +117,9 @@ def parse_threshold(key: str, value: Any, where: str) -> Threshold:
     name = key.replace("-", "_")
     fig = FIGURES.get(name)
     if fig is None:
-        raise ThresholdError(f"{where}: regress.{key}: unknown figure (known: {', '.join(FIGURES)})")
+        close = get_close_matches(name, FIGURES, n=1)
+        hint = f"; did you mean {close[0]}?" if close else ""
+        raise ThresholdError(f"{where}: regress.{key}: unknown figure{hint} (known: {', '.join(FIGURES)})")
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise ThresholdError(f"{label}: expected a number or a text such as \"+20%\" or \"+0\"")
     if isinstance(value, (int, float)):
@@ -405,6 +410,7 @@ class Comparison:
     thresholds: dict[str, Threshold]
     crossings: list[Crossing]
     unchecked: list[Unchecked]
+    blind: list[str] = field(default_factory=list)  # thresholds checked on nothing: every row unchecked
 
     @property
     def regressed(self) -> bool:
@@ -423,7 +429,8 @@ class Comparison:
                 "changes": [c.as_dict() for c in self.changes],
                 "thresholds": {k: t.text for k, t in self.thresholds.items()},
                 "regressions": [c.as_dict() for c in self.crossings],
-                "unchecked": [u.as_dict() for u in self.unchecked]}
+                "unchecked": [u.as_dict() for u in self.unchecked],
+                "not_checkable": list(self.blind)}
 
 
 def compare(before: Mapping[str, Any], after: Mapping[str, Any],
@@ -452,19 +459,25 @@ def compare(before: Mapping[str, Any], after: Mapping[str, Any],
     crossings: list[Crossing] = []
     unchecked: list[Unchecked] = []
     rows = [*bus, *changes, *(c for cs in servos.values() for c in cs)]
+    blind: list[str] = []
     for name, t in thresholds.items():
         matched = [r for r in rows if r.figure == name]
         if not matched:  # never a silent pass: say that there was nothing to hold to it
             scope = FIGURES[name].scope if name in FIGURES else "bus"
             why = "no servo in both captures has it" if scope == "servo" else "neither capture gives it"
             unchecked.append(Unchecked(name, None, t.text, why))
+        checked = False
         for c in matched:
             if c.absent is not None:
                 unchecked.append(Unchecked(name, c.servo, t.text, c.absent))
-            elif t.crossed(c.before.value, c.after.value):  # type: ignore[arg-type]
+                continue
+            checked = True
+            if t.crossed(c.before.value, c.after.value):  # type: ignore[arg-type]
                 crossings.append(Crossing(c, t))
+        if not checked:  # a gate that could not be run: never a pass (diff --fail-on-regress exits 1)
+            blind.append(name)
     return Comparison(before, after, bus, servos, only_before, only_after, findings, changes, thresholds,
-                      crossings, unchecked)
+                      crossings, unchecked, blind)
 
 
 # ---- words ------------------------------------------------------------------------------------------

@@ -27,7 +27,7 @@ from typing import Any, Callable, Collection, Iterable, Mapping
 from .lint.config import ConfigError
 from .lint.params import MASK, Message
 from .lint.params import Measured as Quantity
-from .lint.registry import SEVERITIES, Finding, Rule
+from .lint.registry import RULES, SEVERITIES, Finding, Rule
 from .protocol.memmap import ModelError, default_registry
 from .protocol.wire import RETURN_FLAG_BITS
 from .sinks.health import PRESENT, WRITTEN
@@ -433,6 +433,24 @@ def load_checks(entries: Any, where: str) -> list[Check]:
         codes[code], names[name] = i, i
         out.append(Check(code, name, severity, src, tuple(comparisons), ids, text("doc", False), unknown, i))
     return out
+
+
+def check_clashes(rules: Iterable[Rule], checks: Iterable[Check], where: str) -> None:
+    """One line (an :class:`ExpectError`) when an ``[[expect]]`` takes the code or name of a ``[[rule]]`` of
+    the same file, or a built-in rule's name: both become rules of the registry, where each is one."""
+    by_code = {r.code: r for r in rules}
+    by_name = {r.name: r for r in rules}
+    for c in checks:
+        label = f"{where}: [[expect]] #{c.index} ({c.code})"
+        if c.code in by_code:
+            raise ExpectError(f"{label}: code = {c.code!r}: already the code of [[rule]] {c.code} "
+                              f"({by_code[c.code].name}): give each its own")
+        if c.name in by_name:
+            raise ExpectError(f"{label}: name = {c.name!r}: already the name of [[rule]] {by_name[c.name].code}: "
+                              f"give each its own")
+        taken = RULES.get(c.name)
+        if taken is not None and not taken.is_user:
+            raise ExpectError(f"{label}: name = {c.name!r}: the built-in rule {taken.code}'s name")
 
 
 def _checked_at_the_end(lint: Any) -> None:

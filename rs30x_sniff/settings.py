@@ -18,8 +18,10 @@ from .protocol.memmap import ModelError, ModelRegistry, default_registry
 from .decode.decoder import DecodeOptions
 from .sources.timebase import TIME_REFS
 from .sources.timeunit import UNITS as TIME_UNITS
+from .render.times import DEFAULT_TIME_FORMAT, TIME_FORMATS
 from .protocol.wire import BAUD_RATES, DEFAULT_BAUD
-from .expect import as_rule, load_checks
+from .compare import ThresholdError, parse_thresholds
+from .expect import as_rule, check_clashes, load_checks
 from .user_rules import compile_rules
 
 CONFIG_NAME = "rs30x-sniff.toml"
@@ -142,6 +144,8 @@ KEYS: dict[str, Key] = {
     "time_ref": Key(_one_of(TIME_REFS), "--time-ref", "what timestamped hex times mark: first byte or arrival"),
     "time_unit": Key(_one_of(TIME_UNITS), "--time-unit", "the unit of timestamped hex times: s, ms, us or ns"),
     "channel": Key(_channel, "--channel", "the logic capture's channel to decode: a name or an index from 0"),
+    "time_format": Key(_one_of(TIME_FORMATS), "--time-format",
+                       "how text lines show times: relative (since the capture's start), absolute, delta or epoch"),
     "select": Key(_rules, "--select", "rules to run"),
     "ignore": Key(_rules, "--ignore", "rules to skip"),
     "severity": Key(_severity, "--severity", "severity per rule"),
@@ -199,6 +203,12 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
         if where == COMMAND_LINE:
             raise SettingsError("figure checks ([[expect]]) come from a config file only")
         out["expect"] = load_checks(out["expect"], where)
+        check_clashes(out.get("rule", ()), out["expect"], where)  # one registry holds both: one line, exit 2
+    if "regress" in out:  # checked for every command that reads the file, as diff reads it
+        try:
+            parse_thresholds(out["regress"], where)
+        except ThresholdError as e:
+            raise SettingsError(str(e)) from None
     # A config file's selections may name its own user rules and figure checks: checked with those in effect.
     own = own_rules(out)
     with RULES.user_rules(own) if own else _nothing():
@@ -305,6 +315,7 @@ class Settings:
     timing_unsupported: str | None = None          # why timing figures are left out (see above)
     user_rules: tuple = ()                         # the config file's [[rule]]s (rs30x_sniff.lint.registry.Rule)
     expects: tuple = ()                            # the config file's [[expect]]s (rs30x_sniff.expect.Check)
+    time_format: str = DEFAULT_TIME_FORMAT         # how text lines show times (rs30x_sniff.render.times)
 
     def decode_options(self, registry: ModelRegistry | None = None) -> DecodeOptions:
         return DecodeOptions(baud=self.baud, default_model=self.default_model, models=dict(self.models),
@@ -356,14 +367,15 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     layers = [(CAPTURE, cap), (where_conf, conf), (COMMAND_LINE, cli)]
     values: dict[str, Any] = {"baud": DEFAULT_BAUD, "model": None, "gap_bytes": DEFAULT_GAP_BYTES,
                               "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False, "time_ref": None, "time_unit": None,
-                              "channel": None}
+                              "channel": None, "time_format": DEFAULT_TIME_FORMAT}
     origin = {k: DEFAULTS for k in ("baud", "model", "gap_bytes", "reply_timeout")}
     models: dict[int, str] = {}
     lint: dict[str, Any] = {}
     ignore: list[str] = []
     severity: dict[str, str] = {}
     for where, layer in layers:
-        for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any", "time_ref", "time_unit", "channel"):
+        for key in ("baud", "model", "gap_bytes", "reply_timeout", "baud_any", "time_ref", "time_unit", "channel",
+                    "time_format"):
             if key in layer:
                 values[key] = layer[key]
                 origin[key] = cap_origin.get(key, where) if layer is cap else where
@@ -400,4 +412,4 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
                     channel=None if values["channel"] is None else str(values["channel"]).strip(),
                     report_format=fmt, origin=origin,
                     config_path=where_conf if config else None, user_rules=tuple(conf.get("rule", ())),
-                    expects=tuple(conf.get("expect", ())))
+                    expects=tuple(conf.get("expect", ())), time_format=values["time_format"])

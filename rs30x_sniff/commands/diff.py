@@ -40,7 +40,12 @@ def add_parser(sub: Any) -> None:  # argparse's subparsers action (no public nam
                    help="a threshold as in [regress], e.g. latency_p95=+20%% or missing_replies=+0; "
                         "replaces the configuration's for that figure; repeatable")
     p.add_argument("--fail-on-regress", action="store_true",
-                   help="exit 1 when a threshold is crossed (default: report only, exit 0)")
+                   help="exit 1 when a threshold is crossed, or when one could be checked on nothing (not "
+                        "checkable: a figure neither capture gives), or when there is no threshold (default: "
+                        "report only, exit 0)")
+    p.add_argument("--allow-unchecked", action="store_true",
+                   help="with --fail-on-regress: a threshold that is not checkable (or no threshold at all) is a "
+                        "warning, not a failure")
     add_output_options(p)
     p.set_defaults(run=run)
 
@@ -83,6 +88,8 @@ def figures_of(args: argparse.Namespace, path: str, conf: dict[str, Any]) -> dic
 
 def run(args: argparse.Namespace) -> int:
     check_positive("--duration", args.duration)
+    if args.allow_unchecked and not args.fail_on_regress:
+        raise CliError("--allow-unchecked: only with --fail-on-regress (what it allows is its failure)")
     if args.before == STDOUT and args.after == STDOUT:
         raise CliError("BEFORE and AFTER are both - (stdin): at most one of them can be read from stdin")
     inputs = (args.before, args.after)
@@ -102,18 +109,27 @@ def run(args: argparse.Namespace) -> int:
         else:
             write_text(out, result)
             if args.format == "github":
-                write_annotations(out, result, "error" if args.fail_on_regress else "warning", args.after)
+                write_annotations(out, result, "error" if args.fail_on_regress else "warning", args.after,
+                                  "error" if args.fail_on_regress and not args.allow_unchecked else "warning")
     if args.format == "github":  # in a workflow, the run's summary too (nothing when GITHUB_STEP_SUMMARY is unset)
         warning = append_step_summary(lambda md: write_markdown(md, result))
         if warning:
             print(f"rs30x-sniff: warning: {warning}", file=sys.stderr)
     if args.fail_on_regress:
+        # A gate that cannot be run never passes (as an [[expect]] that cannot be measured fails), unless
+        # --allow-unchecked says that is fine.
+        level = "warning" if args.allow_unchecked else "error"
         if not thresholds:
-            print("rs30x-sniff: warning: --fail-on-regress: no thresholds ([regress] in the configuration, or "
-                  "--threshold): nothing to fail on", file=sys.stderr)
+            print(f"rs30x-sniff: {level}: --fail-on-regress: not checkable: no thresholds ([regress] in the "
+                  f"configuration, or --threshold)", file=sys.stderr)
+        for name in result.blind:
+            why = "; ".join(u.describe() for u in result.unchecked if u.figure == name)
+            print(f"rs30x-sniff: {level}: not checkable: {why}", file=sys.stderr)
         for c in result.crossings:
             print(f"rs30x-sniff: regression: {c.describe()}", file=sys.stderr)
-        return 1 if result.regressed else 0
+        if result.regressed:
+            return 1
+        return 0 if args.allow_unchecked or (thresholds and not result.blind) else 1
     return 0
 
 
@@ -179,6 +195,8 @@ def write_text(out: IO[str], r: Comparison) -> None:
     if r.crossings:
         for c in r.crossings:
             w(f"  crossed      {c.describe()}\n")
+    elif len(r.blind) == len(r.thresholds):
+        w("  none checkable\n")
     else:
         w("  none crossed\n")
     for u in r.unchecked:
@@ -186,14 +204,19 @@ def write_text(out: IO[str], r: Comparison) -> None:
 
 
 # ---- github (workflow commands) ----------------------------------------------------------------------
-def write_annotations(out: IO[str], r: Comparison, level: str, after: str) -> None:
-    """``::warning file=AFTER,title=...::`` (or ``::error``) for each threshold crossed."""
+def write_annotations(out: IO[str], r: Comparison, level: str, after: str, blind_level: str | None = None) -> None:
+    """``::warning file=AFTER,title=...::`` (or ``::error``) for each threshold crossed, and (at
+    ``blind_level``) for each one checked on nothing."""
     where = "" if after == STDOUT else f"file={github_escape(after, True)},"
     for c in r.crossings:
         ch = c.change
         what = ch.figure + ("" if ch.servo is None else f" of servo {ch.servo}")
         title = github_escape(f"rs30x-sniff diff: {what} regressed", True)
         out.write(f"::{level} {where}title={title}::{github_escape(c.describe())}\n")
+    for name in r.blind:
+        why = "; ".join(u.describe() for u in r.unchecked if u.figure == name)
+        title = github_escape(f"rs30x-sniff diff: {name} not checkable", True)
+        out.write(f"::{blind_level or level} {where}title={title}::{github_escape(why)}\n")
 
 
 # ---- markdown (a pull request's comment) ------------------------------------------------------------
@@ -204,7 +227,9 @@ def _md(text: str) -> str:
 def write_markdown(out: IO[str], r: Comparison) -> None:
     w = out.write
     verdict = (f"**{len(r.crossings)} threshold{'s' if len(r.crossings) != 1 else ''} crossed**" if r.crossings
-               else "no threshold crossed" if r.thresholds else "no thresholds set")
+               else "no thresholds set" if not r.thresholds
+               else "**no threshold checkable**" if len(r.blind) == len(r.thresholds)
+               else "no threshold crossed")
     w(f"### rs30x-sniff diff: {verdict}\n\n")
     w(f"- before: {md_code(_side(r.before))}\n- after: {md_code(_side(r.after))}\n\n")
     if r.crossings:

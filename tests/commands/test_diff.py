@@ -236,8 +236,13 @@ def test_text_output_side_by_side(capsys, captures):
 
 
 def test_a_capture_without_timestamps_leaves_latency_unchecked(capsys, captures, conf):
+    # A threshold checked on nothing is no pass (issue 32): exit 1 "not checkable", unless allowed.
     assert main(["diff", str(captures["untimed"]), str(captures["slow"]), "--config", str(conf),
-                 "--fail-on-regress"]) == 0
+                 "--fail-on-regress"]) == 1
+    err = capsys.readouterr().err
+    assert "error: not checkable: latency_p95 (bus), threshold +20%: BEFORE: no timestamps" in err
+    assert main(["diff", str(captures["untimed"]), str(captures["slow"]), "--config", str(conf),
+                 "--fail-on-regress", "--allow-unchecked"]) == 0
     out = capsys.readouterr().out
     assert "not checked  latency_p95 (bus), threshold +20%: BEFORE: no timestamps" in out
     row = next(line for line in out.splitlines() if line.strip().startswith("latency_p95"))
