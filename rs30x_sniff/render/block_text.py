@@ -10,7 +10,8 @@ from ..protocol.codegen import line_function
 from ..protocol.events import RAW, LongPacket, ReturnPacket, ShortPacket
 from ..protocol.memmap import ByRaw, Field, Register
 from .records import (
-    bad_sum, direction, field_text, is_shown, kind_word, packet_notes, text_line, verbose_lines)
+    OWN_TIME, bad_sum, direction, field_text, is_shown, kind_word, packet_notes, text_line, verbose_lines)
+from .times import NO_TIME, WIDTH
 from ..protocol.wire import (
     AT_DATA, AT_ID, AT_LENGTH, FRAME_OVERHEAD, HEADER_SIZE, LONG_PACKET_ID, RETURN_FIRST, SUM_SIZE)
 
@@ -66,9 +67,11 @@ def _join_shown(prefix: str, items: tuple) -> str:
 
 
 def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
-               rows: Iterable[int] | None = None) -> str:
+               rows: Iterable[int] | None = None, times: list | None = None) -> str:
     """What decode's TextSink writes for the rows of ``blk`` (``rows``: those row indexes alone, in
     ascending order): ``text_line(rec, only)`` and a newline per record, with ``verbose`` its field tree.
+    ``times``: the time each row shows (render.times, one per row of the Block: seconds or texts), by
+    default the rows' own; a row's line is then ``text_line(rec, only, at=times[k])``.
 
     Byte for byte the same text as rendering ``blk.records()``. While the Block's records have not all
     been built (then the linter found its rows quiet: no findings), each row is written from a
@@ -79,7 +82,7 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
     if verbose or blk.linted_by_rows:
         # A full list: the linter went through the rows one by one, and they may carry findings. The
         # field tree (verbose) has no template either: both are written from the Records.
-        return _records_text(blk, only, verbose, rows)
+        return _records_text(blk, only, verbose, rows, times)
     run = blk.run
     lo, n = blk.lo, len(blk)
     blob, base = run.blob, run.base
@@ -87,10 +90,13 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
     ends = run.ends[lo:blk.hi].tolist()
     timed = run.t0 is not None
     if timed:
-        ts = blk.t0.tolist()
+        ts = blk.t0.tolist() if times is None else times
         lats = blk.latencies().tolist()
+        # How the time is written: a number of seconds, or a text made by render.times (absolute, delta).
+        tspec = "" if n and type(ts[0]) is str else f"{WIDTH}.6f"
     else:
         ts = lats = [None] * n
+        tspec = None
     made = blk.made_rows
     only_key = None if only is None else frozenset(only)
     local: dict[tuple, _Shape] = {}  # this Block's shapes by their bytes (the models are the Block's)
@@ -100,7 +106,7 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
         if made:
             rec = made.get(k)
             if rec is not None:
-                append(record_line(rec, only))
+                append(record_line(rec, only, ts[k] if times is not None else OWN_TIME))
                 continue
         s = starts[k]
         e = ends[k]
@@ -111,10 +117,10 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
             key = (h, e - s, blob[s + AT_DATA:e - SUM_SIZE:h[AT_LENGTH]] if h[AT_LENGTH] else b"")
         shape = local.get(key)
         if shape is None:
-            shape = local[key] = _shape(blk, k, key, only, only_key, timed)
+            shape = local[key] = _shape(blk, k, key, only, only_key, tspec, ts[k])
         fn = shape.fn
         if fn is None:
-            append(text_line(blk.record(k), only) + "\n")
+            append(text_line(blk.record(k), only, ts[k] if times is not None else OWN_TIME) + "\n")
             continue
         raw = shape.raw
         # The row before a return is its request (a Block pairs nothing else); for other rows the
@@ -124,9 +130,10 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
     return "".join(out)
 
 
-def record_line(rec: Record, only: set[int] | None = None) -> str:
-    """``text_line(rec, only)`` and a newline, from its shape's template where it has one: the record
-    path's lines (a live port, a pipe) without building the record's Field objects.
+def record_line(rec: Record, only: set[int] | None = None, at: Any = OWN_TIME) -> str:
+    """``text_line(rec, only, at)`` and a newline, from its shape's template where it has one: the record
+    path's lines (a live port, a pipe) without building the record's Field objects; ``at`` is the time
+    shown (render.times), by default the record's own.
 
     A shape here is a Block's (header bytes, size, model) and what a Block's rows share but single
     records do not: the pairing (status, request, latency) and whether the record has times; it is
@@ -135,9 +142,11 @@ def record_line(rec: Record, only: set[int] | None = None) -> str:
     ev = rec.event
     t = type(ev)
     model = rec.model
+    if at is OWN_TIME:
+        at = ev.t_start
     if (rec.findings or not (t is ShortPacket or t is ReturnPacket or t is LongPacket) or not ev.checksum_ok
             or model is None):
-        return text_line(rec, only) + "\n"
+        return text_line(rec, only, at) + "\n"
     lay, data = rec.data_layout()
     # A long packet to servos of mixed models has a layout per servo: the shape is theirs together.
     layouts = (lay,) if type(lay) is not list else tuple([sub for sub, _, _ in lay])
@@ -146,85 +155,96 @@ def record_line(rec: Record, only: set[int] | None = None) -> str:
     latency = rec.latency
     key = ("text record", raw[:HEADER_SIZE], len(raw),
            raw[AT_DATA:-SUM_SIZE:raw[AT_LENGTH]] if t is LongPacket and raw[AT_LENGTH] else b"",
-           layouts, ev.t_start is not None, rec.status, request is not None, latency is not None,
+           layouts, _time_spec(at), rec.status, request is not None, latency is not None,
            None if only is None else frozenset(only))
     shape = model.cache.get(key)
     if shape is None:
-        shape = _record_shape(rec, key, only)
+        shape = _record_shape(rec, key, only, at)
     fn = shape.fn
     if fn is None:
-        return text_line(rec, only) + "\n"
+        return text_line(rec, only, at) + "\n"
     unpack = shape.raw
-    return fn(ev.t_start, ev.offset, unpack(data) if unpack is not None else None, latency,
+    return fn(at, ev.offset, unpack(data) if unpack is not None else None, latency,
               request.offset if request is not None else None)
 
 
-def _record_shape(rec: Record, key: tuple, only: set[int] | None) -> _Shape:
+def _time_spec(at: Any) -> str | None:
+    """How a shape writes its time: None (no time: a dash), a number's format, or "" (a text already made)."""
+    if at is None:
+        return None
+    return "" if type(at) is str else f"{WIDTH}.6f"
+
+
+def _record_shape(rec: Record, key: tuple, only: set[int] | None, at: Any) -> _Shape:
     """A single record's compiled shape, checked once against text_line as a Block's are."""
-    raw, fn = _compile(rec, only, rec.event.t_start is not None)
+    raw, fn = _compile(rec, only, _time_spec(at))
     if fn is not None:
         ev = rec.event
         request = rec.request
-        got = fn(ev.t_start, ev.offset, raw(ev[RAW][AT_DATA:-SUM_SIZE]) if raw is not None else None, rec.latency,
+        got = fn(at, ev.offset, raw(ev[RAW][AT_DATA:-SUM_SIZE]) if raw is not None else None, rec.latency,
                  request.offset if request is not None else None)
-        if got != text_line(rec, only) + "\n":
+        if got != text_line(rec, only, at) + "\n":
             fn = None
     return rec.model.keep(key, _Shape(raw, fn))
 
 
-def _records_text(blk: Block, only: set[int] | None, verbose: bool, rows: Iterable[int] | None) -> str:
+def _records_text(blk: Block, only: set[int] | None, verbose: bool, rows: Iterable[int] | None,
+                  times: list | None = None) -> str:
     """TextSink.line of each record (its sink is not imported here: sinks may come to use this module)."""
     recs = blk.records()
-    if rows is not None:
-        recs = [recs[k] for k in rows]
+    ks = range(len(recs)) if rows is None else rows
+    ats = [OWN_TIME] * len(recs) if times is None else times
     if verbose:
-        return "".join(text_line(r, only) + "\n" + "\n".join(verbose_lines(r)) + "\n" for r in recs)
-    return "".join([record_line(r, only) for r in recs])
+        return "".join(text_line(recs[k], only, ats[k]) + "\n" + "\n".join(verbose_lines(recs[k])) + "\n"
+                       for k in ks)
+    return "".join([record_line(recs[k], only, ats[k]) for k in ks])
 
 
 # ---- compiling a shape --------------------------------------------------------------------------
 def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: frozenset | None,
-           timed: bool) -> _Shape:
+           tspec: str | None, at: Any) -> _Shape:
     """The compiled shape of row ``k``, from the cache of the model it is for (a long packet's: the
-    Block's default model, with the models of its VIDs in the key)."""
+    Block's default model, with the models of its VIDs in the key); ``tspec`` is how its time is written
+    (_time_spec), ``at`` the row's shown time."""
     h = key[0]
     is_long = len(key) == 3
     if is_long:
         vm = blk.vid_models
         vid_models = None if vm is None or not h[AT_LENGTH] else tuple([vm[v] for v in key[2]])
         owner = blk.default
-        gkey = ("text", timed, key, vid_models, only_key)
+        gkey = ("text", tspec, key, vid_models, only_key)
     else:
         owner = blk.models[h[AT_ID]]
-        gkey = ("text", timed, key)
+        gkey = ("text", tspec, key)
     shape = owner.cache.get(gkey)
     if shape is not None:
         return shape
     sample = blk.fresh_record(k)
-    raw, fn = _compile(sample, only, timed)
+    raw, fn = _compile(sample, only, tspec)
     if fn is not None:
         # The template against the record path on its first row: what depends on the data comes from
         # render's own functions (_field_text), the rest is checked here once; a mismatch (a case this
         # module does not know) sends the shape's rows through Records instead.
         ev = sample.event
         data = ev[RAW][AT_DATA:-SUM_SIZE]
-        got = fn(ev.t_start, ev.offset, raw(data) if raw is not None else None, sample.latency,
+        got = fn(at, ev.offset, raw(data) if raw is not None else None, sample.latency,
                  sample.request.offset if sample.request is not None else None)
-        if got != text_line(sample, only) + "\n":
+        if got != text_line(sample, only, at) + "\n":
             fn = None
     return owner.keep(gkey, _Shape(raw, fn))
 
 
-def _compile(rec: Record, only: set[int] | None, timed: bool) -> tuple[Callable | None, Callable | None]:
+def _compile(rec: Record, only: set[int] | None, tspec: str | None) -> tuple[Callable | None, Callable | None]:
     """(raw, fn) of the record's shape: ``fn(t, offset, raw, latency, request offset)``, the line as one
-    generated f-string (protocol.codegen.line_function, from the pieces worked out here)."""
+    generated f-string (protocol.codegen.line_function, from the pieces worked out here); ``tspec``: how
+    ``t`` is written (_time_spec)."""
     ev = rec.event
     kind = ev.kind
     if kind not in ("short", "long", "return") or rec.findings:
         return None, None
     # Literal text, or (what, ...) for codegen.line_function: an argument, a text by raw value, a group.
     pieces: list[Any] = []
-    pieces.append(("arg", "t", "12.6f") if timed else f"{'-':>12}")
+    pieces.append(("arg", "t", tspec) if tspec is not None else NO_TIME)
     pieces += [" @", ("arg", "o", "<8"), f" {direction(rec):<5} "]
     pieces.append(kind_word(rec) + ("(BAD-SUM)" if bad_sum(rec) else ""))
     if kind != "long":

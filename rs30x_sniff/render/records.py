@@ -10,6 +10,7 @@ from ..protocol.events import Garbage, LongPacket, ReturnPacket, ShortPacket
 from ..protocol.memmap import Field, Register
 from ..protocol.wire import COMMAND_ADDRESS, FLAG_RESERVED, request_flag_names as _short_flag_names
 from .layout_json import record_fields_json
+from .times import time_text
 
 _KIND_WORD = {"ack": "ACK", "nack": "NACK", "long": "LONG", "return": "RETURN", "garbage": "GARBAGE"}
 _OP_WORD = {"write": "WRITE", "read": "READ", "write+read": "WRITE+READ", "write+ack": "WRITE+ACK",
@@ -139,10 +140,13 @@ def summary(rec: Record, *, bare: bool = False, keep: bool = True, only: set[int
     return " ".join(parts)
 
 
-def text_line(rec: Record, only: set[int] | None = None) -> str:
-    """One greppable line: time, offset, direction, then the summary and any findings."""
-    t = rec.event.t_start
-    ts = f"{t:12.6f}" if t is not None else f"{'-':>12}"
+OWN_TIME = object()  # text_line's ``at`` by default: the record's own capture time
+
+
+def text_line(rec: Record, only: set[int] | None = None, at: Any = OWN_TIME) -> str:
+    """One greppable line: time, offset, direction, then the summary and any findings. ``at`` is the time
+    to show (render.times: seconds, a text already made, or None), by default the record's own."""
+    ts = time_text(rec.event.t_start if at is OWN_TIME else at)
     line = f"{ts} @{rec.offset:<8} {direction(rec):<5} {summary(rec, only=only)}"
     if rec.findings:
         line += "  [" + ", ".join(f"{d.code} {d.name}" for d in rec.findings) + "]"

@@ -15,6 +15,7 @@ from ..protocol.wire import AT_DATA, AT_ID, AT_LENGTH, SUM_SIZE
 from .pipeline import Sink
 from ..decode.decoder import Step
 from ..render.records import text_line, verbose_lines
+from ..render.times import LineClock, TimeForm, time_text
 
 
 def block_rows_involving(blk: Block, ids: set[int]) -> list[int]:
@@ -72,6 +73,8 @@ class _LineSink(Sink):
             if (ids is None or involves(rec, ids)) and (flt is None or flt.matches(rec)):
                 write(line(rec))
                 self.records += 1
+            else:
+                self.passed(rec)
         # Findings only the end of input reveals belong to records already written: they come last,
         # each naming its record's offset. The filter judges them by what it can (id, sev, t, text).
         for f in step.late:
@@ -83,6 +86,9 @@ class _LineSink(Sink):
     def line(self, rec: Record) -> str:
         raise NotImplementedError
 
+    def passed(self, rec: Record) -> None:
+        """A record not written (``ids``, ``filter``): what follows may depend on it (a delta's previous event)."""
+
     def block_lines(self, blk: Block, rows: list[int] | None) -> str:
         """The lines of a Block's rows (``rows``: those alone), as ``line`` would write their records."""
         recs = blk.records()
@@ -93,23 +99,28 @@ class _LineSink(Sink):
 
 
 class TextSink(_LineSink):
-    """``decode``'s text: one line per event with its findings, ``verbose`` adds the field tree."""
+    """``decode``'s text: one line per event with its findings, ``verbose`` adds the field tree; ``times``
+    says how times are shown (--time-format; default: seconds since the capture's start)."""
 
-    def __init__(self, out: IO[str], *, verbose: bool = False, **kw: Any) -> None:
+    def __init__(self, out: IO[str], *, verbose: bool = False, times: TimeForm | None = None, **kw: Any) -> None:
         super().__init__(out, **kw)
         self.verbose = verbose
+        self.clock = LineClock(times or TimeForm())
 
     def line(self, rec: Record) -> str:
+        at = self.clock.record(rec.event.t_start)
         if self.verbose:
-            return text_line(rec, self.ids) + "\n" + "\n".join(verbose_lines(rec)) + "\n"
-        return record_line(rec, self.ids)
+            return text_line(rec, self.ids, at) + "\n" + "\n".join(verbose_lines(rec)) + "\n"
+        return record_line(rec, self.ids, at)
+
+    def passed(self, rec: Record) -> None:
+        self.clock.record(rec.event.t_start)
 
     def block_lines(self, blk: Block, rows: list[int] | None) -> str:
-        return block_text(blk, self.ids, self.verbose, rows)
+        return block_text(blk, self.ids, self.verbose, rows, self.clock.block(blk.t0))
 
     def finding_line(self, f: Any) -> str:
-        ts = f"{f.t:12.6f}" if f.t is not None else f"{'-':>12}"
-        return f"{ts} @{f.offset:<8} lint  {f.code} {f.name}: {f.message}\n"
+        return f"{time_text(self.clock.finding(f.t))} @{f.offset:<8} lint  {f.code} {f.name}: {f.message}\n"
 
 
 class JsonlSink(_LineSink):
