@@ -209,12 +209,6 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
             parse_thresholds(out["regress"], where)
         except ThresholdError as e:
             raise SettingsError(str(e)) from None
-        check_clashes(out.get("rule", ()), out["expect"], where)  # one registry holds both: one line, exit 2
-    if "regress" in out:  # checked for every command that reads the file, as diff reads it
-        try:
-            parse_thresholds(out["regress"], where)
-        except ThresholdError as e:
-            raise SettingsError(str(e)) from None
     # A config file's selections may name its own user rules and figure checks: checked with those in effect.
     own = own_rules(out)
     with RULES.user_rules(own) if own else _nothing():

@@ -19,6 +19,7 @@ from ..protocol.wire import DEFAULT_BAUD
 from ..sinks.pipeline import Sink
 from ..decode.decoder import Step
 from ..lint.registry import RULES
+from ..render.times import HELP as TIME_FORMAT_HELP, TIME_FORMATS, TimeForm
 from ..settings import COMMAND_LINE, DEFAULTS, Settings, SettingsError, find_config, load_config, own_rules, resolve
 
 
@@ -86,6 +87,18 @@ def add_lint_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-lint", action="store_true", help="do not run the linter")
 
 
+def add_time_format_option(p: argparse.ArgumentParser) -> None:
+    """--time-format: how the text outputs and the monitor show times (one option, the same everywhere)."""
+    p.add_argument("--time-format", choices=TIME_FORMATS, default=None, help=TIME_FORMAT_HELP)
+
+
+def time_form(settings: Settings, anchor: Any = None) -> TimeForm:
+    """The settings' --time-format for one capture; ``anchor``: the epoch time of its time 0 where its format
+    says it (a callable, asked at its first timed byte); a note that it cannot be shown goes to stderr."""
+    return TimeForm(settings.time_format, anchor,
+                    say=lambda line: print(f"rs30x-sniff: {line}", file=sys.stderr, flush=True))
+
+
 def add_live_options(p: argparse.ArgumentParser) -> None:
     """--duration, for commands whose INPUT may be a serial port (a device or a pyserial URL)."""
     p.add_argument("--duration", type=float, default=None, metavar="S",
@@ -108,7 +121,8 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
             out.setdefault("models", {})[key.strip()] = name.strip()
         else:
             out["model"] = spec.strip()
-    for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on", "time_ref", "time_unit", "channel"):
+    for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on", "time_ref", "time_unit", "channel",
+                "time_format"):
         v = getattr(args, key, None)
         if v is not None:
             out[key] = v

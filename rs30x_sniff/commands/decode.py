@@ -8,8 +8,9 @@ from ..filters import FilterError, parse_filter
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
 from ..sinks.lines import JsonlSink, TextSink
-from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, is_live,
-                     live_sinks, make_linter, no_data, open_input, settings_for)
+from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, add_time_format_option,
+                     capture_start_time, check_positive, is_live, live_sinks, make_linter, no_data, open_input,
+                     settings_for, time_form)
 from .outputs import add_output_options, output_stream
 
 
@@ -28,6 +29,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="only events matching EXPR, the monitor's filter language (e.g. "
                         "'id:1-6 present_temperature>40', 'latency>1ms', 't:1.5-3.0', 'sev>=warning')")
     p.add_argument("-v", "--verbose", action="store_true", help="add a field tree with each field's raw bytes")
+    add_time_format_option(p)
     add_output_options(p)
     add_lint_selection(p)
     p.add_argument("--no-lint", action="store_true", help="do not run the linter")
@@ -52,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
         if args.format == "jsonl":
             sink = JsonlSink(out, ids=ids, filter=flt, flush=is_live(chunks))
         else:
-            sink = TextSink(out, ids=ids, filter=flt, flush=is_live(chunks), verbose=args.verbose)
+            sink = TextSink(out, ids=ids, filter=flt, flush=is_live(chunks), verbose=args.verbose,
+                            times=time_form(settings, lambda: capture_start_time(chunks)))
         # A file takes the columnar path (the same lines); a port or a pipe, record by record as they come.
         dec = drive(chunks, Decoder(opts, linter, columnar=columnar_for(chunks, follow=True)), sink,
                     *live_sinks(settings, chunks, args.input))

@@ -9,9 +9,11 @@ from typing import Any
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
 from ..sinks.stats import CaptureStats
-from .common import (add_decode_options, add_lint_options, add_live_options, capture_start_time, check_positive,
-                     live_sinks, make_linter, no_data,
-                     open_input, settings_for)
+from ..protocol.wire import byte_time
+from ..sinks.summary import seconds_text, timer, what_happened
+from .common import (add_decode_options, add_lint_options, add_live_options, add_time_format_option,
+                     capture_start_time, check_positive, live_sinks, make_linter, no_data, open_input, settings_for,
+                     time_form)
 from .outputs import add_output_options, check_output, output_stream
 
 
@@ -24,6 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_live_options(p)
     add_lint_options(p)
     p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
+    add_time_format_option(p)
     add_output_options(p)
     p.set_defaults(run=run)
 
@@ -53,7 +56,10 @@ def run(args: argparse.Namespace) -> int:
             out.write(json.dumps({"input": args.input, "linted": linter is not None, "settings": shown,
                                   **stats.as_dict()}, indent=2) + "\n")
         else:
-            _print_text(out, args.input, stats, linter is not None, time_ref)
+            form = time_form(settings, stats.wall_anchor)
+            if stats.timed and stats.first_t is not None:
+                form.start(stats.first_t)
+            _print_text(out, args.input, stats, linter is not None, time_ref, form)
     return 0
 
 
@@ -61,13 +67,17 @@ def _ms(v: float | None) -> str:
     return "-" if v is None else f"{v * 1e3:.3f} ms"
 
 
-def _print_text(out: Any, name: str, s: CaptureStats, linted: bool, time_ref: Any = None) -> None:
+def _print_text(out: Any, name: str, s: CaptureStats, linted: bool, time_ref: Any = None, form: Any = None) -> None:
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
     con = Console(file=out, highlight=False, width=100 if not out.isatty() else None)
     d = s.as_dict()
+    if form is not None and form.started:
+        # The lines' times as --time-format shows them (the JSON keeps the capture's own).
+        d["what_happened"] = what_happened(s, d["health"], timer(s.first_t, s.timed, byte_time(s.baud), s.wall_anchor),
+                                           form)
     load = "-" if s.bus_load is None else f"{s.bus_load * 100:.1f} %"
     if s.timed and s.timing_unsupported:
         load += f" ({escape(s.timing_unsupported)})"
@@ -108,7 +118,7 @@ def _print_text(out: Any, name: str, s: CaptureStats, linted: bool, time_ref: An
                                                       "missing")), rate, "-" if p95 is None else _ms(p95))
         con.print()
         con.print(table)
-    _print_health(con, d, linted)
+    _print_health(con, d, linted, form)
 
 
 # Health table columns: (register, heading); the unit comes from the register map via the JSON.
@@ -123,7 +133,7 @@ def _range(r: dict[str, Any] | None) -> str:
     return lo if lo == hi else f"{lo}..{hi}"
 
 
-def _print_health(con: Any, d: dict[str, Any], linted: bool) -> None:
+def _print_health(con: Any, d: dict[str, Any], linted: bool, form: Any = None) -> None:
     """The per-servo health table, the flags and findings per servo, and the "what happened" lines."""
     from rich.table import Table
 
@@ -145,8 +155,9 @@ def _print_health(con: Any, d: dict[str, Any], linted: bool) -> None:
         con.print("[bold]health[/bold] (min..max from the returns; goal from the writes)")
         con.print(table)
         for sid, h in health.items():
-            parts = [f"{name} {v['count']}x, first at {v['first_t']:.2f} s" if v["first_t"] is not None
-                     else f"{name} {v['count']}x" for name, v in h["flags"].items()]
+            parts = [f"{name} {v['count']}x" + ("" if v["first_t"] is None else
+                                                 f", first at {seconds_text(v['first_t'], form)}")
+                     for name, v in h["flags"].items()]
             if h["findings"]:
                 parts.append("findings " + ", ".join(f"{code} {n}" for code, n in h["findings"].items()))
             if parts:

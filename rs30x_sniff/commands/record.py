@@ -15,8 +15,8 @@ from ..decode.decoder import Decoder, Step
 from ..sinks.pipeline import Sink, drive
 from ..sinks.lines import TextSink
 from ..sinks.stats import RecentLoad
-from .common import (CliError, add_decode_options, add_lint_selection, check_positive, lint_config, live_sinks,
-                     make_linter, no_data, settings_for)
+from .common import (CliError, add_decode_options, add_lint_selection, add_time_format_option, check_positive,
+                     lint_config, live_sinks, make_linter, no_data, settings_for, time_form)
 from .outputs import STDOUT, check_output, write_error
 from .live import add_foxglove_option, start_foxglove
 from .parts import Parts, parse_keep, parse_span
@@ -45,6 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--print", dest="print_lines", action="store_true",
                    help="also print each decoded packet as a text line (like decode)")
+    add_time_format_option(p)
     p.add_argument("--split-size", type=float, default=None, metavar="MB",
                    help="start a new numbered file (OUT-001.mcap, OUT-002.mcap, ...) after about MB megabytes")
     p.add_argument("--split-time", default=None, metavar="TIME",
@@ -177,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
         sinks.append(fox)
     if args.print_lines:
         # After the status line starts: on a terminal it routes stdout above itself.
-        sinks.append(TextSink(sys.stdout, flush=True))
+        sinks.append(TextSink(sys.stdout, flush=True, times=time_form(settings)))
     try:
         dec = drive(src.chunks(IDLE_INTERVAL), Decoder(opts, linter), *sinks)
     except OSError as e:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 from typing import Any
 
+from ..render.times import ABSOLUTE
 from .health import FLAG_NAMES, PRESENT, WRITTEN, HealthRecorder, ServoHealth
 
 # Times above this are seconds since 1970 (a logger's wall clock), not seconds since the capture began.
@@ -64,10 +65,20 @@ def timer(first_t: float | None, timed: bool, byte_s: float, anchor: float | Non
     return when
 
 
-def _at(t: float | None, wall: str | None) -> str:
+def seconds_text(t: float, form: Any = None) -> str:
+    """A time in a summary's text: ``12.34 s`` of capture time, or as ``form`` shows it (render.times.TimeForm,
+    --time-format: since the start, the date and time of day, epoch seconds)."""
+    if form is None or not form.started:
+        return f"{t:.2f} s"
+    return form.seconds(t)
+
+
+def _at(t: float | None, wall: str | None, form: Any = None) -> str:
     if t is None:
         return ""
-    return f" at {t:.2f} s" + (f" [{wall.replace('T', ' ').replace('Z', ' UTC')}]" if wall else "")
+    if form is not None and form.started and form.shown == ABSOLUTE:
+        return f" at {form.seconds(t)}"  # the wall clock itself: no second form beside it
+    return f" at {seconds_text(t, form)}" + (f" [{wall.replace('T', ' ').replace('Z', ' UTC')}]" if wall else "")
 
 
 def _times(n: int) -> str:
@@ -82,9 +93,13 @@ def _plural(n: int, word: str) -> str:
     return f"{n} {word}" + ("" if n == 1 else "s")
 
 
-def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[str, Any]]:
-    """A handful of plain-language lines, most severe first: what a capture says went wrong."""
+def what_happened(stats: Any, health: dict[str, dict], when: Any, form: Any = None) -> list[dict[str, Any]]:
+    """A handful of plain-language lines, most severe first: what a capture says went wrong; ``form``
+    (render.times.TimeForm, started) says how their texts show times, by default as capture seconds."""
     items: list[dict[str, Any]] = []
+
+    def at(t: float | None, wall: str | None) -> str:
+        return _at(t, wall, form)
 
     def say(sev: str, sid: int | None, text: str, tw: tuple = (None, None)) -> None:
         items.append({"severity": sev, "id": sid, "text": text, "t": tw[0], "wall": tw[1]})
@@ -101,9 +116,9 @@ def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[s
         lim = flags.get("temperature_limit")
         if lim:
             al = flags.get("temperature_alarm")
-            why = ", ".join(x for x in (f"alarm from {al['first_t']:.2f} s" if al and al["first_t"] is not None
-                                        else "", peak_s) if x)
-            text = f"ID {sid} reached its temperature limit{_at(lim['first_t'], lim['first_wall'])}" + \
+            alarm = f"alarm from {seconds_text(al['first_t'], form)}" if al and al["first_t"] is not None else ""
+            why = ", ".join(x for x in (alarm, peak_s) if x)
+            text = f"ID {sid} reached its temperature limit{at(lim['first_t'], lim['first_wall'])}" + \
                 (f" ({why})" if why else "")
             q = found.get("Q009", 0)
             text += (f" and was switched back on {_times(q)} (Q009)" if q else " and cut its torque")
@@ -111,11 +126,11 @@ def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[s
         elif "temperature_alarm" in flags:
             al = flags["temperature_alarm"]
             say("warning", int(sid), f"ID {sid} came within 10 degC of its temperature limit"
-                f"{_at(al['first_t'], al['first_wall'])}" + (f" ({peak_s})" if peak_s else ""),
+                f"{at(al['first_t'], al['first_wall'])}" + (f" ({peak_s})" if peak_s else ""),
                 (al["first_t"], al["first_wall"]))
         fe = flags.get("flash_write_error")
         if fe:
-            say("error", int(sid), f"ID {sid} reported a failed flash ROM write{_at(fe['first_t'], fe['first_wall'])}",
+            say("error", int(sid), f"ID {sid} reported a failed flash ROM write{at(fe['first_t'], fe['first_wall'])}",
                 (fe["first_t"], fe["first_wall"]))
         re_ = flags.get("received_packet_error")
         if re_:
@@ -129,7 +144,7 @@ def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[s
         say("warning", ids[0] if len(ids) == 1 else None,
             f"{who} flagged {_plural(n, 'packet')} {'it' if len(ids) == 1 else 'they'} could not accept "
             f"(status bit 1), first"
-            f"{_at(first['first_t'], first['first_wall'])}", (first["first_t"], first["first_wall"]))
+            f"{at(first['first_t'], first['first_wall'])}", (first["first_t"], first["first_wall"]))
     # Replies that never came.
     for sid, st in sorted(servos.items()):
         if not st.missing:
@@ -139,7 +154,7 @@ def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[s
             say("error", sid, f"ID {sid} never answered: {_plural(st.missing, 'request')} missing", tw)
         else:
             asked = st.missing + st.answered  # requests that asked for a reply, not the replies heard
-            say("error", sid, f"ID {sid} left {st.missing} of {asked} requests unanswered, first{_at(*tw)}", tw)
+            say("error", sid, f"ID {sid} left {st.missing} of {asked} requests unanswered, first{at(*tw)}", tw)
     # Damaged traffic.
     if stats.bad_checksums:
         by_kind: dict[str, list] = {}
@@ -170,7 +185,7 @@ def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[s
             who = (" from ID " if len(ids) == 1 else " from IDs ") + _ids(sorted(ids))
         tw = when(t, off)
         sole = next(iter(ids)) if len(ids) == 1 else None
-        say(sev, sole, f"{code} {name}: {_times(n)}{who}, first{_at(*tw)}", tw)
+        say(sev, sole, f"{code} {name}: {_times(n)}{who}, first{at(*tw)}", tw)
     items.sort(key=lambda it: _SEV_RANK[it["severity"]])  # stable: the order above ranks within a severity
     if len(items) > _MAX_LINES:
         rest = items[_MAX_LINES - 1:]
@@ -189,7 +204,8 @@ def what_happened(stats: Any, health: dict[str, dict], when: Any) -> list[dict[s
         tw = when(start, 0)
         sev = "warning" if load >= 0.95 else "info"
         line = {"severity": sev, "id": None, "t": tw[0], "wall": tw[1],
-                "text": f"the bus load peaked at {load * 100:.0f} % in the second from {tw[0]:.2f} s, "
+                "text": f"the bus load peaked at {load * 100:.0f} % in the second from "
+                        f"{seconds_text(tw[0], form)}, "
                         f"{(stats.bus_load or 0) * 100:.0f} % on average"
                         + ("; little room for more traffic" if sev == "warning" else "")}
         if sev == "warning":
