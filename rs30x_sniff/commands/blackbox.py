@@ -8,13 +8,13 @@ import re
 import signal
 import threading
 from contextlib import contextmanager
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable
 
 from ..decode.decoder import Decoder
 from ..lint import Linter
-from ..sinks.blackbox import Trigger, TriggerError, Window, parse_trigger
+from ..protocol.chunks import SourceGap
+from ..sinks.blackbox import Trigger, TriggerError, Window, parse_trigger, wall_time
 from ..sinks.mcap.writer import McapSink
 from ..sinks.pipeline import drive
 from ..sources.serial_tap import STOP_SIGNALS
@@ -35,7 +35,8 @@ def add_trigger_options(p: argparse.ArgumentParser) -> None:
                    help="black box: keep the last --pre of the bus, and save [t - pre, t + post] around each time "
                         "EXPR fires, to the folder -o DIR/ (a filter such as 'present_temperature>70', "
                         "'sev>=error', 'id:3 latency>5ms', or a rule code such as S001); repeatable")
-    p.add_argument("--pre", default=None, metavar="TIME", help=f"with --trigger: the bus kept before a fire ({PRE})")
+    p.add_argument("--pre", default=None, metavar="TIME",
+                   help=f"with --trigger: the bus kept before a fire ({PRE}; --pre and --post at most 10min together)")
     p.add_argument("--post", default=None, metavar="TIME", help=f"with --trigger: the bus kept after a fire ({POST})")
     p.add_argument("--max-saves", default=None, metavar="N/h",
                    help="with --trigger: at most N windows saved in any hour (a storm of fires is counted, not saved)")
@@ -128,7 +129,7 @@ def window_writer(folder: Path, *, opts: Any, lint_config: Any, source: str, met
                 raise
         size = path.stat().st_size
         say(f"rs30x-sniff: saved {path}: {w.first.text} at {_iso(w.first_t)}"
-            f"{'' if len(w.fires) == 1 else f' ({len(w.fires)} fires)'}, {w.end - w.start:.1f} s of the bus, "
+            f"{'' if len(w.fires) == 1 else f' ({len(w.fires)} fires)'}, {held_span(chunks, opts.baud)}, "
             f"{size:,} bytes")
         if keep is not None:
             others = [p for p in saved_windows(folder) if p != path]
@@ -159,5 +160,21 @@ def held_signals():
                 signal.raise_signal(signum)
 
 
-def _iso(t: float) -> str:
-    return datetime.fromtimestamp(t, tz=timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+def held_span(chunks: list, baud: int) -> str:
+    """What a window's file holds, as its line says it: from its first byte to the end of its last (the bus
+    before and after it was quiet, so [start, end] asked for may be longer), and the port's losses in it."""
+    timed = [c for c in chunks if c[0] and c[1] is not None]
+    if not timed:
+        return "no bytes of the bus"
+    last = timed[-1]
+    span = last[1] + len(last[0]) * 10 / baud - timed[0][1]  # 8N1: ten bit times a byte
+    gaps = [c for c in chunks if type(c) is SourceGap and timed[0][1] <= c[1]]
+    if not gaps:
+        return f"{span:.1f} s of the bus"
+    # The time without the port is no time of the bus: left out, and said.
+    gone = sum(g[1] - g.lost_at for g in gaps if g.lost_at is not None and g.lost_at <= g[1])
+    return (f"{max(0.0, span - gone):.1f} s of the bus (and {gone:.1f} s without the port: lost "
+            f"{len(gaps)} time{'s' if len(gaps) != 1 else ''})")
+
+
+_iso = wall_time  # the window's times in its metadata and lines, as a person reads them

@@ -25,8 +25,13 @@ SIZE_UNITS = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
               "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
 
 
-def parse_span(option: str, text: str) -> float:
-    """Seconds of ``90``, ``90s``, ``500ms``, ``10min``, ``2h``, ``1d``; a one-line error otherwise."""
+MIN_SPLIT_SECONDS = 1.0  # a part a second at most: the open part's chunks are written about once a second
+MIN_SPLIT_MB = 0.01     # 10 kB: a part must hold more than its own header, metadata and summary (~3 kB)
+
+
+def parse_span(option: str, text: str, *, least: float | None = None, most: float | None = None) -> float:
+    """Seconds of ``90``, ``90s``, ``500ms``, ``10min``, ``2h``, ``1d``, within [least, most] where given; a
+    one-line error otherwise."""
     m = _SPAN.fullmatch(text)
     unit = m.group(2).lower() if m else ""
     if m is None or unit not in SPAN_UNITS:
@@ -34,7 +39,18 @@ def parse_span(option: str, text: str) -> float:
     seconds = float(m.group(1)) * SPAN_UNITS[unit]
     if not (math.isfinite(seconds) and seconds > 0):
         raise CliError(f"{option} {text}: must be a finite, positive time")
+    if least is not None and seconds < least:
+        raise CliError(f"{option} {text}: must be at least {_said(least)}")
+    if most is not None and seconds > most:
+        raise CliError(f"{option} {text}: must be at most {_said(most)}")
     return seconds
+
+
+def _said(seconds: float) -> str:
+    for unit, size in (("h", 3600.0), ("min", 60.0), ("s", 1.0)):
+        if seconds >= size and seconds % size == 0:
+            return f"{seconds / size:g}{unit}"
+    return f"{seconds:g}s"
 
 
 @dataclass(frozen=True)
@@ -94,8 +110,14 @@ def retire(paths: list[Path], keep: Keep, now: float, reserve: int = 0,
 class Parts(Sink):
     """The recording's files: one MCAP, or numbered parts (OUT-001.mcap, ...) started after ``split_bytes``
     or ``split_seconds``; each part is finalized before the next opens. With ``keep``, the closed parts past
-    its age or total size are deleted, oldest first, as a new one opens (the open part never), and the
-    numbers go on after the highest part already there (a restarted recorder adds to its folder).
+    its age or total size are deleted, oldest first, as a new one opens and as the open one grows (the open
+    part never), and the numbers go on after the highest part already there (a restarted recorder adds to its
+    folder). A size to keep also splits a part at half that size, so the open part and the newest closed one
+    fit under it.
+
+    A part ends at the first byte past its span or size, never on a quiet bus: no part is without bytes. A gap
+    (the port lost and found again) goes in the open part, and the bytes after it too, so the part that holds
+    the gap holds the bytes on both sides of it (a reader makes it the same seam again).
 
     ``make(path or stream, part number)`` opens an McapSink; ``clock`` (monotonic seconds) times the parts,
     ``wall`` (epoch seconds) ages them; ``say`` gets a line per deleted part (None: silent)."""
@@ -106,7 +128,10 @@ class Parts(Sink):
                  say: Callable[[str], None] | None = None) -> None:
         self.base = Path(path)
         self.make = make
+        if keep is not None and keep.bytes is not None and (split_bytes is not None or split_seconds is not None):
+            split_bytes = max(1, min(split_bytes or keep.bytes, keep.bytes // 2))
         self.split_bytes, self.split_seconds = split_bytes, split_seconds
+        self.after_gap = False  # a gap was written to the open part: its next bytes go there too
         self.keep, self.force = keep, force
         self.clock, self.wall, self.say = clock, wall, say
         self.numbered = split_bytes is not None or split_seconds is not None
@@ -178,8 +203,9 @@ class Parts(Sink):
                                       and self.clock() - self.opened >= self.split_seconds))
 
     def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
-        if self._due():
+        if data and not self.after_gap and self._due():
             self._rotate()
+        self.after_gap = self.after_gap and not data
         # Raw bytes go to the file before decoding: nothing received is ever lost to a decoder error.
         self.sink.chunk(data, t, sender, error)
         self.dirty = self.dirty or bool(data)
@@ -189,16 +215,17 @@ class Parts(Sink):
         self.sink.batch(step)
 
     def gap(self, t: float, lost_at: float | None, note: str) -> None:
-        """A gap in the port's bytes (rs30x_sniff.sources.reconnect): in the open part's metadata."""
+        """A gap in the port's bytes (rs30x_sniff.sources.reconnect): in the open part, with the bytes after it."""
         self.sink.gap(t, lost_at, note)
+        self.after_gap = True
 
     def idle(self) -> None:
-        if self.split_seconds is not None and self._due():  # a quiet bus still gets a part per span
-            self._rotate()
         now = self.clock()
         if self.dirty and now - self.last_flush >= FLUSH_INTERVAL:
             self.sink.flush()
             self.last_flush, self.dirty = now, False
+            if self.keep is not None and self.keep.bytes is not None and self.closed:
+                self._retire()  # the open part grew: the folder stays under the size to keep
 
     def close(self) -> None:
         self.sink.finish()

@@ -19,11 +19,11 @@ from .common import (CliError, add_decode_options, add_lint_selection, add_time_
                      lint_config, live_sinks, make_linter, no_data, settings_for, time_form)
 from .outputs import STDOUT, check_output, write_error
 from .live import add_foxglove_option, start_foxglove
-from .parts import Parts, parse_keep, parse_span
+from .parts import MIN_SPLIT_MB, MIN_SPLIT_SECONDS, Parts, parse_keep, parse_span
 from .blackbox import (POST, PRE, add_trigger_options, check_mode, parse_max_saves, triggers_of, window_folder,
                        window_writer)
 from ..lint import Linter
-from ..sinks.blackbox import BlackBox
+from ..sinks.blackbox import MAX_WINDOW_S, BlackBox
 from ..sinks.pipeline import Pipeline
 from ..sources.reconnect import ReconnectingSource
 
@@ -47,12 +47,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="also print each decoded packet as a text line (like decode)")
     add_time_format_option(p)
     p.add_argument("--split-size", type=float, default=None, metavar="MB",
-                   help="start a new numbered file (OUT-001.mcap, OUT-002.mcap, ...) after about MB megabytes")
+                   help="start a new numbered file (OUT-001.mcap, OUT-002.mcap, ...) after about MB megabytes "
+                        "(at least 0.01)")
     p.add_argument("--split-time", default=None, metavar="TIME",
-                   help="start a new numbered file every TIME (30s, 10min, 1h), beside or instead of --split-size")
+                   help="start a new numbered file every TIME (30s, 10min, 1h; at least 1s), beside or instead of "
+                        "--split-size; a part ends at the first byte past it, so a quiet bus makes no empty parts")
     p.add_argument("--keep", default=None, metavar="AGE|SIZE",
                    help="with numbered files: delete the oldest closed ones past an age (24h, 7d) or a total size "
-                        "(500MB, 5GB) as new ones open; numbering goes on after the parts already there")
+                        "(500MB, 5GB; a part then ends at half of it at most); numbering goes on after the parts "
+                        "already there")
     p.add_argument("--no-reconnect", action="store_true",
                    help="stop when the port goes away (by default the recorder waits for it, by its path or its "
                         "/dev/serial/by-id link, and goes on, marking the gap)")
@@ -134,8 +137,12 @@ def run(args: argparse.Namespace) -> int:
     linter = make_linter(args, settings)
     check_positive("--duration", args.duration)
     check_positive("--split-size", args.split_size)
+    if args.split_size is not None and args.split_size < MIN_SPLIT_MB:
+        raise CliError(f"--split-size {args.split_size:g}: must be at least {MIN_SPLIT_MB:g} MB (a part holds "
+                       "its own header and summary)")
     split = None if args.split_size is None else max(1, int(args.split_size * 1e6))
-    split_time = None if args.split_time is None else parse_span("--split-time", args.split_time)
+    split_time = (None if args.split_time is None
+                  else parse_span("--split-time", args.split_time, least=MIN_SPLIT_SECONDS))
     keep = None if args.keep is None else parse_keep(args.keep)
     if args.output == STDOUT and (split is not None or split_time is not None):
         raise CliError(f"{'--split-size' if split is not None else '--split-time'}: numbered files need a file "
@@ -226,6 +233,9 @@ def run_black_box(args: argparse.Namespace) -> int:
     opts = settings.decode_options()
     check_positive("--duration", args.duration)
     pre, post = parse_span("--pre", args.pre or PRE), parse_span("--post", args.post or POST)
+    if pre + post > MAX_WINDOW_S:  # the ring holds --pre of the bus in memory; a window is at most this long
+        raise CliError(f"--pre {args.pre or PRE} --post {args.post or POST}: a window is at most "
+                       f"{MAX_WINDOW_S / 60:g} min in all (the ring holds --pre of the bus in memory)")
     keep = None if args.keep is None else parse_keep(args.keep)
     max_saves = parse_max_saves(args.max_saves)
     config = lint_config(settings)

@@ -11,6 +11,7 @@ from typing import Any, Callable, Iterable
 from ..decode.blocks import Block
 from ..decode.decoder import Sink, Step
 from ..filters import Filter, FilterError, parse_filter
+from ..protocol.chunks import SourceGap
 
 RULE_CODE = re.compile(r"[A-Z]\d{3}")
 HOUR = 3600.0
@@ -81,6 +82,11 @@ def wall_name(t: float) -> str:
     return d.strftime("%Y-%m-%dT%H-%M-%S.") + f"{d.microsecond // 1000:03d}Z"
 
 
+def wall_time(t: float) -> str:
+    """Epoch seconds as a person reads them, UTC, to the millisecond (ISO 8601): ``2026-11-26T01:42:05.123Z``."""
+    return datetime.fromtimestamp(t, tz=timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
 @dataclass
 class Window:
     """An open window: from ``start`` to ``end`` (capture seconds), its first trigger and every fire in it."""
@@ -117,7 +123,7 @@ class BlackBox(Sink):
         self.max_per_hour = max_per_hour
         self.now = now
         self.say = say
-        self.ring: deque = deque()  # (data, t) chunks, oldest first
+        self.ring: deque = deque()  # (data, t) chunks and SourceGaps (b"", t back), oldest first
         self.last_t: float | None = None  # the newest chunk's time
         self.seen_t: float | None = None  # the newest record's time
         self.window: Window | None = None
@@ -135,6 +141,11 @@ class BlackBox(Sink):
         for data, t in chunks:
             if data and t is not None:
                 self._keep(data, t)
+
+    def gap(self, t: float, lost_at: float | None, note: str) -> None:
+        """The port was lost until ``t``: the gap goes in the ring at its place, so a window that spans it
+        carries it (its decoder's seam, its file's gap metadata)."""
+        self.ring.append(SourceGap(t, lost_at, note))
 
     def _keep(self, data: bytes, t: float) -> None:
         ring = self.ring
@@ -202,7 +213,7 @@ class BlackBox(Sink):
         if self.max_per_hour is not None and len([s for s, _ in self.saved if s > t - HOUR]) >= self.max_per_hour:
             self.suppressed += 1
             if not self._suppressing and self.say:
-                self.say(f"rs30x-sniff: {trig.text} fired at {wall_name(t)}: not saved, {self.max_per_hour} "
+                self.say(f"rs30x-sniff: {trig.text} fired at {wall_time(t)}: not saved, {self.max_per_hour} "
                          f"windows saved within the hour already (--max-saves)")
             self._suppressing = True
             return

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import BinaryIO, Callable, Iterable, Iterator
 
 from . import timeunit
-from ..protocol.chunks import Marked
+from ..protocol.chunks import Marked, SourceGap
 from ..protocol.mcap_names import MCAP_MAGIC
 from ..protocol.wire import REQUEST_HEADER, RETURN_HEADER
 from .timeunit import TimeUnit
@@ -348,9 +348,13 @@ class CaptureReader:
         if not seekable:
             raise CaptureError(f"{self.path}: an MCAP capture needs a seekable file, not a pipe "
                                "(save it to a file first)")
-        reader = McapRawReader(self.path, warn=self._warn)
+        reader = McapRawReader(self.path, warn=self._warn, gaps=True)
         reader.warnings = self.warnings
-        for data, t, _, marks in reader:
+        for item in reader:
+            if type(item) is SourceGap:  # the recording's port was lost here: the same seam again
+                yield item
+                continue
+            data, t, _, marks = item
             yield (data, t) if marks is None else Marked(data, t, sender=marks[0], error=marks[1])
 
     def __iter__(self) -> Iterator[Chunk]:

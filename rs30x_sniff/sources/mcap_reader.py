@@ -15,9 +15,9 @@ from typing import BinaryIO, Callable, Iterator
 import zstandard
 from mcap.opcode import Opcode
 
-from ..protocol.chunks import SENDERS, UART_ERRORS, Marked
-from ..protocol.mcap_names import (MCAP_MAGIC, METADATA_NAME, MODELS_METADATA_NAME, RAW_ENCODING, RAW_SCHEMA,
-                                   RAW_TOPIC)
+from ..protocol.chunks import SENDERS, UART_ERRORS, Marked, SourceGap
+from ..protocol.mcap_names import (GAP_METADATA_NAME, GAPS_METADATA_NAME, MCAP_MAGIC, METADATA_NAME,
+                                   MODELS_METADATA_NAME, RAW_ENCODING, RAW_SCHEMA, RAW_TOPIC)
 from .base import CaptureError, CaptureWarning, open_capture, stderr_warning
 
 _RECORD_HEAD = struct.Struct("<BQ")
@@ -127,11 +127,20 @@ class McapRawReader:
     ``t`` is None where the capture had no timestamps (``log_time_ns`` is then synthetic).
     ``metadata`` fills in as the file is read (it sits at the start of files we write).
     An MCAP needs a seekable file: a pipe is refused with a CaptureError.
+
+    With ``gaps``, where the recording's port was lost and found again (the writer's ``rs30x.gap`` records, or
+    an older file's ``rs30x.gaps`` list placed by time) comes out as a
+    :class:`~rs30x_sniff.protocol.chunks.SourceGap` before the first byte after it, as the live source gave
+    it: the decoder makes it the same seam (F010, nothing paired across it), and a file written from this
+    reading keeps it.
     """
 
-    def __init__(self, path: str, warn: Callable[[str], None] | None = stderr_warning) -> None:
+    def __init__(self, path: str, warn: Callable[[str], None] | None = stderr_warning, *, gaps: bool = False) -> None:
         self.path = path
         self.warn = warn
+        self.with_gaps = gaps
+        self.gaps: list[SourceGap] = []  # the recording's gaps, once iterated with ``gaps``
+        self._order_start = 0  # the stream offset the first raw message released starts at (not 0: a trimmed copy)
         self.warnings: list[CaptureWarning] = []
         self.metadata: dict[str, dict[str, str]] = {}
         self.complete: bool | None = None  # known once iterated: False if the file was cut short or damaged
@@ -161,7 +170,13 @@ class McapRawReader:
             try:
                 if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
                     raise CaptureError(f"{self.path}: not an MCAP file (bad magic)")
-                yield from self._records(f, size)
+                if not self.with_gaps:
+                    yield from self._records(f, size)
+                    return
+                placed = _gaps_of(_scan_metadata(f, size, (GAP_METADATA_NAME, GAPS_METADATA_NAME)))
+                self.gaps = [g for _, g in placed]
+                f.seek(len(MCAP_MAGIC))
+                yield from _placed(self._records(f, size), placed, lambda: self._order_start)
             except OSError as e:
                 raise CaptureError(f"{self.path}: cannot read: {e.strerror or e}") from None
 
@@ -392,6 +407,7 @@ class McapRawReader:
     def _released(self, raws: list[Raw], state: _State) -> list[Raw]:
         """Raw messages now in stream order: counted, and a late start said once."""
         order = state.order
+        self._order_start = order.start
         if order.start and not state.said_start:
             state.said_start = True
             self._note(f"{self.path}: the capture starts at byte {order.start} of the recorded stream "
@@ -455,27 +471,9 @@ class McapRawReader:
             with f:
                 if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
                     raise CaptureError(f"{self.path}: not an MCAP file (bad magic)")
-                pos = len(MCAP_MAGIC)
-                while METADATA_NAME not in self.metadata:
-                    head = f.read(_RECORD_HEAD.size)
-                    if len(head) < _RECORD_HEAD.size:
-                        break
-                    opcode, length = _RECORD_HEAD.unpack(head)
-                    pos += _RECORD_HEAD.size
-                    if length > size - pos or opcode not in _KNOWN or opcode in _SUMMARY_ONLY or \
-                            opcode == Opcode.DATA_END or (pos == len(MCAP_MAGIC) + _RECORD_HEAD.size
-                                                          and opcode != Opcode.HEADER):
-                        break
-                    if opcode != Opcode.METADATA:
-                        f.seek(length, os.SEEK_CUR)
-                        pos += length
-                        continue
-                    body = _Body(f.read(length))
-                    pos += length
-                    try:
-                        name = body.string()
-                        self.metadata[name] = body.string_map()
-                    except _Bad:
+                for name, values in _scan_metadata(f, size, None):
+                    self.metadata[name] = values
+                    if name == METADATA_NAME:
                         break
         except OSError as e:
             raise CaptureError(f"{self.path}: cannot read: {e.strerror}") from None
@@ -629,8 +627,86 @@ def _check_prefix(opcode: int, length: int, prefix: bytes, pos: int) -> None:
         raise _Damage(pos, f"a {_name(opcode)} record whose length ({length}) contradicts its content ({expected})")
 
 
+def _scan_metadata(f: BinaryIO, size: int, names: tuple[str, ...] | None) -> Iterator[tuple[str, dict[str, str]]]:
+    """``(name, values)`` of the data section's metadata records (those named ``names``, or all), read from
+    just past the magic with the other records seeked over; stops quietly at anything unexpected (a cut, damage:
+    the full read reports it) and at Data End."""
+    pos = len(MCAP_MAGIC)
+    while True:
+        head = f.read(_RECORD_HEAD.size)
+        if len(head) < _RECORD_HEAD.size:
+            return
+        opcode, length = _RECORD_HEAD.unpack(head)
+        pos += _RECORD_HEAD.size
+        if length > size - pos or opcode not in _KNOWN or opcode in _SUMMARY_ONLY or \
+                opcode == Opcode.DATA_END or (pos == len(MCAP_MAGIC) + _RECORD_HEAD.size
+                                              and opcode != Opcode.HEADER):
+            return
+        if opcode != Opcode.METADATA:
+            f.seek(length, os.SEEK_CUR)
+            pos += length
+            continue
+        body = _Body(f.read(length))
+        pos += length
+        try:
+            name = body.string()
+            if names is None or name in names:
+                yield name, body.string_map()
+        except _Bad:
+            return
+
+
+def _gaps_of(records: Iterator[tuple[str, dict[str, str]]]) -> list[tuple[int | None, SourceGap]]:
+    """The recording's gaps: ``(offset, SourceGap)``, the stream offset it comes before (None: an older file's,
+    placed by its time), in stream order. The per-gap records are taken where the file has them (a cut file has
+    no list at the end); else the list; an entry that does not read is left out."""
+    one: list[dict] = []
+    listed: list[dict] = []
+    for name, values in records:
+        try:
+            if name == GAP_METADATA_NAME:
+                one.append({k: json.loads(v) for k, v in values.items()})
+            else:
+                listed = [g for g in json.loads(values.get("gaps", "[]")) if isinstance(g, dict)]
+        except ValueError:
+            continue
+    out = []
+    for g in one or listed:
+        back, lost, why, offset = g.get("back_at"), g.get("lost_at"), g.get("why"), g.get("offset")
+        if not (type(back) in (int, float) and math.isfinite(back)):
+            continue
+        lost = float(lost) if type(lost) in (int, float) and math.isfinite(lost) else None
+        gap = SourceGap(float(back), lost, why if isinstance(why, str) else "the source lost the line")
+        out.append((offset if type(offset) is int and offset >= 0 else None, gap))
+    return sorted(out, key=lambda g: (g[0] is None, g[0] or 0, g[1][1]))
+
+
+def _placed(raws: Iterator[Raw], gaps: list[tuple[int | None, SourceGap]],
+            start: Callable[[], int]) -> Iterator[Raw | SourceGap]:
+    """``raws`` with each gap before the first raw message at or past its stream offset (or, an older file's
+    gap, its time); a gap with nothing after it in the file is not given (the live source gave none either)."""
+    if not gaps:
+        yield from raws
+        return
+    waiting = list(gaps)
+    pos: int | None = None
+    for raw in raws:
+        if pos is None:
+            pos = start()
+        while waiting and (waiting[0][0] <= pos if waiting[0][0] is not None
+                           else raw[1] is not None and raw[1] >= waiting[0][1][1]):
+            yield waiting.pop(0)[1]
+        yield raw
+        pos += len(raw[0])
+
+
 def read_mcap_raw(path: str, warn: Callable[[str], None] | None = stderr_warning
                   ) -> Iterator[tuple[bytes, float | None]]:
-    """The capture an rs30x-sniff MCAP holds: its /rs30x/raw chunks with their original timestamps."""
-    for data, t, _, marks in McapRawReader(path, warn=warn):
+    """The capture an rs30x-sniff MCAP holds: its /rs30x/raw chunks with their original timestamps, and its
+    gaps (SourceGap) where the recording's port was lost."""
+    for item in McapRawReader(path, warn=warn, gaps=True):
+        if type(item) is SourceGap:
+            yield item
+            continue
+        data, t, _, marks = item
         yield (data, t) if marks is None else Marked(data, t, sender=marks[0], error=marks[1])

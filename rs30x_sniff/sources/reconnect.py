@@ -58,6 +58,11 @@ class ReconnectingSource:
         self.stalls: list[tuple[float, float, int]] = []  # every source's, as LiveSource.stalls
         self._deadline = None if duration is None else clock() + duration
         self._stop: str | None = None
+        # The handlers before any source of ours: each LiveSource installs its own and puts back what it found,
+        # so across a loss they would be lost or stacked in the wrong order; we hold ours over all of them and
+        # put these back at the end.
+        self._before = ({sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
+                        if threading.current_thread() is threading.main_thread() else {})
         self.source: LiveSource = self.open_source(port, duration)  # the first open fails as LiveSource's does
 
     def _open(self, path: str, duration: float | None) -> LiveSource:
@@ -86,12 +91,16 @@ class ReconnectingSource:
         try:
             while True:
                 src = self.source
+                self._hold_signals()  # over the handlers this source installed as it started
+                if self._stop is not None:
+                    src.request_stop(self._stop)
                 last_t = None
                 for chunk in src.chunks(idle):
                     if chunk[1] is not None:
                         last_t = chunk[1] + len(chunk[0]) * 10 / self.baud
                     yield chunk
                 self._take_stalls(src)
+                self._hold_signals()  # the ended source put back what it found
                 if src.reason != LOST:
                     self.reason, self.message = src.reason, src.message
                     return
@@ -111,40 +120,46 @@ class ReconnectingSource:
                 yield SourceGap(t_back, lost_at, note)
         finally:
             self.source.close()
+            self._release_signals()
+
+    def _hold_signals(self) -> None:
+        """Our stop handler for SIGINT, SIGTERM and SIGHUP (main thread only): a stop reaches the source of the
+        moment, or ends the wait for a lost port, whatever was opened in between."""
+        if self._before and threading.current_thread() is threading.main_thread():
+            for sig in STOP_SIGNALS:
+                signal.signal(sig, self._on_signal)
+
+    def _release_signals(self) -> None:
+        if self._before and threading.current_thread() is threading.main_thread():
+            for sig, handler in self._before.items():
+                signal.signal(sig, handler)
 
     def _wait(self, idle: float):
         """Look for the port until it opens (the new LiveSource), or a stop or the duration (None). Yields empty
         chunks meanwhile, so the drive loop still flushes files and refreshes its status."""
-        saved = {}
-        if threading.current_thread() is threading.main_thread():
-            for sig in STOP_SIGNALS:  # between sources no LiveSource holds them: stop as it would
-                saved[sig] = signal.signal(sig, self._on_signal)
-        try:
-            next_idle = self.clock()
-            while True:
-                if self._stop is not None:
-                    self.reason, self.message = STOPPED, self._stop
-                    return None
-                left = self._remaining()
-                if left is not None and left <= 0:
-                    self.reason, self.message = DURATION, f"{self.duration:g} s elapsed"
-                    return None
-                for path in (self.port, self.link):
-                    if path and (not is_port(path) or os.path.exists(path)):
-                        try:
-                            return self.open_source(path, left)
-                        except Exception:  # noqa: BLE001 - not back yet (a node still settling): look again
-                            pass
-                time.sleep(WAIT_STEP)
-                if self.clock() >= next_idle:
-                    next_idle = self.clock() + idle
-                    yield b"", None
-        finally:
-            for sig, handler in saved.items():
-                signal.signal(sig, handler)
+        next_idle = self.clock()
+        while True:
+            if self._stop is not None:
+                self.reason, self.message = STOPPED, self._stop
+                return None
+            left = self._remaining()
+            if left is not None and left <= 0:
+                self.reason, self.message = DURATION, f"{self.duration:g} s elapsed"
+                return None
+            for path in (self.port, self.link):
+                if path and (not is_port(path) or os.path.exists(path)):
+                    try:
+                        return self.open_source(path, left)
+                    except Exception:  # noqa: BLE001 - not back yet (a node still settling): look again
+                        pass
+            time.sleep(WAIT_STEP)
+            if self.clock() >= next_idle:
+                next_idle = self.clock() + idle
+                yield b"", None
 
     def _on_signal(self, signum: int, frame: object) -> None:
         self._stop = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        self.source.request_stop(self._stop)
 
     def _take_stalls(self, src: LiveSource) -> None:
         """A source made by ``open_source`` keeps its own list: its stalls join ours when it ends."""
@@ -153,6 +168,7 @@ class ReconnectingSource:
 
     def close(self) -> None:
         self.source.close()
+        self._release_signals()
         if self.reason is None:
             self.reason, self.message = STOPPED, "closed"
 

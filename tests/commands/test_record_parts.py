@@ -80,13 +80,47 @@ def test_split_time_starts_a_part_every_span_each_finished(tmp_path):
     assert b"".join((tmp_path / n).read_bytes() for n in names) == b"".join(bytes([k]) * 10 for k in range(10))
 
 
-def test_an_idle_bus_still_rotates_on_time(tmp_path):
+def test_an_idle_bus_makes_no_empty_parts(tmp_path):
+    """A quiet port keeps its part open past its span; the next byte opens the next part: every part has bytes."""
     p, clock, made, _ = parts_of(tmp_path, split_seconds=5.0)
     p.chunk(b"\x07", None)
     for _ in range(12):  # a quiet port: the drive loop calls idle() (its empty chunks), every second here
         clock.t += 1.0
         p.idle()
-    assert len(made) == 3 and made[0].finished and made[1].finished
+    assert len(made) == 1 and not made[0].finished
+    p.chunk(b"\x08", None)
+    p.close()
+    assert len(made) == 2 and all(m.finished and m.bytes_written == 1 for m in made)
+
+
+def test_a_gap_stays_in_the_part_with_the_bytes_on_both_sides(tmp_path):
+    """The port lost and found again past the part's span: the gap and the first bytes after it go in the part
+    that holds the bytes before it, not alone into a part of their own."""
+    gaps: list = []
+    p, clock, made, _ = parts_of(tmp_path, split_seconds=5.0)
+    p.chunk(b"\x07", None)
+    clock.t += 30.0
+    made[-1].gap = lambda *a: gaps.append((len(made), a))
+    p.gap(1030.0, 1001.0, "lost")
+    p.chunk(b"\x08", None)  # back: this byte is in part 1 with the gap
+    p.chunk(b"\x09", None)  # and the part is past its span: this one opens part 2
+    p.close()
+    assert gaps == [(1, (1030.0, 1001.0, "lost"))]
+    assert [m.bytes_written for m in made] == [2, 1]
+
+
+def test_keep_size_holds_with_split_time_alone(tmp_path):
+    """--keep SIZE with --split-time only: the folder never holds more than the size (a part ends at half of it),
+    counted at every flush, not only when a part opens."""
+    p, clock, made, _ = parts_of(tmp_path, split_seconds=3600.0, keep=Keep("200B", bytes=200))
+    for _ in range(100):
+        p.chunk(b"x" * 30, None)
+        clock.t += 0.5
+        total = sum(f.stat().st_size for f in tmp_path.iterdir())
+        assert total <= 200 + 30, total  # the open part may hold the chunk just written past a flush
+    p.close()
+    assert sum(f.stat().st_size for f in tmp_path.iterdir()) <= 200
+    assert len(made) > 10 and max(m.bytes_written for m in made) <= 100 + 30
 
 
 def test_keep_size_deletes_the_oldest_closed_parts_first(tmp_path):

@@ -15,8 +15,8 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from ...version import __version__
 from ...protocol.events import Garbage
-from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, GAPS_METADATA_NAME, LOG_SCHEMA, MCAP_MAGIC, METADATA_NAME,
-                                    MODELS_METADATA_NAME, PACKET_SCHEMA, PACKETS_TOPIC, RAW_SCHEMA, RAW_TOPIC,
+from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, GAP_METADATA_NAME, GAPS_METADATA_NAME, LOG_SCHEMA,
+                                    MCAP_MAGIC, METADATA_NAME, MODELS_METADATA_NAME, PACKET_SCHEMA, PACKETS_TOPIC, RAW_SCHEMA, RAW_TOPIC,
                                     SERVO_STATE_SCHEMA, STATE_TOPIC, STATS_METADATA_NAME, TIME_BASES,
                                     TRANSACTION_SCHEMA, TRANSACTIONS_TOPIC, log_time_ns)
 from ...render.block_json import record_json_line
@@ -424,10 +424,20 @@ class McapSink(JsonChannels):
         self.stats.batch(step)  # a CaptureStats: it takes Blocks as they are (takes_blocks)
 
     def gap(self, t: float, lost_at: float | None, note: str) -> None:
-        """The source lost the line from ``lost_at`` to ``t`` (epoch seconds): kept for the metadata (the
-        decoder's F010 finding marks the same place in the diagnostics)."""
-        self.gaps.append({"lost_at": lost_at, "back_at": t,
-                          "seconds": None if lost_at is None else round(t - lost_at, 6), "why": note})
+        """The source lost the line from ``lost_at`` to ``t`` (epoch seconds), before the stream byte it is at
+        (``offset``): a GAP_METADATA_NAME record now, so a file cut later still says it, and all of them in
+        GAPS_METADATA_NAME at the end. A reader makes each a seam again (sources/mcap_reader.py); the
+        decoder's F010 finding marks the same place in the diagnostics."""
+        gap = {"offset": self._raw_offset, "lost_at": lost_at, "back_at": t,
+               "seconds": None if lost_at is None else round(t - lost_at, 6), "why": note}
+        self.gaps.append(gap)
+        if self._finished:
+            return
+        # The bytes before the gap go out first (raw messages held by a columnar group too), so the record
+        # lies between the chunks it parts.
+        self.flush_held()
+        self.flush()
+        self._sdk(self._writer.write_metadata, GAP_METADATA_NAME, {k: json.dumps(v) for k, v in gap.items()})
 
     def close(self) -> None:
         self.flush_held()
