@@ -7,7 +7,8 @@ import os
 from typing import Any
 
 from ..decode.decoder import DecodeOptions
-from .common import CliError, add_decode_options, add_lint_options, check_positive, lint_config, settings_for
+from .common import (CliError, add_decode_options, add_lint_options, add_time_format_option, check_positive,
+                     lint_config, settings_for)
 from .live import add_foxglove_option, live_start_time, make_source, start_foxglove
 
 
@@ -25,6 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--history", type=int, default=None, metavar="N",
                    help="records kept for scrolling back (default 1,000,000; older ones are dropped)")
     p.add_argument("--record-dir", default=".", metavar="DIR", help="where `r` writes MCAP recordings (default .)")
+    add_time_format_option(p)
     add_foxglove_option(p)
     add_lint_options(p)
     p.set_defaults(run=run)
@@ -43,7 +45,7 @@ def prepare(args: argparse.Namespace) -> tuple[Any, DecodeOptions, dict[str, Any
         raise CliError(f"--history {args.history}: must be at least 1")
     if not os.path.isdir(args.record_dir):
         raise CliError(f"--record-dir {args.record_dir}: no such directory")
-    config: dict[str, Any] = {"record_dir": args.record_dir}
+    config: dict[str, Any] = {"record_dir": args.record_dir, "time_format": settings.time_format}
     if args.no_lint:
         config["linter_factory"] = lambda: None
     else:
@@ -57,6 +59,7 @@ def prepare(args: argparse.Namespace) -> tuple[Any, DecodeOptions, dict[str, Any
         source = make_source(args, settings)
     except OSError as e:
         raise CliError(f"{args.input}: {e.strerror or e}") from None
+    config["time_anchor"] = live_start_time(source)  # the simulator's times count from 0: its start is now
     return source, opts, config
 
 
@@ -67,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     app = make_app(source, opts, **config)
     # Said before the screen takes the terminal; the feeder's pipeline closes it with its other sinks.
     fox = start_foxglove(getattr(args, "foxglove", None), source=source.name, baud=opts.baud, models=opts.models,
-                         start_time=live_start_time(source))  # the simulator's times count from 0, not 1970
+                         start_time=config["time_anchor"])  # the simulator's times count from 0, not 1970
     if fox is not None:
         app.feeder.pipeline.add(fox)
     app.run()

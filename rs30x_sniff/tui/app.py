@@ -22,6 +22,7 @@ from textual.widgets import Footer, Input, Label
 from ..protocol.memmap import default_registry
 from ..decode.decoder import DecodeOptions
 from ..filters import FilterError, parse_filter
+from ..render.times import ABSOLUTE, DEFAULT_TIME_FORMAT, DELTA, EPOCH, TimeForm
 from .detail import DetailPane
 from .feed import Batch, Feeder, default_linter
 from .sources import Source
@@ -38,6 +39,10 @@ NARROW_WIDTH = 120    # columns under which the detail pane hides and the bottom
 WIDE_WIDTH = 160      # columns under which the findings and the plot take turns beside the servos
 SHORT_HEIGHT = 32     # rows under which the bottom panes get fewer rows
 BOTTOM_PANES = ("servos", "findings", "plot")
+
+
+# What the header says of the times shown when they are not seconds since the capture's start.
+_TIMES_SHOWN = {ABSOLUTE: "date and time", DELTA: "since the previous packet", EPOCH: "seconds since 1970"}
 
 
 class BatchArrived(Message):
@@ -61,6 +66,8 @@ class MonitorConfig:
     sink_factory: Callable[..., Any] | None = None
     post_interval: float = 0.25
     tick_interval: float = 0.5
+    time_format: str = DEFAULT_TIME_FORMAT        # how the timeline shows times (--time-format)
+    time_anchor: float | None = None              # epoch seconds of capture time 0 (the simulator: when it started)
 
 
 class MonitorApp(App):
@@ -105,6 +112,8 @@ class MonitorApp(App):
                              clock=config.clock, sink_factory=config.sink_factory)
         self.info = SessionInfo(source=source.name, source_kind=source.kind, baud=opts.baud,
                                 models=self._models_text(), lint=self.linter is not None)
+        self.times = TimeForm(config.time_format, config.time_anchor)
+        self.info.times = _TIMES_SHOWN.get(config.time_format, "")
         self.started = config.clock()
         self.done = False
         self.batches = 0
@@ -128,8 +137,8 @@ class MonitorApp(App):
     def compose(self) -> ComposeResult:
         # The app keeps its widgets by reference: a query would search whatever screen is on top (help).
         self.status = StatusHeader(id="status")
-        self.timeline = Timeline(self.store, id="timeline")
-        self.detail = DetailPane(id="detail")
+        self.timeline = Timeline(self.store, self.times, id="timeline")
+        self.detail = DetailPane(self.times, id="detail")
         self.servos = ServosPane(self.config.clock, id="servos")
         self.findings = FindingsPane(id="findings")
         self.plot = PlotPane(id="plot")
@@ -182,6 +191,11 @@ class MonitorApp(App):
             return  # shutting down: the widgets are gone
         b = message.batch
         store = self.store
+        if not self.times.started:
+            self.times.start_with(b.records)  # the capture's first time: before any of its rows is drawn
+            if self.times.note:
+                self.info.times, self.info.times_fallback = "since start (no wall clock)", True
+                self.notify(clean(self.times.note), timeout=6)
         store.add(b.records, b.findings, b.servos, b.bytes_in, b.stats)
         # The store's records live long and hold no reference cycles (a reply points back by weak
         # reference): moving them out of the collector's reach saves a full collection over the whole

@@ -17,9 +17,27 @@ from ..protocol.events import Garbage, LongPacket, ReturnPacket, ShortPacket
 from ..protocol.wire import (
     AT_ADDRESS, AT_COUNT, AT_DATA, AT_FLAG, AT_ID, AT_LENGTH, HEADER_SIZE, SUM_SIZE, VID_SIZE)
 from ..render.records import format_value, kind_word
+from ..render.times import ABSOLUTE, EPOCH, TimeForm, wall_text
 from .rows import SEVERITY_STYLES, clean, kind_style, short_summary
 
 HEX_PER_LINE = 16
+DATE = len("2026-11-27 ")  # the date's characters before the time of day in render.times.wall_text
+
+
+def time_label(t: float, times: TimeForm | None) -> str:
+    """A record's time in the title, as --time-format shows it: seconds since the start (delta too: one record
+    has no neighbour here) and the time of day where the capture has a wall clock, the date and time alone, or
+    epoch seconds."""
+    if times is None or not times.started:
+        return f"t={t:.6f}s"
+    shown = times.shown
+    if shown == ABSOLUTE:
+        return wall_text(times.wall + t)
+    if shown == EPOCH:
+        return f"t={times.wall + t:.6f}s"
+    since = f"t={t - times.origin:.6f}s"
+    # The time of day beside it, without the date (the title must fit a narrow pane; absolute shows the date).
+    return since if times.wall is None else f"{since} ({wall_text(times.wall + t)[DATE:]})"
 
 
 def field_spans(rec: Record) -> list[tuple[int, int]]:
@@ -80,9 +98,10 @@ class DetailPane(Vertical):
             super().__init__()
             self.rec = rec
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, times: TimeForm | None = None, **kwargs) -> None:
         super().__init__(**kwargs)
         self.rec: Record | None = None
+        self.times = times  # how the title shows the record's time (--time-format)
 
     def compose(self) -> ComposeResult:
         tree = self.field_tree = FieldTree(Text("no packet selected"), id="fields")
@@ -111,7 +130,7 @@ class DetailPane(Vertical):
         title.append(word, kind_style(word))
         title.append(f" @{ev.offset} ({len(ev.raw)} bytes)", "grey70")
         if ev.t_start is not None:
-            title.append(f" t={ev.t_start:.6f}s", "grey70")
+            title.append(" " + time_label(ev.t_start, self.times), "grey70")
         tree.root.set_label(title)
         tree.root.data = None
         self._add_header(tree.root, rec)

@@ -28,6 +28,8 @@ class SessionInfo:
     lint: bool = True
     filter_text: str = ""
     filter_progress: float | None = None
+    times: str = ""               # how the timeline shows times, when not seconds since the start (--time-format)
+    times_fallback: bool = False  # the form asked for cannot be shown (no wall clock): said in yellow
 
 
 def _si(n: float) -> str:
@@ -117,6 +119,8 @@ def status_text(store: Store, info: SessionInfo, width: int | None = None) -> Te
     span = store.span
     first.append(_Field(1, ("capture " if span is not None else "elapsed ", "grey70"),
                         (_clock(span if span is not None else info.elapsed), "")))
+    if info.times:
+        first.append(_Field(4, ("times ", "grey70"), (clean(info.times), "yellow" if info.times_fallback else "")))
     if info.recording:
         first.append(_Field(0, ("● REC ", "bold red"), (clean(info.recording), "red"), shrink=1))
     else:

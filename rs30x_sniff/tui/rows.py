@@ -9,6 +9,7 @@ from rich.text import Text
 from ..decode.pairing import Record
 from ..render.records import bad_sum, direction, kind_word, summary
 from ..filters import SEVERITY_RANK
+from ..render.times import ABSOLUTE, DELTA, EPOCH, RELATIVE, TimeForm
 
 # Control characters (C0, DEL, C1) shown as \xNN, so nothing from a file name or the wire can move
 # the cursor or change the terminal's state.
@@ -29,10 +30,44 @@ SEVERITY_STYLES = {"error": "bold red", "warning": "yellow", "info": "dodger_blu
 SEVERITY_MARKS = {"error": "E", "warning": "W", "info": "i"}
 ARROWS = {"host": "→", "servo": "←", "?": "?"}
 
-COLUMNS = f"  {'time(s)':>11} {'delta(ms)':>10} {'dir':^3} {'ID':>3} {'kind':<12} {'latency':>9} summary"
 # A narrow terminal (80 columns) keeps time, direction, ID, kind and the summary: delta and latency go.
-COMPACT_COLUMNS = f"  {'time(s)':>11} {'dir':^3} {'ID':>3} {'kind':<12} summary"
 COMPACT_BELOW = 110  # timeline widths under this many cells use the compact columns
+# The time column by --time-format (render.times): its heading and width. A compact timeline shows the time of
+# day without its date (the detail pane has both).
+TIME_COLUMN = {RELATIVE: ("time(s)", 11), DELTA: ("dt(s)", 11), EPOCH: ("epoch(s)", 17), ABSOLUTE: ("date time", 26)}
+COMPACT_DAY = 11  # characters of "2026-11-27 " left out of a compact timeline's absolute time
+
+
+def time_column(times: TimeForm | None, compact: bool = False) -> tuple[str, int]:
+    """The time column's heading and width for the form shown (the default: seconds of capture time)."""
+    if times is None:
+        return TIME_COLUMN[RELATIVE]
+    head, width = TIME_COLUMN[times.shown]
+    if compact and times.shown == ABSOLUTE:
+        return "time of day", width - COMPACT_DAY
+    return head, width
+
+
+def columns(times: TimeForm | None = None, compact: bool = False) -> str:
+    """The timeline's heading row (``compact``: time, direction, ID, kind and summary alone)."""
+    head, width = time_column(times, compact)
+    if compact:
+        return f"  {head:>{width}} {'dir':^3} {'ID':>3} {'kind':<12} summary"
+    return f"  {head:>{width}} {'delta(ms)':>10} {'dir':^3} {'ID':>3} {'kind':<12} {'latency':>9} summary"
+
+
+def time_cell(t: float, prev_t: float | None, times: TimeForm | None, compact: bool = False) -> str:
+    """A row's time as the form shows it, in the column's width."""
+    _, width = time_column(times, compact)
+    if times is None or not times.started:
+        return f"{t:{width}.6f}"
+    v = times.value(t, prev_t)
+    if type(v) is str:
+        v = v.strip()
+        if compact and times.shown == ABSOLUTE and len(v) > COMPACT_DAY:
+            v = v[COMPACT_DAY:]
+        return f"{v:>{width}}"
+    return f"{v:{width}.6f}"
 
 
 def worst_severity(rec: Record) -> str | None:
@@ -54,21 +89,23 @@ def short_summary(rec: Record) -> str:
     return clean(summary(rec, bare=True, keep=False))
 
 
-def row_text(rec: Record, prev_t: float | None, compact: bool = False) -> Text:
+def row_text(rec: Record, prev_t: float | None, compact: bool = False, times: TimeForm | None = None) -> Text:
     """One timeline row: severity mark, time, delta, direction, ID, kind, latency, summary (``compact``:
-    without delta and latency, for narrow terminals)."""
+    without delta and latency, for narrow terminals; ``times``: how the time is shown, --time-format)."""
     ev = rec.event
     text = Text(no_wrap=True, overflow="ellipsis")
     sev = worst_severity(rec)
     text.append(SEVERITY_MARKS.get(sev, " ") if sev else " ", SEVERITY_STYLES.get(sev, ""))
     t = ev.t_start
     if t is not None:
-        text.append(f" {t:11.6f}", "grey70")
+        text.append(" " + time_cell(t, prev_t, times, compact), "grey70")
         if not compact:
-            delta = f"{(t - prev_t) * 1e3:+10.3f}" if prev_t is not None else " " * 10
+            # No delta where the clock went back (a restart, F010): no duration is known there.
+            delta = f"{(t - prev_t) * 1e3:+10.3f}" if prev_t is not None and t >= prev_t else " " * 10
             text.append(f" {delta}", "grey50")
     else:
-        text.append(f" {'@' + str(ev.offset):>11}" + ("" if compact else f" {'':10}"), "grey50")
+        width = time_column(times, compact)[1]
+        text.append(f" {'@' + str(ev.offset):>{width}}" + ("" if compact else f" {'':10}"), "grey50")
     who = direction(rec)
     text.append(f" {ARROWS[who]:^3}", "bold" if who == "host" else "")
     sid = rec.id

@@ -12,7 +12,8 @@ from textual.reactive import reactive
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
-from .rows import COLUMNS, COMPACT_BELOW, COMPACT_COLUMNS, row_text
+from ..render.times import TimeForm
+from .rows import COMPACT_BELOW, columns, row_text
 from .store import Store
 
 ROW_WIDTH = 400  # virtual width: summaries of long packets run far to the right (scroll with shift+wheel)
@@ -53,9 +54,10 @@ class Timeline(ScrollView, can_focus=True):
             super().__init__()
             self.follow = follow
 
-    def __init__(self, store: Store, **kwargs) -> None:
+    def __init__(self, store: Store, times: TimeForm | None = None, **kwargs) -> None:
         super().__init__(**kwargs)
         self.store = store
+        self.times = times  # how the time column shows times (--time-format); None: capture seconds
         self.cursor_seq: int | None = None
         self.paused_at: int | None = None  # while paused, rows from this seq on are not shown yet
         self._rows = 0
@@ -191,8 +193,7 @@ class Timeline(ScrollView, can_focus=True):
         scroll_x = int(self.scroll_x)
         compact = width < COMPACT_BELOW
         if y == 0:
-            columns = COMPACT_COLUMNS if compact else COLUMNS
-            header = Strip([Segment(columns, self.get_component_rich_style("timeline--header"))])
+            header = Strip([Segment(columns(self.times, compact), self.get_component_rich_style("timeline--header"))])
             return header.crop_extend(scroll_x, scroll_x + width, self.rich_style)
         row = int(self.scroll_y) + y - 1
         seq = self.store.view_seq(row) if row < self._rows else None
@@ -207,7 +208,7 @@ class Timeline(ScrollView, can_focus=True):
         cached = self._cache.get(key)
         if cached is None:
             prev = self.store.get(seq - 1)
-            text = row_text(rec, prev.event.t_start if prev is not None else None, compact)
+            text = row_text(rec, prev.event.t_start if prev is not None else None, compact, self.times)
             strip = Strip(text.render(self.app.console), text.cell_len)
             strip = strip.extend_cell_length(ROW_WIDTH).apply_style(base)
             cached = self._cache[key] = (strip, text.cell_len)
