@@ -220,6 +220,7 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
                 name = f"--severity {k}={level}" if where == COMMAND_LINE else f"{where}: severity.{k}"
                 raise SettingsError(f"{name}: level must be one of {', '.join(SEVERITIES)}")
             resolve_rules([k], "severity", where)
+        _refuse_conflicts(out, where)
     try:
         if "model" in out:
             out["model"] = reg.get(out["model"]).name
@@ -238,11 +239,39 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
             if not isinstance(name, str):
                 raise SettingsError(f"{label}: expected a model name")
             try:
-                models[sid] = reg.get(name).name
+                model = reg.get(name).name
             except ModelError as e:
                 raise SettingsError(f"{label}: {e}") from None
+            if models.get(sid, model) != model:  # 3 and 0x3: one ID, never the last one silently taken
+                raise SettingsError(f"{label}: ID {sid} is given two models ({models[sid]} and {model}): give one")
+            models[sid] = model
         out["models"] = models
     return out
+
+
+def _refuse_conflicts(out: Mapping[str, Any], where: str) -> None:
+    """One layer's options that contradict each other are an error, never resolved silently: a rule named
+    in ``select`` and dropped by ``ignore``; one rule given two severities (by its code and by its name).
+    Across layers the higher one wins instead (the command line over the config file)."""
+    cli = where == COMMAND_LINE
+    if "select" in out and "ignore" in out:
+        named = {r.code: s for s in out["select"] if (r := RULES.get(s)) is not None}
+        for code in resolve_rules(out["ignore"], "ignore", where):
+            if code in named:
+                said = (f"--select {named[code]} and --ignore {', '.join(out['ignore'])}" if cli
+                        else f"{where}: select names {named[code]} and ignore drops it")
+                raise SettingsError(f"{said}: {code} is both selected and ignored; give one")
+    levels: dict[str, tuple[str, str]] = {}
+    for k, level in out.get("severity", {}).items():
+        r = RULES.get(k)
+        if r is None:
+            continue  # a prefix (B, Q00) or ALL: a rule named on its own refines it
+        if r.code in levels and levels[r.code][1] != level:
+            k0, l0 = levels[r.code]
+            said = (f"--severity {k0}={l0} and --severity {k}={level}" if cli
+                    else f"{where}: severity.{k0} = {l0!r} and severity.{k} = {level!r}")
+            raise SettingsError(f"{said}: two levels for {r.code}; give one")
+        levels[r.code] = (k, level)
 
 
 # ---- config files ----------------------------------------------------------------------------------

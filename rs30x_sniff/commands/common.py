@@ -11,7 +11,7 @@ from typing import Any, Iterator
 
 from ..sources import foreign
 from ..sources.captures import (
-    MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture)
+    BINARY, HEX, MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture)
 from ..sources.inputs import read_input
 from ..sources.timebase import TIME_REFS
 from ..sources.timeunit import UNITS as TIME_UNITS
@@ -117,10 +117,17 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for spec in getattr(args, "model", None) or []:
         key, sep, name = spec.partition("=")
+        # The same ID (or every ID) given twice is refused, never the last one silently taken.
+        before = out.get("models", {}).get(key.strip()) if sep else out.get("model")
+        given = name.strip() if sep else spec.strip()
+        if before is not None and before.upper() != given.upper():
+            who = f"{key.strip()}=" if sep else ""
+            raise CliError(f"--model {who}{before} and --model {who}{given}: two models for "
+                           f"{'ID ' + key.strip() if sep else 'every ID'}; give one")
         if sep:
-            out.setdefault("models", {})[key.strip()] = name.strip()
+            out.setdefault("models", {})[key.strip()] = given
         else:
-            out["model"] = spec.strip()
+            out["model"] = given
     for key in ("baud", "baud_any", "gap_bytes", "reply_timeout", "fail_on", "time_ref", "time_unit", "channel",
                 "time_format"):
         v = getattr(args, key, None)
@@ -135,6 +142,9 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
         key, eq, level = spec.partition("=")
         if not eq:
             raise CliError(f"--severity {spec}: expected RULE=LEVEL")
+        if sev.get(key.strip(), level.strip()) != level.strip():
+            raise CliError(f"--severity {key.strip()}={sev[key.strip()]} and --severity {spec.strip()}: two levels "
+                           f"for {key.strip()}; give one")
         sev[key.strip()] = level.strip()
     if sev:
         out["severity"] = sev
@@ -283,6 +293,8 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
     the content tells (said on stderr when not seconds) unless ``--time-unit`` says otherwise.
     """
     cli = command_line_layer(args)
+    if "time_unit" in cli and path:
+        _time_unit_applies(path, getattr(args, "input_format", None), cli["time_unit"])
     conf = config_layer(args) if config is None else config
     # A logic capture's probe decodes its samples to find the rate: it needs the channel, and can skip
     # the search when the rate is given (the layers' own precedence, before they are checked). A
@@ -316,6 +328,25 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
     elif not from_capture and (estimate is not None or fit is not None):
         settings = _contradicted(path, settings, estimate, fit)
     return settings
+
+
+def _time_unit_applies(path: str, fmt: str | None, unit: str) -> None:
+    """--time-unit is read only by timestamped hex: given for another input it would be silently ignored,
+    so it is refused (a config file's time-unit stays a default for the captures it fits)."""
+    if is_port_path(path):
+        raise CliError(f"--time-unit {unit}: {path} is a serial port, timed by this machine's clock: "
+                       f"--time-unit is for timestamped hex captures")
+    if path == "-" or not os.path.isfile(path):
+        return  # stdin is sniffed once, by its reader; a missing file: the reading command says so
+    if fmt is None:
+        try:
+            fmt = detect_format(path)
+        except CaptureError:
+            return  # the reading command says why, with the line
+    if fmt != TIMESTAMPED:
+        what = {BINARY: "a binary capture (no times)", HEX: "an untimed hex capture",
+                MCAP: "an MCAP capture (its times are its own)"}.get(fmt, f"a {fmt} capture")
+        raise CliError(f"--time-unit {unit}: {path} is {what}: --time-unit is for timestamped hex captures")
 
 
 def _contradicted(path: str | None, settings: Settings, estimate: Any, fit: Any) -> Settings:

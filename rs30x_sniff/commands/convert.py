@@ -27,10 +27,17 @@ OUTPUT_KINDS = ("mcap", "pcapng")
 
 
 def output_kind(path: str, to: str | None) -> str:
-    """What ``convert`` writes: ``--to``, else pcapng for a file named *.pcapng, else MCAP."""
-    if to is not None:
-        return to
-    return "pcapng" if path.lower().endswith(".pcapng") else "mcap"
+    """What ``convert`` writes: ``--to``, else pcapng for a file named *.pcapng, else MCAP. A name whose
+    extension says another format (``x.bin``, or ``x.mcap --to pcapng``) is refused: what it names is not
+    what would be in it. A name without an extension (and ``-``) takes either."""
+    ext = "" if path == STDOUT else os.path.splitext(path)[1].lower().lstrip(".")
+    named = ext if ext in OUTPUT_KINDS else None
+    if ext and named is None:
+        kinds = " or ".join(f".{k}" for k in OUTPUT_KINDS)
+        raise CliError(f"-o {path}: convert writes {' or '.join(OUTPUT_KINDS)}, not .{ext}: name the output {kinds}")
+    if to is not None and named is not None and to != named:
+        raise CliError(f"-o {path} and --to {to}: the name says {named}; name the output .{to} or drop --to")
+    return to or named or "mcap"
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -113,8 +120,8 @@ def open_pcapng_sink(out: IO[bytes], source: str, settings: Settings, *, timed: 
 
 # ---- the command ---------------------------------------------------------------------------------
 def run(args: argparse.Namespace) -> int:
+    kind = output_kind(args.output, args.to)  # before anything is opened or written
     check_output(args.output, args.force, (args.input,))
-    kind = output_kind(args.output, args.to)
     start_time = parse_start_time(args.start_time)
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)
@@ -126,7 +133,8 @@ def run(args: argparse.Namespace) -> int:
         # Another tool's log may carry the wall-clock time of its first stamp (a Saleae ISO table, a
         # socat or jpnevulator log): the MCAP is anchored there, as --start-time would (which wins).
         start_time = capture_start_time(src)
-    # A file takes the columnar path (the same messages, in log-time order within each 64 KiB group).
+    # A file takes the columnar path (the same messages, in log-time order within each group of
+    # GROUP_BYTES, 256 KiB).
     decoder = Decoder(settings.decode_options(), linter=linter, columnar=columnar_for(src))
     source = "stdin" if args.input == "-" else args.input
     total = os.path.getsize(args.input) if os.path.isfile(args.input) and (
