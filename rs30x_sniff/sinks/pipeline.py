@@ -175,7 +175,7 @@ def columnar_for(source: object, *, follow: bool = False) -> bool:
     A source says what it is: a port is ``live`` (rs30x_sniff.sources.serial_tap.LiveSource), a capture
     that is not a regular file (a pipe, a FIFO) is ``streamed`` (rs30x_sniff.sources.captures.CaptureReader).
     A live port is decoded record by record, each record out as soon as its bytes are in; a file takes
-    the columnar path, about 64 KiB at a time (the same output in a fraction of the time). A pipe may be
+    the columnar path, GROUP_BYTES (256 KiB) at a time (the same output in a fraction of the time). A pipe may be
     live too (`socat ... | rs30x-sniff decode -`): a command whose output follows its input (``follow``:
     decode's lines) takes it record by record; one whose output comes at the end (a report, figures, a
     file) takes the columnar path, as for a file.
