@@ -80,7 +80,8 @@ def test_duration_and_split_size_rotate_complete_files(pty, tmp_path):
 
 
 def test_decode_streams_lines_from_a_port_while_it_runs(pty):
-    proc = cli("decode", pty.path, "--duration", "6", "--no-lint")
+    # --time-format epoch: the lines show the stamps themselves (by default, seconds since the first byte).
+    proc = cli("decode", pty.path, "--duration", "6", "--no-lint", "--time-format", "epoch")
     time.sleep(2.0)  # the port is open (and its input flushed) well before this, even on a loaded machine
     pty.write_sim("setup", duration=None)
     readable, _, _ = select.select([proc.stdout], [], [], 5.0)
