@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import asyncio
 import gc
+import os
 import signal
+import sys
 import time
 from collections import Counter
 from dataclasses import dataclass
@@ -174,12 +176,26 @@ class MonitorApp(App):
         """SIGTERM and SIGHUP quit as `q` does: the recording is finished and the terminal restored."""
         try:
             loop = asyncio.get_running_loop()
-            for name in ("SIGTERM", "SIGHUP"):
-                sig = getattr(signal, name, None)
-                if sig is not None:
-                    loop.add_signal_handler(sig, lambda: asyncio.ensure_future(self.action_quit()))
+            loop.add_signal_handler(signal.SIGTERM, lambda: asyncio.ensure_future(self.action_quit()))
+            if hasattr(signal, "SIGHUP"):
+                loop.add_signal_handler(signal.SIGHUP, lambda: asyncio.ensure_future(self._hang_up()))
         except (NotImplementedError, RuntimeError, ValueError):
             pass  # not the main thread, or a platform without loop signal handlers: the default applies
+
+    async def _hang_up(self) -> None:
+        """SIGHUP: quit as `q` does; if the terminal itself is gone (a closed ssh session, a killed tmux), there
+        is no screen to restore, and Textual waits for ever on writes it cannot make: the recording is finished,
+        then the process ends at once, exit 0."""
+        try:
+            os.write(sys.__stdout__.fileno(), b"\x1b[0m")  # a reset of attributes: harmless on a live terminal
+        except (OSError, AttributeError, ValueError):
+            self.feeder.stop()
+            for _ in range(100):
+                if not self.feeder.running:
+                    break
+                await asyncio.sleep(0.05)
+            os._exit(0)
+        await self.action_quit()
 
     # ---- capture thread -> screen ---------------------------------------------------------------------
     def _post_batch(self, batch: Batch) -> None:
