@@ -65,6 +65,7 @@ class TimeForm:
         self.mode = mode
         self.anchor = anchor
         self.say = say                    # told once when the asked form cannot be shown (no wall clock)
+        self.first: float | None = None   # the capture's first time
         self.origin: float | None = None  # capture time shown as 0 (relative)
         self.wall: float | None = None    # epoch seconds of capture time 0, where the capture has a wall clock
         self.shown = mode                 # what is shown: ``mode``, or relative where the capture has no wall clock
@@ -78,6 +79,7 @@ class TimeForm:
         """The capture's first timed time decides the origin and the wall clock (once)."""
         if self.origin is not None:
             return
+        self.first = t
         if t > EPOCH_MIN:
             self.origin, self.wall = t, 0.0
         else:
@@ -121,7 +123,7 @@ class TimeForm:
             return None if t is None else self.wall + t
         if shown == ABSOLUTE:
             return NO_TIME_WIDE if t is None else wall_text(self.wall + t)
-        return delta_text(t, prev)
+        return delta_text(t, prev, self.first)
 
     def values(self, t0: np.ndarray, prev: float | None = None) -> list | None:
         """The shown times of a timed Block's rows (``t0``), as :meth:`value` gives each (``prev``: the time of
@@ -135,7 +137,8 @@ class TimeForm:
             wall = self.wall
             return [wall_text(wall + t) for t in t0.tolist()]
         ts = t0.tolist()
-        return [delta_text(t, p) for t, p in zip(ts, [prev, *ts[:-1]])]
+        first = self.first
+        return [delta_text(t, p, first) for t, p in zip(ts, [prev, *ts[:-1]])]
 
     def seconds(self, t: float) -> str:
         """A summary's time (info: "at ...", "from ..."), to two places: seconds since the start, the date and
@@ -151,13 +154,13 @@ class TimeForm:
 NO_TIME_WIDE = f"{'-':>{ABSOLUTE_WIDTH}}"
 
 
-def delta_text(t: float | None, prev: float | None) -> str:
-    """Seconds since the previous event: 0 for the first; '-' for none (no time, or the clock went back: a
-    restart, F010, where no duration is known)."""
+def delta_text(t: float | None, prev: float | None, first: float | None = None) -> str:
+    """Seconds since the previous event (``prev``): 0 for the capture's ``first``; '-' for none (no time, no
+    previous event known, or the clock went back: a restart, F010, where no duration is known)."""
     if t is None:
         return NO_TIME
     if prev is None:
-        return f"{0.0:{WIDTH}.6f}"
+        return f"{0.0:{WIDTH}.6f}" if t == first else NO_TIME
     if t < prev:
         return NO_TIME
     return f"{t - prev:{WIDTH}.6f}"
