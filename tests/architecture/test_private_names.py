@@ -19,6 +19,9 @@ ALLOWED = {
     **{(f"commands/{m}.py", "argparse._SubParsersAction"): "stdlib"
        for m in ("convert", "decode", "export", "info", "lint", "monitor", "record", "rules", "serve",
                  "simulate", "table")},
+    # stdlib: os._exit is the documented way to end a process at once (a monitor whose terminal hung up, after its
+    # recording is finished: Textual would wait for ever to restore the screen).
+    ("tui/app.py", "os._exit"): "stdlib",
     # Block.part: the new Block (same class) gets the Records already built of its rows.
     ("decode/blocks.py", "sub._records"): "own class",
     # open_capture: the CaptureReader of the same module, sniffed now when no format is given.
