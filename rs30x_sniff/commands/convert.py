@@ -29,8 +29,10 @@ OUTPUT_KINDS = ("mcap", "pcapng")
 def output_kind(path: str, to: str | None) -> str:
     """What ``convert`` writes: ``--to``, else pcapng for a file named *.pcapng, else MCAP. A name whose
     extension says another format (``x.bin``, or ``x.mcap --to pcapng``) is refused: what it names is not
-    what would be in it. A name without an extension (and ``-``) takes either."""
-    ext = "" if path == STDOUT else os.path.splitext(path)[1].lower().lstrip(".")
+    what would be in it. A name without an extension, ``-``, and a FIFO or device (its name is no format's)
+    take either."""
+    special = os.path.exists(path) and not os.path.isfile(path)
+    ext = "" if path == STDOUT or special else os.path.splitext(path)[1].lower().lstrip(".")
     named = ext if ext in OUTPUT_KINDS else None
     if ext and named is None:
         kinds = " or ".join(f".{k}" for k in OUTPUT_KINDS)
@@ -120,8 +122,8 @@ def open_pcapng_sink(out: IO[bytes], source: str, settings: Settings, *, timed: 
 
 # ---- the command ---------------------------------------------------------------------------------
 def run(args: argparse.Namespace) -> int:
-    kind = output_kind(args.output, args.to)  # before anything is opened or written
     check_output(args.output, args.force, (args.input,))
+    kind = output_kind(args.output, args.to)  # before anything is opened or written
     start_time = parse_start_time(args.start_time)
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)
