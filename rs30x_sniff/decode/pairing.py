@@ -20,7 +20,9 @@ ANSWERED = "answered"        # a request whose reply came
 MISSING = "missing"          # a request whose reply never came
 PAIRED = "paired"            # a reply to the request before it
 UNSOLICITED = "unsolicited"  # a reply nobody asked for
-EXTRA = "extra"              # a second reply to one request (two servos share an ID)
+# A second reply to one request within its reply window, from the ID asked or the ID whose reply came first
+# (or an ACK/NACK to a request for one, or any reply to a broadcast): two servos answer to one ID.
+EXTRA = "extra"
 # The edges of a capture (or of a time segment), not faults: a request whose reply time had not run out
 # when the capture ended, and the first reply of a capture whose request came before the capture began.
 UNKNOWN = "unknown"
@@ -329,6 +331,7 @@ class BusTracker:
         self._index = 0
         self._pending: Record | None = None   # request whose reply is due
         self._last_request: Record | None = None  # latest request that got its reply (for EXTRA)
+        self._answer_ids: tuple = ()  # the IDs whose return is a second reply to it: asked, and answered
         self._held: list[Record] = []
         # True from the start of input (or of a time segment) until its first packet: a reply then
         # answers a request the capture did not see (UNSEEN), if it comes within the reply timeout.
@@ -375,14 +378,41 @@ class BusTracker:
 
     @property
     def last_answered(self) -> Record | None:
-        """The latest request, if it got its reply: another reply now is EXTRA to it; None once a later
-        request comes (or at a seam). Set after requests paired outside the tracker (a Block) to the last
-        of them, answered, or to None when it asked for no reply."""
+        """The latest request, if it got its reply: a second reply to it within its reply window, from the
+        ID asked or the ID that answered, is EXTRA; None once a later request comes (or at a seam). Set after
+        requests paired outside the tracker (a Block) to the last of them, answered (with its reply still
+        linked: the setter reads the ID that answered), or to None when it asked for no reply."""
         return self._last_request
 
     @last_answered.setter
     def last_answered(self, req: Record | None) -> None:
+        self._answered(req, None if req is None else req.reply)
+
+    def _answered(self, req: Record | None, reply: Record | None) -> None:
+        """``req`` got ``reply``: a second reply to it is EXTRA if it comes from the ID asked or the ID that
+        answered (an ACK/NACK names none: the ID asked), within the request's reply window."""
         self._last_request = req
+        if req is None:
+            self._answer_ids = ()
+            return
+        asked = req.event[ID]
+        got = reply.event[ID] if reply is not None and type(reply.event) is ReturnPacket else asked
+        self._answer_ids = (asked,) if got == asked else (asked, got)
+
+    def _second_reply(self, rec: Record) -> bool:
+        """Whether a reply with no request waiting is a second reply to the latest answered one (EXTRA)."""
+        req = self._last_request
+        if req is None:
+            return False
+        ev = rec.event
+        t0, t1 = ev[T_START], req.event[T_END]
+        if t0 is not None and t1 is not None and t0 - t1 > self.reply_timeout:
+            return False  # past the request's reply window: no request asked for it (unsolicited)
+        if req.event[ID] == BROADCAST_ID:
+            return True  # every servo was asked
+        if type(ev) is ReturnPacket:
+            return ev[ID] in self._answer_ids  # another ID's return is unsolicited, not a second answer
+        return req.expects == "ack"  # an ACK/NACK names no ID: a second one to a request that asked for one
 
     def model_of(self, servo_id: int) -> Model:
         m = self._model_cache.get(servo_id)
@@ -586,8 +616,8 @@ class BusTracker:
             req.status = ANSWERED
             req.reply = rec
             self._pending = None
-            self._last_request = req
-        elif self._last_request is not None:
+            self._answered(req, rec)
+        elif self._second_reply(rec):
             req = self._last_request
             rec.status = EXTRA
         else:

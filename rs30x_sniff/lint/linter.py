@@ -42,6 +42,7 @@ class Linter:
         self.servos: dict[int, Shadow] = {}
         self.prev: Record | None = None        # the record before this one (B007)
         self.missing: Record | None = None     # the latest request whose reply never came (B001)
+        self.last_request: Record | None = None  # the latest request (B003 says how a reply stands to it)
         self.end_t: float | None = None        # when the input's last byte ended (set before close)
         self.ids: set[int] = set()             # servo IDs seen on the bus (Q008)
         self._states = {r.code: r.state() for r in self.rules if r.state is not None}
@@ -153,11 +154,15 @@ class Linter:
                     fn(self, rec, ev)
         if kind == "short" or kind == "long" or kind == "return":
             if kind == "short":
+                self.last_request = rec
                 self._short(rec, ev)
             elif kind == "long":
+                self.last_request = rec
                 self._long(rec, ev)
             elif kind == "return":
                 self._return(rec, ev)
+        elif kind == "corrupt" and ev.kind != "return":
+            self.last_request = rec  # a request with a wrong Sum still ends the wait for the one before (pairing)
         if rec.status == MISSING:
             self.missing = rec
         self.prev = rec
@@ -178,6 +183,8 @@ class Linter:
         self.ids |= ids
         self.records += n
         self.prev = last
+        # A Block's last row is a request, or the reply paired with the request just before it.
+        self.last_request = last if last.request is None else last.request
 
     def seam(self, seam: Any) -> list[Finding]:
         """A seam of the capture's clock (rs30x_sniff.decode.framing.Seam) before the next record: nothing before
@@ -191,6 +198,7 @@ class Linter:
         # servos' shadows (torque, positions, limits) and each rule's memory. The IDs seen stay (Q008).
         self.missing = None
         self.prev = None
+        self.last_request = None
         self.servos = {}
         self._states = {r.code: r.state() for r in self.rules if r.state is not None}
         self._setup(True)

@@ -11,7 +11,7 @@ from rs30x_sniff.decode.blocks import Block
 from rs30x_sniff.lint import Linter
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.sim import scenarios
-from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.protocol.wire import byte_time, encode_command, encode_long, encode_read, encode_return, encode_short
 from tests.decode.test_properties import frames
 
 SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -94,6 +94,11 @@ def transaction(rng: random.Random, clean: bool = False) -> list[bytes]:
         [encode_read(sid, 42, 2), encode_return(rng.choice([1, 9]), 42, b"\x01\x02")],  # another ID answers
         [b"\x55\xfa"],                                                         # noise
         [encode_long(4, [(1, b"\x09"), (9, b"\x01")])],                        # long packet moving IDs
+        # Issue 32: another ID's return after an answered read (unsolicited, not a second reply); a NACK, then a
+        # return from the ID asked (a second reply); a reboot (Q001/Q002 settle at it).
+        [encode_read(sid, 42, 2), encode_return(sid, 42, b"\x01\x02"), encode_return(sid % 7 + 1, 42, b"\x01\x02")],
+        [encode_short(sid, 0x01, 36, b"\x01"), b"\x08", encode_return(sid, 42, b"\x01\x02")],
+        [encode_short(sid, 0x00, 6, b"\x04"), encode_command(sid, 0x20)],
     ]
     return rng.choice(rare)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...decode.pairing import EXTRA, MISSING, PAIRED, UNSOLICITED
+from ...decode.pairing import ANSWERED, EXTRA, MISSING, PAIRED, UNSOLICITED
 from ...protocol.events import OFFSET, RAW, T_END, T_START
 from ...protocol.wire import ACK, BROADCAST_ID, FRAME_OVERHEAD, NACK, encode_read, encode_return, encode_short
 from ..batch import UNKNOWN
@@ -100,14 +100,19 @@ def missing_return(lint, rec, ev):
         if lint.timed and by.is_request and by.event[T_START] is not None and ev[T_END] is not None \
                 and by.event[T_START] - ev[T_END] <= reply_due(lint, rec):
             return  # the host did not wait: B001
-    lint.emit("B002", rec, f"ID {ev.id} did not answer; the request asked for {_asked(rec)}")
+    # Ended by time (a later record past the reply timeout, or the end of a capture that ran on past it):
+    # whatever comes later, even from this ID, came too late to be its reply (B003 says so).
+    late = " within the reply timeout" if by is None or not by.is_request else ""
+    lint.emit("B002", rec, f"ID {ev.id} did not answer{late}; the request asked for {_asked(rec)}")
 
 
 @rule("B003", "unsolicited-return", "warning", "A reply no request asked for.", f"""
 ## What it does
-Flags a return, ACK or NACK that follows no request asking for one (or comes after the reply timeout).
-Not the first reply of a capture (or of a time segment) that comes within the reply timeout of its start:
-that one answers a request sent before the capture began.
+Flags a return, ACK or NACK that no request asked for: the latest request asked for none, or its reply
+timeout had passed, or it had its reply already and this one is no second reply to it (a return from an
+ID that was neither asked nor answered; B009 is for a second one). The message says how the reply
+stands to the latest request. Not the first reply of a capture (or of a time segment, F010) that comes
+within the reply timeout of its start: that one answers a request sent before the capture began.
 
 ## Why it matters
 Either a second host is on the bus, a servo answers to the wrong packets, or a reply came so late that
@@ -120,17 +125,33 @@ def unsolicited_return(lint, rec, ev):
     if rec.status != UNSOLICITED:
         return
     who = f" from ID {ev.id}" if ev.kind == "return" else ""
-    late = ""
-    p = lint.missing
-    if p is not None and ev[T_START] is not None and p.event[T_END] is not None \
-            and (ev.kind != "return" or p.id == ev.id) and ev[T_START] > p.event[T_END]:
-        late = f"; {(ev[T_START] - p.event[T_END]) * 1e3:.3f} ms after request @{p.offset}, past the reply timeout"
-    lint.emit("B003", rec, f"{ev.kind.upper() if ev.kind != 'return' else 'return'}{who} that no request asked for{late}")
+    what = ev.kind.upper() if ev.kind != "return" else "return"
+    lint.emit("B003", rec, f"{what}{who} that no request asked for{_since_request(lint.last_request, ev)}")
+
+
+def _since_request(req, ev) -> str:
+    """How an unsolicited reply stands to the latest request before it (None: none in this capture, or
+    since the seam): what the pairing saw, in facts the bytes show."""
+    if req is None:
+        return ""
+    r = req.event
+    gap = None if ev[T_START] is None or r[T_END] is None else ev[T_START] - r[T_END]
+    when = f"{gap * 1e3:.3f} ms after" if gap is not None and gap > 0 else "after"  # never a held clock's 0
+    to = f"request @{req.offset} to ID {r.id}" if r.kind == "short" else f"long packet @{req.offset}"
+    if req.status == ANSWERED:
+        return f"; {when} {to}, which had its reply"
+    if req.status == MISSING:  # ended by time: a later request would be the latest one
+        return f"; {when} {to}, past its reply timeout"
+    if req.expects is None:
+        return f"; {when} {to}, which asked for no reply"
+    return f"; {when} {to}"
 
 
 @rule("B004", "return-id-mismatch", "error", "A return from another ID than the one asked.", f"""
 ## What it does
-Flags a return whose ID differs from the ID of the request it answers.
+Flags a return whose ID differs from the ID of the request it answers: the first reply within that
+request's reply timeout. A return from another ID after the request had its reply, or after the timeout,
+answers nothing: B003.
 
 ## Why it matters
 Two servos share a bus position in the host's map, a servo's ID was changed without the host knowing,
@@ -188,8 +209,8 @@ def _return_latency_columns(view) -> bool:
     replies, lat = view.blk.reply_latencies()
     if not replies.size:
         return True
-    # The requests' servos' return delay (0 while unknown), as return_latency reads it.
-    rd = view.shadows("return_delay")[view.ids[replies - 1]]
+    # The answering servos' return delay (0 while unknown), as return_latency reads it.
+    rd = view.shadows("return_delay")[view.ids[replies]]
     return not latency_off(view.lint, lat, expected_latency(np.where(rd == UNKNOWN, 0, rd))).any()
 
 
@@ -197,8 +218,8 @@ def _return_latency_columns(view) -> bool:
 ## What it does
 Flags a reply whose latency (from the end of the request to the start of the reply) differs from the
 servo's return delay, 100 us + 50 us x return_delay (table 4.6, No. 7), by more than `latency-margin`
-(default 2 ms). The return_delay the linter last saw written or read for that servo is used, or the
-default 0. Needs timestamps.
+(default 2 ms). The return_delay the linter last saw written or read for the servo that answered (the
+ID its return names; for an ACK/NACK, the ID asked) is used, or the default 0. Needs timestamps.
 
 ## Why it matters
 A host loop budgets its cycle on the reply delay; a servo that answers late (a larger return_delay
@@ -213,7 +234,8 @@ def return_latency(lint, rec, ev):
     if lat is None or rec.status != PAIRED:
         return
     req = rec.request
-    sid = req.event.id if req is not None else None
+    # The servo that answered sets the delay (a return names it; an ACK/NACK is the asked servo's).
+    sid = ev.id if ev.kind == "return" else req.event.id if req is not None else None
     sh = lint.servos.get(sid)
     rd = sh.return_delay if sh is not None and sh.return_delay is not None else None
     expected = expected_latency(rd or 0)
@@ -264,8 +286,10 @@ def nack(lint, rec, ev):
 
 @rule("B009", "multiple-returns", "error", "Two replies to one request: two servos share an ID.", f"""
 ## What it does
-Flags a second (or later) reply to a request that had its reply already (a request to ID 255 is P010's
-business instead).
+Flags a second (or later) reply to a request that had its reply already, within the request's reply
+timeout, from the ID asked or the ID whose return came first (an ACK or NACK carries no ID: a second one
+to a request that asked for one). A return from another ID, or one after the timeout, is no second answer
+to that request but a reply nobody asked for (B003). A request to ID 255 is P010's business instead.
 
 ## Why it matters
 Only one servo should answer. Two answers mean two servos with the same ID: every write moves both
@@ -276,8 +300,14 @@ and every read is a collision waiting to happen.
 """, kinds=("reply",), when="unpaired", column="silent")
 def multiple_returns(lint, rec, ev):
     req = rec.request
-    if rec.status == EXTRA and req is not None and req.event.id != BROADCAST_ID:
-        lint.emit("B009", rec, f"another reply to request @{req.offset} to ID {req.event.id}", sid=req.event.id)
+    if rec.status != EXTRA or req is None or req.event.id == BROADCAST_ID:
+        return
+    sid = ev.id if ev.kind == "return" else req.event.id  # an ACK/NACK names no ID: the one asked
+    what = f"return from ID {sid}" if ev.kind == "return" else ev.kind.upper()
+    lat = rec.latency
+    when = f", {lat * 1e3:.3f} ms after it" if lat is not None else ""
+    lint.emit("B009", rec, f"{what} is a second reply to request @{req.offset} to ID {req.event.id}{when}: "
+                           f"two servos answer to ID {sid}", sid=sid)
 
 
 _ = ACK  # (ACK is the byte the ACK events carry; kept for readers of the examples)
