@@ -203,7 +203,12 @@ CASES: dict[str, tuple[str, list]] = {
         (w(1, 0x1E, POS, 0x01), "", ""), (b"\x08", "B008", ""), (w(1, 0x1E, POS, 0x01), "", ""), (b"\x07", "", "ACK: fine"),
     ]),
     "B009": ("two servos answer to one ID", [
-        (READ1, "", ""), (RET1, "", ""), (ret(1, 0x2A, b"\x80\x03"), "B009", ""),
+        (0.000, READ1, "", ""), (0.0008, RET1, "", ""), (0.0019, ret(1, 0x2A, b"\x80\x03"), "B009", "ID 1 again, in the window"),
+        (0.010, READ1, "", ""), (0.0108, RET1, "", ""),
+        (0.0908, ret(3, 0x2A, POS), "B003", "ID 3, 80 ms later: past the window, and not the ID asked"),
+        (0.100, READ1, "", ""), (0.1008, RET1, "", ""),
+        (0.1808, RET1, "B003", "ID 1 again, 80 ms later: past the window, no second reply"),
+        (0.200, READ1, "", ""), (0.2008, RET1, "", ""), (0.2019, ret(3, 0x2A, POS), "B003", "ID 3 in the window: not the ID asked"),
     ]),
     "S001": ("the temperature limit trips", [
         (POLL, "", ""), (ret(1, 42, STATUS), "", ""), (POLL, "", ""), (ret(1, 42, STATUS, 0x80), "S001", ""),
@@ -221,10 +226,13 @@ CASES: dict[str, tuple[str, list]] = {
         (w(1, 0x06, b"\x04"), "", "ID 1 to 38400 ..."), (encode_command(1, 0x40), "", ""), (encode_command(1, 0x20), "", "... applied"),
         (w(2, 0x06, b"\x04"), "Q001", "ID 2: flashed, never rebooted"), (encode_command(2, 0x40), "", ""),
         (w(3, 0x06, b"\x09"), "Q001", "ID 3: never flashed"),
+        (w(4, 0x06, b"\x04"), "", "ID 4 ..."), (encode_command(4, 0x20), "Q001", "... rebooted before any flash write: lost"),
     ]),
     "Q002": ("ID changes", [
         (w(1, 0x04, b"\x05"), "", "1 -> 5 ..."), (encode_command(5, 0x40), "", "... flashed as 5: fine"),
         (w(2, 0x04, b"\x06"), "Q002", "2 -> 6 ..."), (encode_command(2, 0x40), "", "... flash sent to the old ID"),
+        (encode_command(3, 0x40), "", "flashed first ..."), (w(3, 0x04, b"\x07"), "", "... then 3 -> 7 ..."),
+        (encode_command(7, 0x20), "Q002", "... and rebooted: lost"), (encode_command(7, 0x40), "", "too late"),
     ]),
     "Q003": ("reboots right after a flash write", [
         (0.000, encode_command(1, 0x40), "", ""), (0.002, encode_command(1, 0x20), "Q003", "2 ms later"),

@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from rs30x_sniff.decode import blocks as blocks_module
 from rs30x_sniff.lint import batch
 from rs30x_sniff.lint.registry import RULES, Registry, Rule, frame, rule
-from rs30x_sniff.protocol.wire import RETURN_HEADER, byte_time, encode_long, encode_read, encode_return, encode_short
+from rs30x_sniff.protocol.wire import (
+    FLAG_REBOOT, RETURN_HEADER, byte_time, encode_command, encode_long, encode_read, encode_return, encode_short)
 from tests.decode.test_columnar import columnar_path, record_key, record_path
 
 BT = byte_time(115200)
@@ -45,6 +46,14 @@ ANOMALIES = {
     "Q007": [encode_long(30, [(v, _goal(-1400, 1)) for v in SERVOS])],
     "B006": "late reply",
     "F004": "gap inside a frame",
+    # Issue 32: a second return from the ID asked, within the window; a return from another ID 80 ms after an
+    # answered poll (B003, which names the poll: the linter's latest request after a Block); reboots before any
+    # flash write of a baud_rate or servo_id change (said at the reboot).
+    "B009": [encode_short(2, 0x09, 0, b"", length=0, count=1), encode_return(2, 42, bytes(18)),
+             encode_return(2, 42, bytes(18))],
+    "B003": "late return from another ID",
+    "Q001": [encode_short(2, 0x00, 6, b"\x04"), encode_command(2, FLAG_REBOOT)],
+    "Q002": [encode_short(2, 0x00, 4, b"\x07"), encode_command(7, FLAG_REBOOT)],
 }
 
 
@@ -66,6 +75,11 @@ def capture(anomaly: str, at: int, cycles: int = 300, timed: bool = True, more: 
                 t += 0.01
             chunks.append((frame, t if timed else None))
             t += len(frame) * BT + 0.0001
+            if extra == "late return from another ID" and k == 2:
+                t += 0.08
+                late = encode_return(3, 42, bytes(18))
+                chunks.append((late, t if timed else None))
+                t += len(late) * BT + 0.0001
         t = max(t, 1.0 + (cycle + 1) * 0.003)
     return chunks
 

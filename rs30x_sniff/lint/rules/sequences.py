@@ -35,9 +35,10 @@ def _carry(memory, lint, rec, moves) -> None:
 @rule("Q001", "baud-change-not-applied", "warning", "baud_rate written without a following flash write and reboot.", f"""
 ## What it does
 Flags a write of baud_rate (table 4.6, No. 6) to a servo that is not followed, before the end of the
-capture, by a flash write and then a reboot of that servo (or of ID 255). Said at the end of input (or
-of a time segment, F010), unless a timed capture ended less than a second after the write: the steps
-may have come after it stopped.
+capture, by a flash write and then a reboot of that servo (or of ID 255). A reboot before any flash write
+settles it: the servo restarts with the rate in its flash, so the change is lost whatever follows, and
+that is said at the reboot. Otherwise it is said at the end of input (or of a time segment, F010), unless
+a timed capture ended less than a second after the write: the steps may have come after it stopped.
 The servo is followed across a change of its ID (the flash and reboot may go to the new ID), and a
 write of the rate it already has (written or read back before) needs neither.
 
@@ -47,6 +48,7 @@ rebooted. A host that switches its own port to the new rate right after the writ
 
 ## Example
 {example(encode_short(1, 0, 0x06, bytes((4,))), encode_command(1, _FLASH), note="the baud rate is flashed but the servo never rebooted:")}
+{example(encode_short(1, 0, 0x06, bytes((4,))), encode_command(1, _REBOOT), note="a reboot before the flash write:")}
 """, kinds=("target", "command", "moved", "seam", "close"), fields=("baud_rate",), state=dict, column="silent")
 def baud_change_not_applied(pending, lint, rec, plan, targets):
     # pending: servo (by its current ID) -> [the baud_rate write, the step it waits for ("flash" | "reboot"),
@@ -61,6 +63,10 @@ def baud_change_not_applied(pending, lint, rec, plan, targets):
 baud_change_not_applied.on("moved")(_carry)
 
 
+def _rebooted(sid: int) -> str:
+    return "a reboot of every servo (ID 255)" if sid == BROADCAST_ID else f"a reboot of ID {sid}"
+
+
 @baud_change_not_applied.on("command")
 def _baud_change_flashed_or_rebooted(pending, lint, rec, ev):
     sid = ev.id
@@ -72,6 +78,16 @@ def _baud_change_flashed_or_rebooted(pending, lint, rec, ev):
             entry[1] = "reboot"
         if ev.flag & _REBOOT and entry[1] == "reboot":
             del pending[key]
+        elif ev.flag & _REBOOT and (key == sid or sid == BROADCAST_ID):
+            # Rebooted before any flash write: the servo restarts with the rate in its flash, for certain.
+            # (A reboot of one servo says nothing of the others a write to ID 255 reached.)
+            w, _, code, to = pending.pop(key)
+            lint.emit("Q001", rec, f"{_rebooted(sid)} before any flash write of the baud_rate code {code} written "
+                                   f"to {_who(to, key)} @{w.offset}: the change is lost, it keeps its old rate", sid=to)
+
+
+def _who(to: int, now: int) -> str:
+    return f"ID {to}" if to == now else f"ID {to} (now ID {now})"
 
 
 def _left_pending(lint, rec, end_t) -> bool:
@@ -88,7 +104,7 @@ def _baud_change_left_pending(pending, lint, seam=None):
         if not _left_pending(lint, rec, end_t):
             continue
         rate = f"code {code}"
-        who = f"ID {to}" if to == sid else f"ID {to} (now ID {sid})"
+        who = _who(to, sid)
         why = "no flash write followed" if stage == "flash" else "it was flashed but the servo was never rebooted"
         lint.emit("Q001", rec, f"baud_rate {rate} written to {who} but {why}: it keeps its old rate", sid=to)
     if seam is not None:
@@ -101,9 +117,11 @@ baud_change_not_applied.on("seam")(_baud_change_left_pending)  # a seam ends the
 @rule("Q002", "id-change-not-persisted", "warning", "servo_id changed but never written to flash.", f"""
 ## What it does
 Flags a write of servo_id that changes a servo's ID when no flash write to the new ID (or to ID 255)
-follows before the end of the capture. Said at the end of input (or of a time segment, F010), unless a
-timed capture ended less than a second after the write. A servo renumbered twice (1 to 2,
-then 2 to 3) needs one flash write, to its last ID.
+follows before the end of the capture. A reboot of the new ID (or of ID 255) before any such flash write
+settles it: the servo restarts with the ID in its flash, so the change is lost whatever follows, and that
+is said at the reboot. Otherwise it is said at the end of input (or of a time segment, F010), unless a
+timed capture ended less than a second after the write. A servo renumbered twice (1 to 2, then 2 to 3)
+needs one flash write, to its last ID.
 
 ## Why it matters
 The servo answers to its new ID at once, so everything looks fine, but the ID reverts at the next
@@ -111,6 +129,8 @@ power-up (table 4.6, No. 4). A flash write sent to the old ID after the change r
 
 ## Example
 {example(encode_short(1, 0, 0x04, bytes((5,))), encode_command(1, _FLASH), note="ID 1 becomes 5, then the flash write goes to the old ID 1:")}
+{example(encode_command(1, _FLASH), encode_short(1, 0, 0x04, bytes((2,))), encode_command(2, _REBOOT),
+         note="flashed first, then ID 1 becomes 2 and is rebooted:")}
 """, kinds=("target", "command", "seam", "close"), fields=("servo_id",), state=dict, column="silent")
 def id_change_not_persisted(pending, lint, rec, plan, targets):
     # pending: new servo ID -> (the write that set it, the ID the servo had when last flashed, as far as known)
@@ -132,6 +152,13 @@ def _id_change_flashed(pending, lint, rec, ev):
             pending.clear()
         else:
             pending.pop(ev.id, None)
+    if ev.flag & _REBOOT:
+        # Rebooted with no flash write since the change: the servo restarts with the ID in its flash, for certain.
+        for new in (list(pending) if ev.id == BROADCAST_ID else [ev.id] if ev.id in pending else []):
+            w, old = pending.pop(new)
+            lint.emit("Q002", rec, f"{_rebooted(ev.id)} before any flash write undoes the change of ID {old} "
+                                   f"to {new} @{w.offset}: the servo comes back on the ID in its flash, not {new}",
+                      sid=old)
 
 
 @id_change_not_persisted.on("close")
