@@ -34,6 +34,10 @@ STALL_SPAN = 0.5
 DRAIN_PAUSE = 0.002
 # The most a read drains into one chunk: an OS buffers about 64 KiB for a port, so a backlog fits.
 DRAIN_MAX = 1 << 20
+# The longest a backlog is drained into one chunk: a line that always has a byte waiting (a busy bus, a reader
+# slower than a byte time per pass, a URL handler modelling a wire) would otherwise never yield one. A pty's
+# 64 KiB backlog drains in a few milliseconds.
+DRAIN_SECONDS = 0.02
 # A busy bus hands the drive loop its chunks in batches at most this often, each chunk keeping its own
 # arrival stamp: a pass of the loop per batch instead of per chunk (a packet each on a pty) takes a
 # saturated 230400-baud bus from about 35 % of a core to about 25 % (bench/live.py), for lines printed
@@ -62,7 +66,9 @@ def is_port(path: str) -> bool:
 
 
 @dataclass(frozen=True, slots=True)
-class _End:
+class TapEnd:
+    """The last item of a tap's queue: why its reader ended."""
+
     reason: str
     message: str
 
@@ -134,7 +140,7 @@ class SerialTap:
     """
 
     def __init__(self, port: str, baud: int, *, read_timeout: float = READ_TIMEOUT,
-                 clock: Callable[[], int] = time.monotonic_ns) -> None:
+                 clock: Callable[[], int] = time.monotonic_ns, process: bool = True) -> None:
         if baud not in TAP_BAUD_RATES:
             raise CaptureError(f"--baud {baud}: not a bus rate (table 4.7: "
                                f"{', '.join(map(str, TAP_BAUD_RATES))})")
@@ -151,6 +157,9 @@ class SerialTap:
         self.wall_start_ns = 0
         self._serial = None
         self._thread: threading.Thread | None = None
+        # Read and stamped by a child process (port_process.py): the decoding in this one never delays a stamp.
+        self.process = process
+        self._child = None
         self._stop = threading.Event()
         self._next_t = 0.0  # earliest start time of the next chunk (end of the previous one)
         self._last_t = 0.0  # the previous chunk's time: a stalled chunk's bound
@@ -161,7 +170,20 @@ class SerialTap:
 
     # ---- lifecycle ---------------------------------------------------------------------------
     def open(self) -> SerialTap:
-        """Open the port and start the reader thread; a one-line CaptureError if the port cannot be opened."""
+        """Open the port and start reading it (in a child process, or on a thread without ``process``); a
+        one-line CaptureError if the port cannot be opened."""
+        if self.process:
+            from .port_process import PortProcess
+
+            self._child = PortProcess(self)  # raises the child's CaptureError when the port cannot be opened
+            return self
+        self.open_port()
+        self._thread = threading.Thread(target=self.run, name=f"tap {self.port}", daemon=True)
+        self._thread.start()
+        return self
+
+    def open_port(self) -> None:
+        """Open the port itself, here (pyserial's ``serial_for_url``), and note when on both clocks."""
         import serial  # pyserial is needed only for live capture
 
         try:
@@ -175,13 +197,17 @@ class SerialTap:
         self._serial = ser
         self.wall_start_ns = time.time_ns()
         self.start_ns = self.clock()
-        self._thread = threading.Thread(target=self._run, name=f"tap {self.port}", daemon=True)
-        self._thread.start()
-        return self
+
+    def request_stop(self) -> None:
+        """Have :meth:`run` read what the OS still holds and end."""
+        self._stop.set()
 
     def stop(self, timeout: float = 2.0) -> None:
         """Ask the reader to finish (it first reads what the OS still holds), wait for it, close the port."""
         self._stop.set()
+        if self._child is not None:
+            self._child.stop(timeout)
+            return
         if self._thread is not None:
             self._thread.join(timeout)
         if self._serial is not None:
@@ -192,10 +218,13 @@ class SerialTap:
 
     @property
     def running(self) -> bool:
+        if self._child is not None:
+            return self._child.running
         return self._thread is not None and self._thread.is_alive()
 
-    # ---- the reader thread ---------------------------------------------------------------------
-    def _run(self) -> None:
+    # ---- the reader ------------------------------------------------------------------------------
+    def run(self) -> None:
+        """Read the open port until a stop or a failure, stamping each chunk into :attr:`queue`, then put a TapEnd."""
         ser = self._serial
         put = self.queue.put
         if hasattr(signal, "pthread_sigmask") and threading.current_thread() is not threading.main_thread():
@@ -205,36 +234,56 @@ class SerialTap:
             signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             while not self._stop.is_set():
-                # What has arrived, or (nothing yet) the next byte, waiting for it up to the read timeout: one
-                # read call for a chunk already in the OS's buffer, as a plain reading loop would make.
-                first = ser.read(min(ser.in_waiting, DRAIN_MAX) or 1)
-                if not first:
-                    continue
-                data = bytearray(first)
-                try:
-                    # A held-up reader finds a backlog that the OS hands over a buffer at a time: read
-                    # it all into one chunk, so that laying it back from its arrival at the line rate
-                    # spreads it over the time it took to come in, not over one buffer's worth.
-                    while len(data) < DRAIN_MAX:
-                        more = ser.in_waiting
-                        if not more and len(data) * self.byte_time > STALL_SLACK:
-                            time.sleep(DRAIN_PAUSE)
-                            more = ser.in_waiting
-                            if more * self.byte_time <= 2 * DRAIN_PAUSE:
-                                more = 0  # live traffic, not more backlog: it goes in the next chunk
-                        if not more:
-                            break
-                        data += ser.read(min(more, DRAIN_MAX - len(data)))
-                except Exception:
-                    self._stamp(bytes(data), self.clock())  # the port failed: keep the bytes already read
-                    raise
-                self._stamp(bytes(data), self.clock())
+                data = self._read_chunk(ser)
+                if data:
+                    self._stamp(data, self.clock())
             more = ser.in_waiting  # a requested stop: keep what has already arrived
             if more:
                 self._stamp(ser.read(more), self.clock())
-            put(_End(STOPPED, "stopped"))
+            put(TapEnd(STOPPED, "stopped"))
         except Exception as e:  # noqa: BLE001 - SerialException, OSError, a vanished device: all end the capture
-            put(_End(LOST, _one_line(e)))
+            put(TapEnd(LOST, _one_line(e)))
+
+    _run = run
+
+    def _read_chunk(self, ser) -> bytes:
+        """What has arrived, or (nothing yet) the next byte and what came in with it; a backlog drained, boundedly."""
+        waiting = ser.in_waiting
+        # One read call for a chunk already in the OS's buffer, as a plain reading loop would make; with nothing
+        # there, wait for the next byte up to the read timeout.
+        data = ser.read(min(waiting, DRAIN_MAX) or 1)
+        if not data:
+            return data
+        bt = self.byte_time
+        buf = bytearray(data)  # what was read so far: kept (stamped) if the port fails mid-drain
+        try:
+            if not waiting:
+                # It waited for a first byte: the rest of that arrival (a pty's write, a USB packet) is waiting now.
+                more = ser.in_waiting
+                if more:
+                    buf += ser.read(min(more, DRAIN_MAX - 1))
+            if len(buf) * bt <= STALL_SLACK:
+                return bytes(buf)  # live traffic: no backlog to drain
+            # A held-up reader finds a backlog that the OS hands over a buffer at a time: read it all into one
+            # chunk, so that laying it back from its arrival at the line rate spreads it over the time it took
+            # to come in, not over one buffer's worth. Only the backlog, though: what the line could have
+            # carried since the drain began is live traffic for the next chunk, and the drain ends after
+            # DRAIN_SECONDS whatever comes, so that a line that always has a byte waiting still yields chunks.
+            began = self.clock()
+            while len(buf) < DRAIN_MAX:
+                more = ser.in_waiting
+                if not more:
+                    time.sleep(DRAIN_PAUSE)
+                    more = ser.in_waiting
+                elapsed = (self.clock() - began) / 1e9
+                if more * bt <= elapsed + 2 * DRAIN_PAUSE or elapsed >= DRAIN_SECONDS:
+                    break
+                buf += ser.read(min(more, DRAIN_MAX - len(buf)))
+            return bytes(buf)
+        except Exception:
+            if buf:
+                self._stamp(bytes(buf), self.clock())  # the port failed: keep the bytes already read
+            raise
 
     def _stamp(self, data: bytes, arrival_ns: int) -> None:
         n = len(data)
@@ -372,7 +421,7 @@ class LiveSource:
                 continue
             # Everything already queued, without waiting again.
             for item in (item, *q.take_all()):
-                if type(item) is _End:
+                if type(item) is TapEnd:
                     self._close(item)
                     return out
                 out.append(item)
@@ -383,13 +432,13 @@ class LiveSource:
         why = self._stop_signal
         self.tap.stop()
         out: list[Chunk] = []
-        end = _End(STOPPED, why) if why is not None else _End(DURATION, f"{self.duration:g} s elapsed")
+        end = TapEnd(STOPPED, why) if why is not None else TapEnd(DURATION, f"{self.duration:g} s elapsed")
         while True:
             try:
                 item = self.tap.queue.get_nowait()
             except queue.Empty:
                 break
-            if type(item) is _End:
+            if type(item) is TapEnd:
                 if item.reason == LOST:
                     end = item
                 continue
@@ -397,7 +446,7 @@ class LiveSource:
         self._close(end)
         return out
 
-    def _close(self, end: _End) -> None:
+    def _close(self, end: TapEnd) -> None:
         self.reason, self.message = end.reason, end.message
         self.tap.stop()
         for sig, handler in self._saved.items():
