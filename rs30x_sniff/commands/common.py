@@ -11,7 +11,9 @@ from typing import Any, Iterator
 
 from ..sources import foreign
 from ..sources.captures import (
-    BINARY, HEX, MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture)
+    BINARY, HEX, MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture,
+    regular_file)
+from ..sources.base import open_capture
 from ..sources.inputs import read_input
 from ..sources.timebase import TIME_REFS
 from ..sources.timeunit import UNITS as TIME_UNITS
@@ -183,13 +185,13 @@ def capture_layer(path: str | None, fmt: str | None = None, options: dict[str, A
     what its ``probe`` finds (a logic capture the rate its samples show; ``options`` are the reader's,
     e.g. the channel, or a timestamped capture's ``time_unit``); {} otherwise (``origin`` says where
     each came from)."""
-    if not path or path == "-" or not os.path.isfile(path):
+    if not path or not regular_file(path):  # "-" too, when stdin is a file (decode - < x.mcap)
         return {}
     if fmt is None:
         try:
-            with open(path, "rb") as f:
+            with open_capture(path) as f:
                 magic = f.read(len(MCAP_MAGIC))
-        except OSError:
+        except (OSError, CaptureError):
             return {}
         if magic == MCAP_MAGIC:
             return _mcap_layer(path)
@@ -265,11 +267,14 @@ def _timestamps_layer(path: str, time_unit: str | None = None) -> dict[str, Any]
     fit = rate_fit(chunks)
     out: dict[str, Any] = {"estimate": est, "fit": fit, "origin": {}}
     unit = sample.time_unit
-    if unit is not None and unit.told and unit.exponent:
-        # Read in this unit by every reader of the file from here on (and said once, by settings_for).
+    if unit is not None and unit.how != "given":
+        # Read in this unit by every reader of the file from here on, always shown by info's settings, and
+        # said once by settings_for unless plain seconds since the capture began (timeunit.TimeUnit.said).
         out["time_unit"] = unit.unit
-        out["origin"]["time_unit"] = f"capture ({unit.describe()}, told by the content: {unit.evidence})"
-        out["unit_note"] = unit.describe()
+        how = unit.how_known()
+        out["origin"]["time_unit"] = f"capture ({unit.describe()}, {how}" + (f": {unit.evidence})" if unit.told else ")")
+        if unit.said:
+            out["unit_note"] = f"{unit.describe()}, {how}"
     if est.baud is not None:
         out["baud"] = est.baud
         out["origin"]["baud"] = f"capture (its timestamps: {est.evidence})"
@@ -314,7 +319,7 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
         raise CliError(str(e)) from None
     told = capture.get("origin", {})
     if unit_note is not None and settings.origin.get("time_unit") == told.get("time_unit"):
-        print(f"rs30x-sniff: {path}: {unit_note}, told by the content (--time-unit to say otherwise)", file=sys.stderr)
+        print(f"rs30x-sniff: {path}: {unit_note} (--time-unit to say otherwise)", file=sys.stderr)
     from_capture = "baud" in capture and settings.origin["baud"] == told.get("baud")
     if settings.baud_auto and path and is_port_path(path):
         settings = _scan(path, settings)

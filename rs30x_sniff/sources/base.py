@@ -3,6 +3,8 @@ how a capture file is opened (rs30x_sniff.sources.captures and the MCAP reader b
 
 from __future__ import annotations
 
+import os
+import stat
 import sys
 from dataclasses import dataclass
 from typing import BinaryIO
@@ -42,8 +44,18 @@ def stderr_warning(text: str) -> None:
     print(f"rs30x-sniff: warning: {text}", file=sys.stderr)
 
 
+# Where stdin stood when first opened as a file: every later open reads it from there again.
+_STDIN_START: list[int] = []
+
+
 def open_capture(path: str) -> BinaryIO:
-    """Open a capture for binary reading; failure is a one-line CaptureError naming the file."""
+    """Open a capture for binary reading; failure is a one-line CaptureError naming the file.
+
+    ``-`` is a copy of standard input's descriptor, at the offset stdin had when first opened here (so
+    ``decode - < x.mcap`` can read and seek it as often as a file; a pipe is read once by its caller).
+    """
+    if path == "-":
+        return _open_stdin()
     try:
         return open(path, "rb")
     except FileNotFoundError:
@@ -54,3 +66,20 @@ def open_capture(path: str) -> BinaryIO:
         raise CaptureError(f"{path}: is a directory, not a capture") from None
     except OSError as e:
         raise CaptureError(f"{path}: cannot read: {e.strerror}") from None
+
+
+def _open_stdin() -> BinaryIO:
+    try:
+        fd = sys.stdin.fileno()
+        f = os.fdopen(os.dup(fd), "rb")
+    except (OSError, ValueError, AttributeError) as e:
+        raise CaptureError(f"-: there is no standard input to read ({getattr(e, 'strerror', None) or e})") from None
+    try:
+        if stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+            if not _STDIN_START:
+                _STDIN_START.append(f.tell())
+            f.seek(_STDIN_START[0])
+    except OSError as e:
+        f.close()
+        raise CaptureError(f"-: cannot read: {e.strerror}") from None
+    return f

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 
+import codecs
 import io
 import math
 import os
 import re
+import select
 import stat
 import sys
+import time
 from array import array
 from bisect import bisect_right
 from collections import Counter
@@ -34,6 +37,18 @@ _READ_SIZE = 1 << 16
 _HEAD_SIZE = 4096           # bytes the format is sniffed from
 _MAX_LINE = 64 << 20        # a longer "line" is not a text capture (and would have to sit in memory whole)
 _BOM = b"\xef\xbb\xbf"
+# Byte-order marks a text capture may start with, the longest first (UTF-32 LE's begins with UTF-16 LE's).
+# UTF-16 is read (PowerShell's `>` writes UTF-16 LE with CRLF); UTF-32 is named and refused.
+_BOMS = ((b"\xff\xfe\x00\x00", "utf-32-le"), (b"\x00\x00\xfe\xff", "utf-32-be"),
+         (b"\xff\xfe", "utf-16-le"), (b"\xfe\xff", "utf-16-be"), (_BOM, "utf-8"))
+_READ_ENCODINGS = ("utf-16-le", "utf-16-be")
+_ENCODING_NAMES = {"utf-32-le": "UTF-32 LE", "utf-32-be": "UTF-32 BE", "utf-16-le": "UTF-16 LE",
+                   "utf-16-be": "UTF-16 BE"}
+_LONE_CR = re.compile(rb"\r(?!\n)")
+# A live pipe that sends nothing for this long has its pending lines handed on (a hex line, the lines
+# held to tell the unit of their times); SAMPLE_PATIENCE bounds how long the unit waits for more lines.
+IDLE_WAIT = 0.1
+SAMPLE_PATIENCE = 1.0
 _HEX_TOKEN = re.compile(rb"^(?:[0-9a-fA-F]{2})+$")
 _HEX_PAIR = re.compile(rb"[0-9a-fA-F]{2}")
 _TOKEN = re.compile(rb"\S+")
@@ -85,6 +100,27 @@ class _Opened:
     seekable: bool
     fmt: str | None = None
     taken: bool = False
+    fd: int | None = None     # a stream's descriptor, read directly (after the head) by a text reader
+    note: str | None = None   # what was assumed of the format, said once by the reader
+
+    @property
+    def encoding(self) -> str | None:
+        """The encoding a byte-order mark names (None: no mark, read as ASCII/UTF-8)."""
+        return next((enc for bom, enc in _BOMS if self.head.startswith(bom)), None)
+
+    @property
+    def text(self) -> bytes:
+        """The head as UTF-8 with LF line ends, for sniffing a text capture (a cut last line stays cut)."""
+        return _as_utf8_lf(self.head, self.encoding, self.complete)
+
+
+def _as_utf8_lf(head: bytes, encoding: str | None, complete: bool) -> bytes:
+    if encoding in _READ_ENCODINGS or encoding in _ENCODING_NAMES:
+        head = codecs.getincrementaldecoder(encoding)("replace").decode(head, final=complete).encode("utf-8")
+        head = head.removeprefix(_BOM)  # the decoded mark
+    elif head.startswith(_BOM):
+        head = head[len(_BOM):]
+    return _LONE_CR.sub(b"\n", head.replace(b"\r\n", b"\n")) if b"\r" in head else head
 
 
 # A pipe, FIFO or stdin can be read only once, but callers may ask for its format and then read it
@@ -93,13 +129,16 @@ _PIPES: dict[str, _Opened] = {}
 
 
 def _open(path: str) -> _Opened:
-    """Open ``path`` (``-`` is stdin) and read its head: a file seeks back, a pipe (or stdin) is chained."""
-    if path == "-":
+    """Open ``path`` (``-`` is stdin) and read its head: a file seeks back, a pipe (or stdin) is chained.
+
+    Stdin redirected from a regular file (``decode - < x.mcap``) is that file: opened anew, it seeks.
+    """
+    if path == "-" and not stdin_is_file():
         f = getattr(sys.stdin, "buffer", None)
         if f is None:
             raise CaptureError("-: there is no standard input to read")
         owns = False
-        seekable = False  # stdin is read as a stream, whatever it is, and never closed
+        seekable = False  # a pipe or terminal on stdin is read as a stream, and never closed
     else:
         f = open_capture(path)
         owns = True
@@ -113,31 +152,71 @@ def _open(path: str) -> _Opened:
             head = f.read(_HEAD_SIZE)
             f.seek(start)
             return _Opened(f, head, len(head) < _HEAD_SIZE, True)
-        head, ended = _read_head(f)
+        fd = _fileno(f)
+        read = (lambda n: os.read(fd, n)) if fd is not None else (getattr(f, "read1", None) or f.read)
+        head, ended = _read_head(read, fd)
     except OSError as e:
         if owns:
             f.close()
         raise CaptureError(f"{path}: cannot read: {e.strerror or e}") from None
     stream = io.BufferedReader(_Chain(head, f, owns), buffer_size=_READ_SIZE)
-    return _Opened(stream, head, ended, False)  # type: ignore[arg-type]
+    return _Opened(stream, head, ended, False, fd=fd)  # type: ignore[arg-type]
 
 
-def _read_head(f: BinaryIO) -> tuple[bytes, bool]:
+def _fileno(f: BinaryIO) -> int | None:
+    try:
+        return f.fileno()
+    except (OSError, ValueError, AttributeError, io.UnsupportedOperation):
+        return None
+
+
+def stdin_is_file() -> bool:
+    """Whether standard input is a regular file (``< x.mcap``), which can be read like one."""
+    try:
+        return stat.S_ISREG(os.fstat(sys.stdin.fileno()).st_mode)
+    except (OSError, ValueError, AttributeError, io.UnsupportedOperation):
+        return False
+
+
+def regular_file(path: str) -> bool:
+    """Whether ``path`` (``-``: stdin) is a regular file: one that can be read ahead and read again."""
+    return stdin_is_file() if path == "-" else os.path.isfile(path)
+
+
+def _read_head(read: Callable[[int], bytes], fd: int | None) -> tuple[bytes, bool]:
     """The head of a pipe and whether the pipe ended within it.
 
-    Takes what arrives until the head is full, the pipe ends, or a byte says "binary": a live binary
-    stream of a few bytes a second must not wait for 4 KiB before it is decoded.
+    Takes what arrives until the head is full, the pipe ends, a byte says "binary", or a first data line
+    says which text it is: a live stream of a few bytes a second must not wait for 4 KiB before it is
+    decoded. A first line that leaves hex or times open waits for more, at most SAMPLE_PATIENCE of silence.
     """
-    read1 = getattr(f, "read1", None) or f.read
     head = bytearray()
     while len(head) < _HEAD_SIZE:
-        block = read1(_HEAD_SIZE - len(head))
+        if fd is not None and head and _first_line_kind(_as_utf8_lf(bytes(head), _bom_of(head), False),
+                                                         definite=True) is None and not _ready(fd, SAMPLE_PATIENCE):
+            if _data_lines(_as_utf8_lf(bytes(head), _bom_of(head), False), False):
+                break  # a whole data line, then silence: judge by what came
+        block = read(_HEAD_SIZE - len(head))
         if not block:
             return bytes(head), True
         head += block
-        if _NOT_TEXT.search(block):
+        if _NOT_TEXT.search(block) and _bom_of(head) is None:
+            break
+        if _first_line_kind(_as_utf8_lf(bytes(head), _bom_of(head), False), definite=True) is not None:
             break
     return bytes(head), False
+
+
+def _bom_of(head: bytes | bytearray) -> str | None:
+    return next((enc for bom, enc in _BOMS if head.startswith(bom)), None)
+
+
+def _ready(fd: int, timeout: float) -> bool:
+    """Whether ``fd`` has something to read (or its end) within ``timeout`` seconds; True if it cannot be asked."""
+    try:
+        return bool(select.select([fd], [], [], timeout)[0])
+    except (OSError, ValueError):
+        return True
 
 
 def _sniffed(path: str, fmt: str | None) -> _Opened:
@@ -184,20 +263,42 @@ def _detect(path: str, opened: _Opened) -> str:
         return other.name
     if not head and ext not in _TEXT_EXTENSIONS:
         return BINARY  # nothing to read either way
-    text_kind = _sniff_text(head, opened.complete)
+    text = opened.text
+    text_kind = _sniff_text(text, opened.complete)
+    named = _other_encoding(head)
+    if named is not None and (text_kind or ext in _TEXT_EXTENSIONS):
+        raise CaptureError(f"{path}: a text capture in {named}: read are ASCII, UTF-8 and UTF-16 with a "
+                           "byte-order mark (save it as UTF-8, e.g. with iconv -t UTF-8)")
     if text_kind:
+        if text_kind == TIMESTAMPED and ext != ".thex":  # a .thex says it holds times
+            opened.note = _times_assumed(text, opened.complete)
         return text_kind
-    if ext in _TEXT_EXTENSIONS or (not _NOT_TEXT.search(head) and _first_line_kind(head)):
+    if ext in _TEXT_EXTENSIONS or (not _NOT_TEXT.search(text) and _first_line_kind(text)):
         # A text capture with a bad token: read it as its first data line says, so the error names the line.
-        return _first_line_kind(head) or HEX
+        return _first_line_kind(text) or HEX
     if REQUEST_HEADER in head or RETURN_HEADER in head or not opened.seekable:
         # stdin was always raw bytes, and a pipe's head may be one short read: not text is binary.
         return BINARY
     raise CaptureError(f"{path}: unknown capture format (use --input-format {'|'.join(input_formats())})")
 
 
+def _other_encoding(head: bytes) -> str | None:
+    """The name of an encoding a text capture is not read in, when ``head`` shows one: a UTF-32 byte-order
+    mark, or UTF-16 without one (every other byte NUL, the rest ASCII)."""
+    enc = _bom_of(head)
+    if enc in _ENCODING_NAMES and enc not in _READ_ENCODINGS:
+        return _ENCODING_NAMES[enc]
+    if enc is None and len(head) >= 8:
+        sample = head[:len(head) & ~1][:512]
+        even, odd = sample[0::2], sample[1::2]
+        for zeros, chars, order in ((odd, even, "LE"), (even, odd, "BE")):
+            if not zeros.strip(b"\x00") and chars.isascii() and not _NOT_TEXT.search(chars):
+                return f"UTF-16 {order} without a byte-order mark"
+    return None
+
+
 def _data_lines(head: bytes, complete: bool) -> list[list[bytes]]:
-    """The tokens of each line of ``head`` that has any outside its comment."""
+    """The tokens of each line of ``head`` (UTF-8, LF: see _Opened.text) that has any outside its comment."""
     if head.startswith(_BOM):
         head = head[len(_BOM):]
     raw = head.splitlines()
@@ -206,17 +307,28 @@ def _data_lines(head: bytes, complete: bool) -> list[list[bytes]]:
     return [toks for toks in (ln.partition(b"#")[0].split() for ln in raw) if toks]
 
 
+def _time_not_bytes(line: list[bytes]) -> bool:
+    """Whether a line's first token is a whole number written unlike the hex bytes after it: several bytes'
+    worth of decimal digits run together (``1767225600``) before bytes written one by one (``FA AF``).
+    A dump writes a line's bytes alike, so that token is a time, not a packet's bytes."""
+    first = line[0]
+    return len(line) > 1 and first.isdigit() and len(first) >= 4 and all(len(t) == 2 for t in line[1:])
+
+
 def _sniff_text(head: bytes, complete: bool = True) -> str | None:
     """HEX or TIMESTAMPED when the data lines of ``head`` are all one or the other.
 
-    Comments (``#`` to the end of the line) may hold any text, UTF-8 or not; a UTF-8 BOM is skipped.
+    ``head`` is UTF-8 with LF line ends (_Opened.text). Comments (``#`` to the end of the line) may hold
+    any text, UTF-8 or not; a UTF-8 BOM is skipped.
     The rule for times: a file is timestamped when the first token of every data line is a decimal
     number (``0.5``, ``12``, ``1e-3``; ``nan``/``-1`` too, so the reader can say the time is bad)
     followed by hex bytes, and that first column cannot be hex data: some first token is not a whole
     number of hex bytes (it has a ``.``, a sign or an exponent, or an odd number of digits), or every
-    first token is an integer of three or more digits and they never decrease (clock ticks). A file
-    whose first tokens are all two-digit numbers (``10 FA AF``) is ambiguous and read as plain hex,
-    unless the caller asks for ``timestamped``.
+    first token is an integer of three or more digits and they never decrease (clock ticks), or every
+    line's first token is digits run together before bytes written apart (``1767225600 FA AF``, even on
+    one line: _time_not_bytes). A file whose first tokens are all two-digit numbers (``10 FA AF``) is
+    ambiguous and read as plain hex, unless the caller asks for ``timestamped``. Where the first column
+    could have been hex bytes, the reader says that it read times (_times_assumed).
     """
     if _NOT_TEXT.search(head):
         return None
@@ -230,19 +342,42 @@ def _sniff_text(head: bytes, complete: bool = True) -> str | None:
         if len(firsts) > 1 and all(f.isdigit() and len(f) > 2 for f in firsts) and \
                 all(int(a) <= int(b) for a, b in zip(firsts, firsts[1:])):
             return TIMESTAMPED
+        if all(_time_not_bytes(ln) for ln in lines):
+            return TIMESTAMPED
     if all(all(_HEX_TOKEN.match(t) for t in ln) for ln in lines):
         return HEX
     return None
 
 
-def _first_line_kind(head: bytes) -> str | None:
-    """The format the first data line of ``head`` reads as on its own (None if neither)."""
-    lines = _data_lines(head, True)[:1]
+def _times_assumed(head: bytes, complete: bool) -> str | None:
+    """What a timestamped capture's reader says when its first column could also have been hex bytes."""
+    lines = _data_lines(head, complete)
+    firsts = [ln[0] for ln in lines]
+    if not lines or not all(_HEX_TOKEN.match(f) for f in firsts):
+        return None
+    if len(firsts) > 1 and all(f.isdigit() and len(f) > 2 for f in firsts) and \
+            all(int(a) <= int(b) for a, b in zip(firsts, firsts[1:])):
+        return None  # clock ticks: a column of whole numbers that never decrease says it well enough
+    return (f"its first column ({firsts[0].decode('ascii')}{', ...' if len(firsts) > 1 else ''}) is read as "
+            "times, not hex bytes: digits run together before bytes written apart "
+            "(--input-format hex to read it as bytes)")
+
+
+def _first_line_kind(head: bytes, definite: bool = False) -> str | None:
+    """The format the first data line of ``head`` reads as on its own (None if neither). With ``definite``,
+    only a line no later line can make the other format: a time with a point, sign or exponent, digits
+    written unlike their bytes, or a first byte with a letter (None for ``10 FA AF``, or no whole line)."""
+    lines = _data_lines(head, not definite)[:1]
     if not lines:
         return None
     first = lines[0]
     if _NUMBER.match(first[0]) and not _HEX_TOKEN.match(first[0]):
         return TIMESTAMPED
+    if definite:
+        if _time_not_bytes(first) and all(_HEX_TOKEN.match(t) for t in first):
+            return TIMESTAMPED
+        if _NUMBER.match(first[0]):
+            return None
     return HEX if all(_HEX_TOKEN.match(t) for t in first) else None
 
 
@@ -303,6 +438,10 @@ class CaptureReader:
         # How a timestamped hex capture's times were read (None until its first times are in).
         self.time_unit: TimeUnit | None = None
         self._warn = warn
+        # The wall clock now, for "no epoch time is more than a day ahead" (timeunit.detect_unit): read here,
+        # at the edge, unless the caller gives it (option "now", seconds since the epoch).
+        now = self.context.options.get("now")
+        self._now: float = time.time() if now is None else now
         self._gen: Iterator[Chunk] | None = None
         self._lines: _LineIndex | None = None
 
@@ -331,15 +470,28 @@ class CaptureReader:
                 # "locate": False, as convert's) keeps none (locate() is None), and a long capture's
                 # memory stays flat.
                 self._lines = _LineIndex() if self.context.options.get("locate", True) else None
-                self._gen = _read_text(opened.stream, path, fmt == TIMESTAMPED, self._lines,
-                                       self.context.options.get("time_unit"), self._unit_decided)
+                named = _other_encoding(opened.head)
+                if named is not None:
+                    opened.stream.close()
+                    raise CaptureError(f"{path}: a text capture in {named}: read are ASCII, UTF-8 and UTF-16 "
+                                       "with a byte-order mark (save it as UTF-8, e.g. with iconv -t UTF-8)")
+                if opened.note and self._warn is not None:
+                    self._say(f"{path}: {opened.note}")
+                self._gen = _read_text(_text_lines(opened), path, fmt == TIMESTAMPED, self._lines,
+                                       self.context.options.get("time_unit"), self._unit_decided, self._now)
         return self._gen
+
+    def _say(self, text: str) -> None:
+        self.warnings.append(CaptureWarning(self.path, text))
+        if self._warn is not None:
+            self._warn(text)
 
     def _unit_decided(self, unit: TimeUnit) -> None:
         self.time_unit = self.context.found["time_unit"] = unit
-        if unit.told and unit.unit != timeunit.SECONDS and self.context.options.get("say_time_unit"):
-            # Seconds are what a timestamped capture holds unless it says otherwise: only other units are said.
-            print(f"rs30x-sniff: {self.path}: {unit.describe()}, told by the content (--time-unit to say otherwise)",
+        if unit.said and self.context.options.get("say_time_unit"):
+            # Seconds since the capture began are what our captures hold: every other reading is said,
+            # epoch seconds too (info says every unit, plain seconds included).
+            print(f"rs30x-sniff: {self.path}: {unit.describe()}, {unit.how_known()} (--time-unit to say otherwise)",
                   file=sys.stderr)
 
     def _mcap(self, seekable: bool) -> Iterator[Chunk]:
@@ -456,16 +608,98 @@ _SampledLine = tuple  # (data, time as written, its token, line number, its colu
 _EPOCH_MAX = timeunit.EPOCH_MAX
 
 
-def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | None,
-               time_unit: str | None = None, decided: Callable[[TimeUnit], None] | None = None) -> Iterator[Chunk]:
+class _Lines:
+    """A text capture's lines as UTF-8 bytes with LF line ends, whatever its encoding (a UTF-16 or UTF-8
+    byte-order mark) and line ends (LF, CRLF, CR alone: old Mac tools). ``readline()`` gives one line
+    (at most _MAX_LINE bytes), b"" at the end, and None when a stream has sent nothing for IDLE_WAIT
+    (so what is pending can be handed on: a pipe streams line by line)."""
+
+    def __init__(self, opened: _Opened) -> None:
+        self.opened = opened
+        enc = opened.encoding
+        f = opened.stream
+        if not opened.seekable and opened.fd is not None:
+            self._stream(opened, enc)
+        elif enc in _READ_ENCODINGS or _LONE_CR.search(opened.head[:-1] if not opened.complete else opened.head):
+            # Decoded with universal newlines; a comment's bytes that are not UTF-8 pass through as they were.
+            text = io.TextIOWrapper(f, encoding="utf-16" if enc in _READ_ENCODINGS else "utf-8-sig",  # type: ignore[arg-type]
+                                    errors="replace" if enc in _READ_ENCODINGS else "surrogateescape", newline=None)
+            self.readline = lambda: text.readline(_MAX_LINE).encode("utf-8", "surrogateescape")  # type: ignore[method-assign]
+            self._close = text.close
+        else:
+            self.readline = lambda: f.readline(_MAX_LINE)  # type: ignore[method-assign]
+            self._close = f.close
+
+    def _stream(self, opened: _Opened, enc: str | None) -> None:
+        fd = opened.fd
+        self._fd = fd
+        self._buf = bytearray()
+        self._raw = [opened.head]  # the head, then what os.read gives
+        self._dec = codecs.getincrementaldecoder(enc)("replace") if enc in _READ_ENCODINGS else None
+        self._cr = False  # the last byte taken was a CR, whose LF may come in the next read
+        self._eof = False
+        self._close = opened.stream.close
+        self.readline = self._stream_line  # type: ignore[method-assign]
+
+    def _feed(self, data: bytes, final: bool = False) -> None:
+        if self._dec is not None:
+            data = self._dec.decode(data, final).encode("utf-8")
+        if self._cr and data.startswith(b"\n"):
+            data = data[1:]
+        if data:
+            self._cr = data.endswith(b"\r")
+            if b"\r" in data:
+                data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+            self._buf += data
+
+    def _stream_line(self) -> bytes | None:
+        buf = self._buf
+        while True:
+            end = buf.find(b"\n")
+            if end >= 0 or len(buf) >= _MAX_LINE:
+                n = end + 1 if 0 <= end < _MAX_LINE else _MAX_LINE
+                line = bytes(buf[:n])
+                del buf[:n]
+                return line
+            if self._eof:
+                line = bytes(buf)
+                buf.clear()
+                return line
+            if self._raw:
+                data = self._raw.pop()
+            elif not _ready(self._fd, IDLE_WAIT):  # type: ignore[arg-type]
+                return None
+            else:
+                data = os.read(self._fd, _READ_SIZE)  # type: ignore[arg-type]
+            if not data:
+                self._eof = True
+                self._feed(b"", final=True)
+            else:
+                self._feed(data)
+
+    def close(self) -> None:
+        self._close()
+
+
+def _text_lines(opened: _Opened) -> _Lines:
+    return _Lines(opened)
+
+
+def _read_text(lines: _Lines, path: str, timestamped: bool, index: _LineIndex | None,
+               time_unit: str | None = None, decided: Callable[[TimeUnit], None] | None = None,
+               now: float | None = None) -> Iterator[Chunk]:
     """The chunks of a hex or timestamped-hex capture; each line with data is indexed in ``index``
     for locate(), unless it is None. An error names the line whether or not there is an index.
 
     A timestamped capture's times come out in seconds: read in ``time_unit`` (s, ms, us, ns) if
     given, else in the unit the spacing of the first chunks tells; ``decided`` hears the unit once.
+    ``now`` (the wall clock, seconds since the epoch) rules out epoch times more than a day ahead.
+    A stream's pending lines are handed on when it goes quiet (the unit decided by the lines so far
+    if they tell it, else after SAMPLE_PATIENCE of quiet), so a pipe's lines come out as they come in.
     """
     pending = bytearray()  # untimed hex lines are merged into larger chunks
-    readline = f.readline
+    readline = lines.readline
+    quiet = 0.0  # seconds a stream has sent nothing, since the last line
     if index is not None:
         starts, where, uneven = index.starts.append, index.where.append, index.uneven
     offset = 0
@@ -475,9 +709,24 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | No
     sample: list[_SampledLine] = []
     try:
         while True:
-            line = readline(_MAX_LINE)
+            line = readline()
+            if line is None:  # a stream gone quiet: hand on what is pending
+                quiet += IDLE_WAIT
+                if pending:
+                    yield bytes(pending), None
+                    pending.clear()
+                if sample and unit is None and time_unit is None:
+                    found = _sampled_unit(sample, now)
+                    if found.how in (timeunit.SPACING, timeunit.SIZE) or quiet >= SAMPLE_PATIENCE:
+                        unit, exp = found, found.exponent
+                        if decided is not None:
+                            decided(unit)
+                        yield from _in_seconds(sample, unit, path)
+                        sample.clear()
+                continue
             if not line:
                 break
+            quiet = 0.0
             lineno += 1
             if len(line) == _MAX_LINE and not line.endswith(b"\n"):
                 raise CaptureError(f"{path}:{lineno}: the line is longer than {_MAX_LINE >> 20} MiB: "
@@ -537,7 +786,7 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | No
                         k = len(sample)
                         if k < _UNIT_SAMPLE and k not in _UNIT_CHECKPOINTS:
                             continue
-                        found = _sampled_unit(sample)
+                        found = _sampled_unit(sample, now)
                         if k < _UNIT_SAMPLE and found.how != timeunit.SPACING:
                             continue  # not clear yet: sample on
                         unit, exp = found, found.exponent
@@ -546,7 +795,7 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | No
                         yield from _in_seconds(sample, unit, path)
                         sample.clear()
                         continue
-                    unit = timeunit.given(time_unit, t)
+                    unit = timeunit.given(time_unit, t, now)
                     exp = unit.exponent
                     if decided is not None:
                         decided(unit)
@@ -561,30 +810,30 @@ def _read_text(f: BinaryIO, path: str, timestamped: bool, index: _LineIndex | No
         if pending:
             yield bytes(pending), None
         if sample:
-            unit = _sampled_unit(sample)
+            unit = _sampled_unit(sample, now)
             if decided is not None:
                 decided(unit)
             yield from _in_seconds(sample, unit, path)
     except CaptureError:
         if sample and unit is None:
             # A bad line within the sample: the lines before it are read (in the unit they tell) first.
-            unit = _sampled_unit(sample)
+            unit = _sampled_unit(sample, now)
             if decided is not None:
                 decided(unit)
             yield from _in_seconds(sample, unit, path)
         raise
     finally:
-        f.close()
+        lines.close()
 
 
-def _sampled_unit(sample: list[_SampledLine]) -> TimeUnit:
+def _sampled_unit(sample: list[_SampledLine], now: float | None = None) -> TimeUnit:
     """The unit the sampled lines' times are in (their resolution as written keeps rounding from
     counting as gaps or overlaps). The resolution most lines are written in, the coarser on a tie: one
     odd line (the tail of a line cut by `tail -c`, whose first hex byte reads as a whole number) must
     not make the whole capture look written in whole seconds."""
     step = max(Counter(timeunit.resolution(line[2].decode("ascii")) for line in sample).most_common(),
                key=lambda kv: (kv[1], kv[0]))[0]
-    return timeunit.detect_unit([(line[0], line[1]) for line in sample], step=step)
+    return timeunit.detect_unit([(line[0], line[1]) for line in sample], step=step, now=now)
 
 
 def _in_seconds(sample: list[_SampledLine], unit: TimeUnit, path: str) -> Iterator[Chunk]:

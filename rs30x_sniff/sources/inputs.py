@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import itertools
-import os
 from typing import Callable, Iterator
 
 from .timebase import FIRST, SAMPLE_CHUNKS, TimedSource, TimeRef, judge
 from . import foreign
-from .captures import MCAP, TIMESTAMPED, Chunk, read_capture, stderr_warning
+from .captures import MCAP, TIMESTAMPED, Chunk, read_capture, regular_file, stderr_warning
 
 RECORDED = TimeRef(FIRST, "each chunk's first byte, as the log records it")
 
@@ -46,7 +45,7 @@ def read_input(path: str, fmt: str | None = None, *, baud: int, time_ref: str | 
 
 
 def _judge_file(path: str, baud: int) -> TimeRef:
-    if path == "-" or not os.path.isfile(path):
+    if not regular_file(path):
         return TimeRef(FIRST, "each line's first byte (assumed: a pipe cannot be read ahead to tell; "
                               "--time-ref arrival if a logger stamped its reads)")
     sample = read_capture(path, TIMESTAMPED, warn=None)

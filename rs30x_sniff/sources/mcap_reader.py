@@ -151,9 +151,7 @@ class McapRawReader:
 
     def _open(self) -> tuple[BinaryIO, int]:
         path = self.path
-        if path == "-":
-            raise CaptureError("-: an MCAP capture needs a seekable file, not stdin (save it to a file first)")
-        f = open_capture(path)
+        f = open_capture(path)  # "-": stdin, which must be a regular file (decode - < x.mcap)
         try:
             st = os.fstat(f.fileno())
             if not stat.S_ISREG(st.st_mode) or not f.seekable():

@@ -101,8 +101,20 @@ class TimedSource:
     def __init__(self, source: Iterable[Chunk], baud: int, ref: str, why: TimeRef | None = None) -> None:
         self.source = source
         self.baud = baud
-        self.time_ref = why or TimeRef(ref, "given by --time-ref")
+        self._time_ref = why or TimeRef(ref, "given by --time-ref")
         self._it: Iterator[Chunk] | None = None
+
+    @property
+    def time_ref(self) -> TimeRef:
+        """What the times mark and why; once a timestamped capture's unit is known, the unit leads the
+        reason (``in seconds since the epoch, told by the content; stamped at the first byte ...``)."""
+        unit = getattr(self.source, "time_unit", None)
+        if unit is None:
+            return self._time_ref
+        # A unit given (by an option, or by the settings from the capture's own first lines) has its origin
+        # in the settings: the reason says the unit alone.
+        how = "" if unit.how == "given" else f", {unit.how_known()}"
+        return TimeRef(self._time_ref.ref, f"{unit.describe().removeprefix('times ')}{how}; {self._time_ref.reason}")
 
     def __getattr__(self, name: str):  # locate(), warnings, close(), live... of the wrapped source
         return getattr(self.source, name)

@@ -50,8 +50,8 @@ def test_integer_times_are_times(tmp_path):
 
 @pytest.mark.parametrize("content", [
     f"10 {FRAME_HEX}\n20 {FRAME_HEX}\n",       # two-digit first tokens: ambiguous, read as data
-    f"2000 {FRAME_HEX}\n1000 {FRAME_HEX}\n",   # decreasing: not a clock
-    f"1000 {FRAME_HEX}\n",                      # one line cannot show a clock
+    "2000FAAF\n1000FAAF\n",                    # decreasing and written like the rest: not a clock
+    "1000 FAAF01\n",                            # one line, its bytes run together as the first token's
     "FA AF 01\n1E 02\n",
 ])
 def test_hex_that_could_be_times_stays_hex(tmp_path, content):
@@ -59,6 +59,33 @@ def test_hex_that_could_be_times_stays_hex(tmp_path, content):
     assert detect_format(p) == HEX
     first = content.split()[0]
     assert _data(p).startswith(bytes.fromhex(first))
+
+
+@pytest.mark.parametrize("content,times", [
+    (f"1767225600 {FRAME_HEX}\n", [1767225600.0]),               # the one line: epoch seconds
+    (f"1000 {FRAME_HEX}\n", [1000.0]),                            # one line, a time
+    (f"2000 {FRAME_HEX}\n1000 {FRAME_HEX}\n", [2000.0, 1000.0]),  # a clock that went back is still a clock
+])
+def test_digits_run_together_before_spaced_bytes_are_a_time_and_said(tmp_path, content, times):
+    # "1767225600 FA AF ..." as hex would be 17 67 22 56 00 run together before bytes written one by one:
+    # no dump writes a line's bytes so, so the first column is read as times, and the reader says it.
+    p = _write(tmp_path, "a.txt", content)
+    assert detect_format(p) == TIMESTAMPED
+    said: list[str] = []
+    reader = read_capture(p, warn=said.append, options={"now": 1767225600.0})
+    assert [t for _, t in reader] == times and b"".join(d for d, _ in read_capture(p)) == FRAME * len(times)
+    first = content.split()[0]
+    assert said == [f"{p}: its first column ({first}{', ...' if len(times) > 1 else ''}) is read as times, not "
+                    "hex bytes: digits run together before bytes written apart (--input-format hex to read it "
+                    "as bytes)"]
+    assert [w.message for w in reader.warnings] == said
+    assert list(read_capture(p, HEX))[0][0].startswith(bytes.fromhex(first))  # --input-format hex: bytes
+
+
+def test_a_clock_of_whole_numbers_is_not_said(tmp_path):
+    p = _write(tmp_path, "a.txt", f"1000 {FRAME_HEX}\n2000 {FRAME_HEX}\n")
+    said: list[str] = []
+    assert [t for _, t in read_capture(p, warn=said.append)] == [1000.0, 2000.0] and said == []
 
 
 def test_forced_timestamped_reads_two_digit_times(tmp_path):
