@@ -243,6 +243,17 @@ def _mcap_layer(path: str) -> dict[str, Any]:
         models = {}  # a model this installation does not know: decode with the others' defaults
     if models:
         out["models"] = models
+    # Its times can contradict a --baud as a timestamped capture's can (or the rate it recorded): the
+    # same check, on its first messages (issue 32: the same warning and absent figures).
+    from ..protocol.baud import estimate_baud, rate_fit
+
+    try:
+        chunks = [(d, t) for d, t, _, _ in itertools.islice(McapRawReader(path, warn=None), TIMESTAMP_SAMPLE)
+                  if t is not None and d]
+    except CaptureError:
+        chunks = []  # the reading command says why
+    if chunks:
+        out.update(estimate=estimate_baud(chunks), fit=rate_fit(chunks), recorded=True)
     return out
 
 
@@ -267,14 +278,14 @@ def _timestamps_layer(path: str, time_unit: str | None = None) -> dict[str, Any]
     fit = rate_fit(chunks)
     out: dict[str, Any] = {"estimate": est, "fit": fit, "origin": {}}
     unit = sample.time_unit
-    if unit is not None and unit.how != "given":
-        # Read in this unit by every reader of the file from here on, always shown by info's settings, and
-        # said once by settings_for unless plain seconds since the capture began (timeunit.TimeUnit.said).
+    if unit is not None and unit.said:
+        # Any reading but plain seconds since the capture began (epoch seconds too): read in this unit by
+        # every reader of the file from here on, and said once by settings_for. (Every unit, plain seconds
+        # included, leads the reason info gives for the times: rs30x_sniff.sources.timebase.TimedSource.)
         out["time_unit"] = unit.unit
         how = unit.how_known()
         out["origin"]["time_unit"] = f"capture ({unit.describe()}, {how}" + (f": {unit.evidence})" if unit.told else ")")
-        if unit.said:
-            out["unit_note"] = f"{unit.describe()}, {how}"
+        out["unit_note"] = f"{unit.describe()}, {how}"
     if est.baud is not None:
         out["baud"] = est.baud
         out["origin"]["baud"] = f"capture (its timestamps: {est.evidence})"
@@ -313,6 +324,7 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
     fit = capture.pop("fit", None)
     note = capture.pop("note", None)
     unit_note = capture.pop("unit_note", None)
+    recorded = capture.pop("recorded", False)  # an MCAP's rate is its record, not read off its times
     try:
         settings = resolve(cli, conf, capture)
     except SettingsError as e:
@@ -325,12 +337,12 @@ def settings_for(args: argparse.Namespace, path: str | None = None, *, config: d
         settings = _scan(path, settings)
     elif note is not None and from_capture:
         print(f"rs30x-sniff: {path}: {settings.baud} bit/s, {note} (--baud to say otherwise)", file=sys.stderr)
-    elif from_capture and settings.baud != DEFAULT_BAUD:
+    elif from_capture and not recorded and settings.baud != DEFAULT_BAUD:
         why = "" if estimate is not None and estimate.baud == settings.baud or fit is None else \
             f": {fit.evidence(DEFAULT_BAUD)}"
         print(f"rs30x-sniff: {path}: {settings.baud} bit/s, from its timestamps{why} (--baud to say otherwise)",
               file=sys.stderr)
-    elif not from_capture and (estimate is not None or fit is not None):
+    elif (recorded or not from_capture) and (estimate is not None or fit is not None):
         settings = _contradicted(path, settings, estimate, fit)
     return settings
 

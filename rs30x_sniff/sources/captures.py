@@ -267,8 +267,7 @@ def _detect(path: str, opened: _Opened) -> str:
     text_kind = _sniff_text(text, opened.complete)
     named = _other_encoding(head)
     if named is not None and (text_kind or ext in _TEXT_EXTENSIONS):
-        raise CaptureError(f"{path}: a text capture in {named}: read are ASCII, UTF-8 and UTF-16 with a "
-                           "byte-order mark (save it as UTF-8, e.g. with iconv -t UTF-8)")
+        raise _encoding_error(path, named)
     if text_kind:
         if text_kind == TIMESTAMPED and ext != ".thex":  # a .thex says it holds times
             opened.note = _times_assumed(text, opened.complete)
@@ -295,6 +294,12 @@ def _other_encoding(head: bytes) -> str | None:
             if not zeros.strip(b"\x00") and chars.isascii() and not _NOT_TEXT.search(chars):
                 return f"UTF-16 {order} without a byte-order mark"
     return None
+
+
+def _encoding_error(path: str, named: str) -> CaptureError:
+    code = named.split(" without")[0].replace(" ", "")
+    return CaptureError(f"{path}: a text capture in {named}, which is not read (ASCII, UTF-8 and UTF-16 with a "
+                        f"byte-order mark are): save it as UTF-8 (iconv -f {code} -t UTF-8)")
 
 
 def _data_lines(head: bytes, complete: bool) -> list[list[bytes]]:
@@ -473,8 +478,7 @@ class CaptureReader:
                 named = _other_encoding(opened.head)
                 if named is not None:
                     opened.stream.close()
-                    raise CaptureError(f"{path}: a text capture in {named}: read are ASCII, UTF-8 and UTF-16 "
-                                       "with a byte-order mark (save it as UTF-8, e.g. with iconv -t UTF-8)")
+                    raise _encoding_error(path, named)
                 if opened.note and self._warn is not None:
                     self._say(f"{path}: {opened.note}")
                 self._gen = _read_text(_text_lines(opened), path, fmt == TIMESTAMPED, self._lines,
