@@ -95,7 +95,9 @@ def frame_cases(columns: Mapping[str, np.ndarray], id_address: int, configured: 
 # A servo answers no sooner than 100 us after a request's last byte (table 4.6 No. 7, return delay 0). A reply
 # the times put closer than half that was not timed by the clock but laid out by it: the bytes of one read (a
 # USB adapter's packet, a pty's write) placed back to back at the line rate, so the return delay between them
-# is lost and would read as 0.
+# is lost and would read as 0. Half, not all of it: a real reply's stamps may put it a little early (a
+# logger's clock, times rounded to the us, a line a few % off its nominal rate) and keep their latency.
+# README and docs/live-capture.md give this number (tests/e2e/test_time_units.py holds them equal).
 MIN_REPLY_LATENCY = 50e-6
 
 
