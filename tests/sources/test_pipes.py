@@ -169,3 +169,109 @@ def test_cli_decode_and_info_of_a_process_substitution():
                           text=True, cwd=ROOT, timeout=60)
     assert info.returncode == 0, info.stderr
     assert '"bytes": 7903' in info.stdout
+
+
+# ---- a live pipe of text streams line by line (issue 31) ----------------------------------------------
+POLL = "FA AF 01 0F 2A 02 00 26"
+REPLY = "FD DF 01 00 2A 02 01 10 00 38"
+
+
+def _read_while_open(lines: list[bytes], want: int) -> tuple[list, list]:
+    """Write ``lines`` to a pipe kept open, read chunks until ``want`` bytes are in, then close it: the
+    chunks read while the writer still held the pipe open, and all of them."""
+    r, w = os.pipe()
+    os.write(w, b"".join(lines))
+    got: list = []
+    reader = read_capture(f"/dev/fd/{r}", warn=None)
+    done = threading.Event()
+
+    def read() -> None:
+        for chunk in reader:
+            got.append(chunk)
+            if sum(len(d) for d, _ in got) >= want:
+                done.set()
+        done.set()
+
+    t = threading.Thread(target=read, daemon=True)
+    t.start()
+    done.wait(timeout=30)  # a bound for a loaded machine: the test fails by its assertions, not by this wait
+    before = list(got)
+    os.close(w)
+    t.join(timeout=30)
+    os.close(r)
+    return before, got
+
+
+FRAMES = bytes.fromhex(POLL + REPLY)
+
+
+@pytest.mark.parametrize("lines,fmt,data", [
+    ([f"{POLL}\n".encode(), f"{REPLY}\n".encode()], HEX, FRAMES),
+    ([b"# a comment first\n", f"{POLL}\n".encode(), f"{REPLY}\n".encode()], HEX, FRAMES),
+    ([f"0.500000 {POLL}\n".encode(), f"0.500800 {REPLY}\n".encode()], TIMESTAMPED, FRAMES),
+    ([f"1767225600 {POLL}\n".encode()], TIMESTAMPED, bytes.fromhex(POLL)),  # a whole-number time, one line
+    ([f"10 {POLL}\n".encode(), f"11 {REPLY}\n".encode()], HEX,              # an ambiguous first column:
+     bytes.fromhex("10" + POLL + "11" + REPLY)),                            # waits, then reads as hex
+    (["\ufeff0.5 FA AF\r\n".encode("utf-16-le")], TIMESTAMPED, b"\xfa\xaf"),  # UTF-16 with its mark, CRLF
+    ([f"{POLL}\r".encode(), f"{REPLY}\r".encode()], HEX, FRAMES),         # CR-only line ends
+])
+def test_a_text_pipe_gives_its_lines_before_it_ends(lines, fmt, data):
+    before, after = _read_while_open(lines, len(data))
+    assert b"".join(d for d, _ in before) == data, "not all read while the writer kept the pipe open"
+    assert before == after
+    path = _pipe_path(b"".join(lines))
+    assert detect_format(path) == fmt
+    assert b"".join(d for d, _ in read_capture(path, warn=None)) == data  # read to its end: closed
+    os.close(int(path.rsplit("/", 1)[1]))
+
+
+def test_decode_prints_a_text_pipe_line_by_line():
+    # `tail -f log.hex | rs30x-sniff decode -`: each line decoded while the writer is still there.
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "rs30x_sniff", "decode", "-", "--no-lint", "--isolated"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    try:
+        proc.stdin.write(f"{POLL}\n{REPLY}\n".encode())
+        proc.stdin.flush()
+        os.set_blocking(proc.stdout.fileno(), False)
+        got = b""
+        deadline = time.monotonic() + 30  # a bound for a loaded machine, not a speed assertion
+        while got.count(b"\n") < 2 and time.monotonic() < deadline and proc.poll() is None:
+            got += proc.stdout.read() or b""
+            time.sleep(0.05)
+        assert proc.poll() is None  # still running: the pipe is open
+        assert got.count(b"\n") == 2 and b"READ" in got and b"RETURN" in got, got
+    finally:
+        proc.stdin.close()
+        proc.wait(timeout=30)
+
+
+# ---- an MCAP on stdin ------------------------------------------------------------------------------------
+def _cli(argv: list[str], **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "rs30x_sniff", *argv], capture_output=True, cwd=ROOT, timeout=120,
+                          **kw)
+
+
+def test_decode_of_an_mcap_redirected_to_stdin_reads_the_file(tmp_path):
+    m = tmp_path / "s.mcap"
+    assert _cli(["convert", str(SESSION), "-o", str(m), "--isolated"]).returncode == 0
+    direct = _cli(["decode", str(m), "--isolated"])
+    for argv in (["decode", "-", "--isolated"], ["info", "-", "--isolated", "--format", "json"],
+                 ["lint", "-", "--isolated"]):
+        with open(m, "rb") as stdin:
+            proc = _cli(argv, stdin=stdin)
+        assert proc.returncode in (0, 1) and b"Traceback" not in proc.stderr, proc.stderr
+        if argv[0] == "decode":
+            assert proc.stdout == direct.stdout and proc.stdout.count(b"\n") > 100
+        if argv[0] == "info":
+            assert b'"bytes": 7903' in proc.stdout
+            assert b"the MCAP's metadata" in proc.stdout  # its recorded rate, read from stdin as from the file
+
+
+def test_an_mcap_on_a_real_pipe_is_one_line(tmp_path):
+    m = make_mcap(tmp_path / "a.mcap", frames(5))
+    proc = _cli(["decode", "-", "--isolated"], input=m.read_bytes())
+    assert proc.returncode == 2 and proc.stdout == b""
+    assert proc.stderr == b"rs30x-sniff: error: -: an MCAP capture needs a seekable file, not a pipe " \
+                          b"(save it to a file first)\n"
