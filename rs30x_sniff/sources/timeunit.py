@@ -275,12 +275,19 @@ def detect_unit(chunks: Iterable[tuple[bytes, float | None]], *, step: float = 0
                "the spacing fits no unit alone" if not backed else
                f"the spacing fits {' and '.join(NAMES[u] for u in backed)}")
         if first > EPOCH_MAX:
-            why += f" (read in seconds, the first time is after 2100)"
-        elif EPOCH_MIN <= first < EPOCH_MAX and not _is_epoch(first, SECONDS, now):
-            why += f" (as seconds since the epoch, {_when(first)} is more than a day ahead of the clock)"
-        return TimeUnit(evidence=f"{why}: seconds assumed", start=first)
+            why += " (read in seconds, the first time is after 2100)"
+        return TimeUnit(evidence=f"{why}: seconds assumed{_ahead(first, now)}", start=first)
     scale = 10.0 ** -EXPONENTS[unit]
-    return TimeUnit(unit, _is_epoch(first, unit, now), how, evidence, first * scale)
+    return TimeUnit(unit, _is_epoch(first, unit, now), how, evidence + _ahead(first, now), first * scale)
+
+
+def _ahead(first: float, now: float | None) -> str:
+    """What the wall clock ruled out, in words ("" when nothing)."""
+    unit = epoch_unit(first)
+    if unit is None or epoch_unit(first, now) is not None:
+        return ""
+    return (f"; not {NAMES[unit]} since the epoch: {_when(first * 10.0 ** -EXPONENTS[unit])} is more than a day "
+            "after now")
 
 
 POLL_PERIOD = 0.010  # a controller's usual loop, for the last guess between units the wire allows

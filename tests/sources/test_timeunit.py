@@ -211,3 +211,84 @@ def test_a_text_capture_cut_mid_line_is_still_read_in_seconds(tmp_path):
     times = [t for _, t in reader]
     assert reader.time_unit.unit == "s"
     assert 1.0 <= times[1] < 2.0  # seconds of the session, not milliseconds
+
+
+# ---- sparse times and the wall clock (issue 32) ------------------------------------------------------------
+BOOT_US = 3_456_789_012.5   # the issue's first time: microseconds since a device booted (57 min)
+NOW = 1_767_225_600.0       # 2026-01-01 UTC, the wall clock the reader is given
+POLL_US = 20_000            # one poll every 20 ms
+
+
+def _sparse_polls(n: int = 60, split: bool = False):
+    """A poll and its return every POLL_US, as us since boot: one chunk a poll, or the request and the return."""
+    from rs30x_sniff.protocol.wire import encode_return
+
+    req, ret = encode_read(1, 42, 2), encode_return(1, 42, b"\x10\x00")
+    out = []
+    for k in range(n):
+        t = BOOT_US + k * POLL_US
+        out += [(req, t), (ret, t + 794.0)] if split else [(req + ret, t)]
+    return out
+
+
+@pytest.mark.parametrize("split", [False, True])
+def test_sparse_microseconds_since_boot_are_not_epoch_seconds(split):
+    # As seconds, 3456789012.5 is 2079: more than a day after now, so no epoch; and the spacing rules out
+    # seconds and ms (every poll a time segment apart) and ns (polls overlapping at every rate).
+    found = detect_unit(_sparse_polls(split=split), step=0.5, now=NOW)
+    assert (found.unit, found.how, found.epoch) == ("us", SPACING, False)
+    assert found.start == pytest.approx(3456.7890125)
+    assert "read in nanoseconds" in found.evidence and "start before the previous one ended" in found.evidence
+    assert "more than 10 s after the previous one" in found.evidence
+
+
+def test_a_first_time_more_than_a_day_ahead_is_no_epoch():
+    ahead = [(d, NOW + 2 * 86400 + k * 0.02) for k, (d, _) in enumerate(_sparse_polls())]
+    assert epoch_unit(ahead[0][1], now=NOW) is None and epoch_unit(ahead[0][1]) == "s"  # the clock decides
+    found = detect_unit(ahead, now=NOW)
+    assert (found.unit, found.epoch) == ("s", False) and "is more than a day after now" in found.evidence
+    within = [(d, NOW + 3600 + k * 0.02) for k, (d, _) in enumerate(_sparse_polls())]
+    found = detect_unit(within, now=NOW)
+    assert (found.unit, found.how, found.epoch) == ("s", SIZE, True)
+    assert given("s", ahead[0][1], NOW).epoch is False and given("s", within[0][1], NOW).epoch is True
+
+
+def test_a_wall_clock_reading_the_wire_rules_out_is_not_taken():
+    # Epoch ms in size, but written in us: read in ms, polls 20 us apart would overlap at every rate.
+    found = detect_unit([(d, EPOCH * 1e6 + k * POLL_US) for k, (d, _) in enumerate(_sparse_polls())], now=NOW)
+    assert found.unit == "us" and found.epoch
+
+
+def test_the_reader_takes_now_from_its_caller_and_reads_the_clock_itself_otherwise(tmp_path):
+    p = tmp_path / "boot.thex"
+    p.write_text("".join(f"{t:.1f} {d.hex(' ')}\n" for d, t in _sparse_polls()))
+    r = read_capture(str(p), options={"now": NOW})
+    chunks = list(r)
+    assert r.time_unit.unit == "us" and chunks[0][1] == pytest.approx(3456.7890125)
+    assert chunks[1][1] - chunks[0][1] == pytest.approx(0.02)
+    r = read_capture(str(p))  # no "now": the reader's own clock, at the edge
+    list(r)
+    assert r.time_unit.unit == "us"
+    # Given a clock in 2080, 3456789012.5 s (2079) could be an epoch: the wire rules it out all the same.
+    r = read_capture(str(p), options={"now": 3.5e9})
+    list(r)
+    assert (r.time_unit.unit, r.time_unit.epoch) == ("us", False)
+
+
+def test_the_core_reads_no_clock():
+    import ast
+    import inspect
+
+    from rs30x_sniff.sources import timeunit
+
+    tree = ast.parse(inspect.getsource(timeunit))
+    called = {n.func.attr for n in ast.walk(tree) if isinstance(n, ast.Call) and isinstance(n.func, ast.Attribute)}
+    imported = {a.name for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom)) for a in n.names}
+    assert "time" not in imported and not called & {"now", "today", "utcnow", "time", "monotonic"}
+
+
+def test_seam_gap_is_the_decoders():
+    from rs30x_sniff.decode.framing import SEAM_GAP_S
+    from rs30x_sniff.sources.timeunit import SEAM_GAP
+
+    assert SEAM_GAP == SEAM_GAP_S
