@@ -211,6 +211,14 @@ class Parts(Sink):
         self.dirty = self.dirty or bool(data)
         self.idle()
 
+    takes_blocks = True  # the MCAP sink takes a Block as it is
+
+    def chunk_group(self, chunks: list[tuple[bytes, float | None]]) -> None:
+        """A columnar group's chunks (record to one file: no part opens mid-group), in order with their records."""
+        self.sink.chunk_group(chunks)
+        self.dirty = True
+        self.idle()
+
     def batch(self, step: Step) -> None:
         self.sink.batch(step)
 

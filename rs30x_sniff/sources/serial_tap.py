@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import queue
+import select
 import signal
 import stat
 import sys
@@ -34,6 +35,8 @@ STALL_SPAN = 0.5
 DRAIN_PAUSE = 0.002
 # The most a read drains into one chunk: an OS buffers about 64 KiB for a port, so a backlog fits.
 DRAIN_MAX = 1 << 20
+# The most one read of a local device asks for: what a tty hands over at once (its 4 KiB buffer) and more.
+READ_BYTES = 1 << 16
 # The longest a backlog is drained into one chunk: a line that always has a byte waiting (a busy bus, a reader
 # slower than a byte time per pass, a URL handler modelling a wire) would otherwise never yield one. A pty's
 # 64 KiB backlog drains in a few milliseconds.
@@ -232,9 +235,10 @@ class SerialTap:
             # there, they also wake it from its wait at once. (Never blocked in the main thread itself:
             # the mask would stay, and every process it starts would inherit it.)
             signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        fd = _device_fd(ser)
         try:
             while not self._stop.is_set():
-                data = self._read_chunk(ser)
+                data = self._read_chunk(ser) if fd is None else self._read_device(ser, fd)
                 if data:
                     self._stamp(data, self.clock())
             more = ser.in_waiting  # a requested stop: keep what has already arrived
@@ -245,6 +249,24 @@ class SerialTap:
             put(TapEnd(LOST, _one_line(e)))
 
     _run = run
+
+    def _read_device(self, ser, fd: int) -> bytes:
+        """A local device's chunk in one wait and one read: all that has arrived (a plain reading loop makes two
+        more calls per chunk through pyserial: a read of one byte, then one of what is waiting). A backlog
+        (more than STALL_SLACK of the line) is drained further as :meth:`_read_chunk` does."""
+        ready, _, _ = select.select((fd,), (), (), self.read_timeout)
+        if not ready:
+            return b""
+        try:
+            data = os.read(fd, READ_BYTES)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        if not data:  # readable but nothing: the device is gone (an unplugged adapter), as pyserial says it
+            raise OSError("device reports readiness to read but returned no data "
+                          "(device disconnected or multiple access on port?)")
+        if len(data) * self.byte_time <= STALL_SLACK:
+            return data
+        return self._drain(ser, bytearray(data))
 
     def _read_chunk(self, ser) -> bytes:
         """What has arrived, or (nothing yet) the next byte and what came in with it; a backlog drained, boundedly."""
@@ -264,6 +286,14 @@ class SerialTap:
                     buf += ser.read(min(more, DRAIN_MAX - 1))
             if len(buf) * bt <= STALL_SLACK:
                 return bytes(buf)  # live traffic: no backlog to drain
+        except Exception:
+            self._stamp(bytes(buf), self.clock())  # the port failed: keep the bytes already read
+            raise
+        return self._drain(ser, buf)
+
+    def _drain(self, ser, buf: bytearray) -> bytes:
+        bt = self.byte_time
+        try:
             # A held-up reader finds a backlog that the OS hands over a buffer at a time: read it all into one
             # chunk, so that laying it back from its arrival at the line rate spreads it over the time it took
             # to come in, not over one buffer's worth. Only the backlog, though: what the line could have
@@ -499,6 +529,20 @@ class LiveSource:
                 "wall_start_ns": str(self.tap.wall_start_ns),
                 "monotonic_start_ns": str(self.tap.start_ns),
                 "timing": "chunk arrival stamped with a monotonic clock; byte times back-computed from the baud rate"}
+
+
+def _device_fd(ser) -> int | None:
+    """The file descriptor of a local device opened by pyserial (read directly), or None (a URL's handler)."""
+    try:
+        from serial.serialposix import Serial as PosixSerial
+    except ImportError:  # not a POSIX system
+        return None
+    if type(ser) is not PosixSerial:
+        return None
+    try:
+        return ser.fileno()
+    except Exception:  # noqa: BLE001 - no descriptor: read through pyserial
+        return None
 
 
 def _one_line(e: BaseException) -> str:

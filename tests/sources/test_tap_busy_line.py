@@ -127,12 +127,14 @@ def test_a_saturated_socat_pty_keeps_handing_out_chunks(tmp_path):
         while not (a.exists() and b.exists()) and time.monotonic() < deadline:
             time.sleep(0.05)
         src = LiveSource(str(b), 460800, announce=False).start()
-        payload = bytes(range(256)) * 2000  # 512 KiB, as fast as the pty pair takes it: the line never idles
+        # 512 KiB over a second or two: ten times what 460800 baud carries, so the line never idles.
+        payload = bytes(range(256)) * 2000
         fd = os.open(a, os.O_WRONLY)
 
         def flood() -> None:
             for i in range(0, len(payload), 1024):
                 os.write(fd, payload[i:i + 1024])
+                time.sleep(0.002)
 
         writer = threading.Thread(target=flood)
         got: list = []
