@@ -25,7 +25,8 @@ AHEAD = 86_400.0             # a day
 # Neighbours further apart than this are separate time segments for the decoder (rs30x_sniff.decode.framing's
 # SEAM_GAP_S): a unit that makes most of a capture's neighbours so is not its unit.
 SEAM_GAP = 10.0
-MAX_SEAM_SHARE = 0.5     # more neighbours than this a segment apart: not the unit
+MAX_SEAM_SHARE = 0.5     # more of the capture's span than this in gaps a segment long: not the unit
+MAX_SPARSE_OVERLAP = 0.10  # read in the unit, no more of the neighbours than this may overlap at every rate
 
 # How a unit was known (TimeUnit.how).
 SPACING, SIZE, GIVEN, ASSUMED = "spacing", "size", "given", "assumed"
@@ -161,6 +162,7 @@ class _Fit:
     overlaps: int = 0
 
     seams: int = 0
+    seam_share: float = 0.0  # of the span between the first and last time, in gaps longer than SEAM_GAP
     near: int = 0      # pairs that could follow each other back to back at some rate, one length or more
     median: float = 0.0  # the median spacing, seconds
 
@@ -171,15 +173,17 @@ class _Fit:
 
     @property
     def possible(self) -> bool:
-        """Whether the wire allows this reading at all, sparse traffic too: not most neighbours starting
-        before the previous one could have ended at any rate of table 4.7, nor most a time segment apart."""
-        return self.overlaps <= MAX_OVERLAP_SHARE * self.pairs and self.seams <= MAX_SEAM_SHARE * self.pairs
+        """Whether the wire allows this reading, sparse traffic too: next to no neighbours starting before
+        the previous one could have ended at any rate of table 4.7 (jitter aside), and not most of the
+        capture's span in gaps a time segment long (every poll a segment of its own)."""
+        return self.overlaps <= MAX_SPARSE_OVERLAP * self.pairs and self.seam_share <= MAX_SEAM_SHARE
 
     def against(self) -> str:
         """Why the reading is not possible, in words."""
-        if self.overlaps > MAX_OVERLAP_SHARE * self.pairs:
+        if self.overlaps > MAX_SPARSE_OVERLAP * self.pairs:
             return f"{self.overlaps} of {self.pairs} chunks would start before the previous one ended"
-        return f"{self.seams} of {self.pairs} chunks would come more than {SEAM_GAP:g} s after the previous one"
+        return (f"{self.seams} of {self.pairs} chunks would come more than {SEAM_GAP:g} s after the previous one "
+                f"({self.seam_share:.0%} of the span)")
 
 
 def _fit(pairs: list[tuple[int, int, float]], scale: float, step: float, rates: tuple[int, ...]) -> _Fit:
@@ -188,11 +192,13 @@ def _fit(pairs: list[tuple[int, int, float]], scale: float, step: float, rates: 
     overlaps = sum(1 for n1, n2, d in pairs
                    if d * scale + step < (1 - OVERLAP_TOLERANCE) * min(n1, n2) * fastest)
     seams = sum(1 for _, _, d in pairs if d * scale > SEAM_GAP)
+    span = sum(d for _, _, d in pairs)
+    seam_share = sum(d for _, _, d in pairs if d * scale > SEAM_GAP) / span if span > 0 else 0.0
     slowest = byte_time(min(rates))
     reach = max(CLOSE_GAP, CLOSE_BYTES * slowest) + step
     near = sum(1 for n1, n2, d in pairs if d * scale <= max(n1, n2) * slowest + reach)
     median = sorted(d for _, _, d in pairs)[len(pairs) // 2] * scale if pairs else 0.0
-    best = _Fit(len(pairs), overlaps=overlaps, seams=seams, near=near, median=median)
+    best = _Fit(len(pairs), overlaps=overlaps, seams=seams, seam_share=seam_share, near=near, median=median)
     for rate in rates:
         bt = byte_time(rate)
         slack = max(CLOSE_GAP, CLOSE_BYTES * bt) + step
@@ -208,7 +214,7 @@ def _fit(pairs: list[tuple[int, int, float]], scale: float, step: float, rates: 
                     close += 1
                     lengths.add(n)
             if close > best.close and len(lengths) >= 2:
-                best = _Fit(len(pairs), close, len(lengths), rate, overlaps, seams, near, median)
+                best = _Fit(len(pairs), close, len(lengths), rate, overlaps, seams, seam_share, near, median)
     return best
 
 
@@ -249,8 +255,8 @@ def detect_unit(chunks: Iterable[tuple[bytes, float | None]], *, step: float = 0
                     fits[unit] = f
     backed = [u for u, f in fits.items() if f.backs]
     by_size = epoch_unit(first, now)
-    if by_size is not None and by_size in wire and not wire[by_size].possible:
-        by_size = None  # a wall-clock reading the wire rules out
+    if by_size is not None and by_size in wire and wire[by_size].overlaps > MAX_OVERLAP_SHARE * len(pairs):
+        by_size = None  # a wall-clock reading the wire rules out (a logger's arrival stamps bunch a little)
     left = [u for u, f in wire.items() if f.possible]
     if len(backed) == 1:
         unit, how = backed[0], SPACING

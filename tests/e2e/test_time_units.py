@@ -228,3 +228,154 @@ def test_timestamps_that_fit_no_rate_leave_the_timing_unsupported(tmp_path, caps
                                                          "fit no rate of table 4.7")
     assert err.startswith(f"rs30x-sniff: warning: {path}: its timestamps fit no rate of table 4.7, not even the "
                           "default 115200 bit/s: at 115200 bit/s, ")
+
+
+# ---- any unit, sparse or dense, since boot or not: the same figures (issue 32) ------------------------------
+BOOT_US = 3_456_789_012  # microseconds since a device booted (57 min): as seconds it would be 2079
+
+
+def _written_any(us: int, unit: str) -> str:
+    return str(us * 1000) if unit == "ns" else _written(us, unit)
+
+
+def _thex_any(path: Path, chunks, unit: str, offset_us: int) -> str:
+    path.write_text("".join(f"{_written_any(round(t * 1e6) + offset_us, unit)} {d.hex(' ').upper()}\n"
+                            for d, t in chunks if d))
+    return str(path)
+
+
+def _sparse(baud: int, split: bool, polls: int = 60) -> list[tuple[bytes, float]]:
+    """One servo polled every 20 ms, its return 100 us after the poll's end: one line a poll, or two."""
+    from rs30x_sniff.protocol.wire import byte_time, encode_read, encode_return
+
+    req, ret = encode_read(1, 42, 2), encode_return(1, 42, b"\x10\x00")
+    out = []
+    for k in range(polls):
+        t = 0.5 + k * 0.02
+        out += [(req, t), (ret, round(t + len(req) * byte_time(baud) + 100e-6, 6))] if split else [(req + ret, t)]
+    return out
+
+
+@settings(max_examples=6, deadline=None, phases=[Phase.explicit, Phase.reuse, Phase.generate],
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(traffic=st.one_of(st.tuples(st.just("sim"), st.sampled_from(sorted(SCENARIOS)), st.integers(0, 50)),
+                         st.tuples(st.just("sparse"), st.booleans(), st.just(0))),
+       baud=st.sampled_from([57600, 115200]), boot=st.booleans())
+def test_a_capture_rescaled_to_any_unit_gives_the_same_figures(tmp_path_factory, capsys, traffic, baud, boot):
+    d = tmp_path_factory.mktemp("rescaled")
+    kind, a, b = traffic
+    chunks = list(run(a, baud=baud, seed=b, duration=0.5)) if kind == "sim" else _sparse(baud, a)
+    offset = BOOT_US if boot else 0
+    infos = {}
+    for unit in ("s", "ms", "us", "ns"):
+        info, err = _info(capsys, _thex_any(d / f"{unit}.thex", chunks, unit, offset), "--baud", str(baud))
+        infos[unit] = info
+        # The unit read is the one written, and said when it is not plain seconds.
+        assert info["settings"].get("time_unit", "s") == unit, (unit, err)
+        assert (unit == "s") == ("times in" not in err), err
+    for unit in ("ms", "us", "ns"):
+        assert _figures(infos[unit]) == _figures(infos["s"]), unit
+    assert infos["s"]["segments"] == 1  # no unit made its gaps into time segments
+
+
+def test_the_issues_sparse_boot_capture(tmp_path, capsys):
+    # 3456789012.5, then 20,000 later for each poll: read as epoch seconds in 2079 it made 60 time segments, a
+    # bus load of 100 % and a 0.047 s duration, and said nothing.
+    from rs30x_sniff.protocol.wire import encode_read, encode_return
+
+    poll = (encode_read(1, 42, 2) + encode_return(1, 42, b"\x10\x00")).hex(" ").upper()
+    path = tmp_path / "boot.thex"
+    path.write_text("".join(f"{3456789012.5 + k * 20000:.1f} {poll}\n" for k in range(60)))
+    told, err = _info(capsys, str(path))
+    assert err.splitlines() == [f"rs30x-sniff: {path}: times in microseconds, told by the content "
+                                "(--time-unit to say otherwise)"]
+    given_us, _ = _info(capsys, str(path), "--time-unit", "us")
+    assert _figures(told) == _figures(given_us)
+    assert told["segments"] == 1 and told["duration_s"] == pytest.approx(59 * 0.02 + 18 * 10 / 115200, rel=1e-3)
+    assert told["bus_load"] < 0.1
+
+
+def test_epoch_seconds_are_said_too(tmp_path, capsys):
+    path = _thex(tmp_path / "epoch.thex", gait(), "s", EPOCH * 10**6)
+    info, err = _info(capsys, path)
+    assert err.splitlines() == [f"rs30x-sniff: {path}: times in seconds since the epoch, told by the content "
+                                "(--time-unit to say otherwise)"]
+    assert info["settings"]["time_unit"] == "s"
+    assert main(["info", path, "--isolated"]) == 0
+    out = capsys.readouterr().out
+    assert "  times      in seconds since the epoch; stamped at " in out  # how: the line above, and origin
+    plain = _thex(tmp_path / "plain.thex", gait(), "s")
+    assert main(["info", plain, "--isolated"]) == 0
+    cap = capsys.readouterr()
+    assert "  times      in seconds, told by the content; stamped at " in cap.out and cap.err == ""
+
+
+def test_a_whole_number_time_on_one_line_is_a_time_and_said(tmp_path, capsys):
+    path = tmp_path / "one.txt"
+    path.write_text("1767225600 FA AF 01 03 00 00 01 03\n")
+    assert main(["decode", str(path), "--format", "jsonl", "--no-lint", "--isolated", "--time-format", "epoch"]
+                if "--time-format" in _decode_help() else
+                ["decode", str(path), "--format", "jsonl", "--no-lint", "--isolated"]) == 0
+    cap = capsys.readouterr()
+    assert json.loads(cap.out.splitlines()[0])["t"] == 1767225600.0
+    assert f"rs30x-sniff: warning: {path}: its first column (1767225600) is read as times, not hex bytes" in cap.err
+    assert main(["decode", str(path), "--format", "jsonl", "--no-lint", "--isolated", "--input-format", "hex"]) == 0
+    assert json.loads(capsys.readouterr().out.splitlines()[0])["offset"] == 0  # as bytes: 17 67 22 56 00 ...
+
+
+def _decode_help() -> str:
+    proc = subprocess.run([sys.executable, "-m", "rs30x_sniff", "decode", "--help"], capture_output=True, text=True,
+                          timeout=60)
+    return proc.stdout
+
+
+# ---- an MCAP's times against --baud, as a timestamped capture's -----------------------------------------------
+def test_an_mcap_with_a_contradicted_baud_is_told_as_a_text_capture_is(tmp_path, capsys):
+    chunks = list(run("hexapod", baud=57600, seed=1, duration=1.0))
+    thex = tmp_path / "bus.thex"
+    write_capture(thex, chunks, "timestamped")
+    mcap = tmp_path / "bus.mcap"
+    assert main(["convert", str(thex), "-o", str(mcap), "--isolated", "--no-lint"]) == 0
+    capsys.readouterr()
+    results = {}
+    for path in (thex, mcap):
+        info, err = _info(capsys, str(path), "--baud", "28800")
+        results[path.suffix] = info, err.replace(str(path), "FILE")
+    (ti, terr), (mi, merr) = results[".thex"], results[".mcap"]
+    assert merr == terr and terr.startswith("rs30x-sniff: warning: FILE: its timestamps show 57600 bit/s, not the "
+                                            "28800 given (command line): ")
+    why = "the timestamps contradict --baud 28800: they show 57600 bit/s"
+    for info in (ti, mi):
+        assert info["timing_unsupported"] == why and info["bus_load"] is None
+        assert info["latency_s"]["absent"] == why and info["latency_s"]["p50"] is None
+    # Its own rate, recorded, is neither warned about nor said to come from the timestamps.
+    info, err = _info(capsys, str(mcap))
+    assert err == "" and info["baud"] == 57600 and info["timing_unsupported"] is None
+
+
+# ---- the latency floor: code and docs say one number ------------------------------------------------------------
+def test_the_latency_floor_is_one_number_in_code_and_docs(tmp_path, capsys):
+    from rs30x_sniff.decode.pairing import MIN_REPLY_LATENCY
+    from rs30x_sniff.protocol.wire import byte_time, encode_read, encode_return
+
+    root = Path(__file__).resolve().parents[2]
+    us = round(MIN_REPLY_LATENCY * 1e6)
+    readme = " ".join((root / "README.md").read_text().split())
+    live = " ".join((root / "docs" / "live-capture.md").read_text().split())
+    assert f"less than {us} us after it, has no latency" in readme and "table 4.6 No. 7" in readme
+    assert f"less than {us} µs after its request" in live
+    assert not re.search(r"sooner after it than a servo can answer \(100 us", readme)
+    # A reply 10 us inside the floor has no latency; 10 us outside it has its own.
+    req, ret = encode_read(1, 42, 2), encode_return(1, 42, b"\x10\x00")
+    for gap, expected in ((MIN_REPLY_LATENCY - 10e-6, None), (MIN_REPLY_LATENCY + 10e-6, MIN_REPLY_LATENCY + 10e-6)):
+        chunks = []
+        for k in range(20):
+            t = 0.5 + k * 0.02
+            chunks += [(req, t), (ret, t + len(req) * byte_time(115200) + gap)]
+        path = tmp_path / f"floor{k}{gap}.thex"
+        write_capture(path, chunks, "timestamped")
+        info, _ = _info(capsys, str(path), "--baud", "115200")
+        if expected is None:
+            assert info["latency_s"]["p50"] is None and info["latency_s"]["unmeasured"] == 20
+        else:
+            assert info["latency_s"]["p50"] == pytest.approx(expected, abs=2e-6)
