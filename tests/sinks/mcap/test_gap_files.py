@@ -23,7 +23,7 @@ from rs30x_sniff.protocol.chunks import SourceGap
 from rs30x_sniff.sim import run
 from rs30x_sniff.sinks.blackbox import BlackBox, parse_trigger
 from rs30x_sniff.sinks.mcap.writer import McapSink
-from rs30x_sniff.sinks.pipeline import drive
+from rs30x_sniff.sinks.pipeline import Pipeline, drive
 from rs30x_sniff.sinks.stats import CaptureStats
 from rs30x_sniff.sources.captures import read_capture
 from rs30x_sniff.sources.mcap_reader import McapRawReader
@@ -45,11 +45,13 @@ def with_gap(chunks, cut: int, seconds: float) -> list:
     return [*before, SourceGap(after[0][1], lost_at, "the port was gone (test)"), *after]
 
 
-def live(chunks, *sinks) -> tuple[list, CaptureStats]:
-    """The live run: the record path (a port is decoded record by record), linted as it goes."""
+def live(chunks, *sinks, columnar: bool = False) -> tuple[list, CaptureStats]:
+    """The live run, linted as it goes: record by record (record --print, --split-*), or on the columnar path in
+    groups of about a second of the line (plain record to one file, the black box)."""
     linter = Linter(LintConfig())
     stats = CaptureStats(BAUD)
-    drive(chunks, Decoder(DecodeOptions(baud=BAUD), linter), stats, *sinks)
+    Pipeline(Decoder(DecodeOptions(baud=BAUD), linter, columnar=columnar), [stats, *sinks],
+             group_bytes=BAUD // 10).run(chunks)
     return [(f.code, f.offset) for f in linter.findings], stats
 
 
@@ -75,13 +77,14 @@ def codes(findings) -> set[str]:
 
 
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(name=st.sampled_from(["hexapod", "setup"]), where=st.floats(0.05, 0.95), seconds=st.floats(0.01, 30.0))
-def test_one_file_says_what_the_live_run_said(tmp_path_factory, name, where, seconds):
+@given(name=st.sampled_from(["hexapod", "setup"]), where=st.floats(0.05, 0.95), seconds=st.floats(0.01, 30.0),
+       columnar=st.booleans())
+def test_one_file_says_what_the_live_run_said(tmp_path_factory, name, where, seconds, columnar):
     chunks = traffic(name)
     cut = max(1, min(len(chunks) - 1, int(len(chunks) * where)))
     out = tmp_path_factory.mktemp("one") / "rig.mcap"
     sink = mcap_sink(out)
-    said, live_stats = live(with_gap(chunks, cut, seconds), sink)
+    said, live_stats = live(with_gap(chunks, cut, seconds), sink, columnar=columnar)
     plain, plain_stats = live(list(chunks))
     got, figures = read_again(out)
     assert got == said  # the same findings at the same bytes
