@@ -69,17 +69,21 @@ def open_capture(path: str) -> BinaryIO:
 
 
 def _open_stdin() -> BinaryIO:
+    # A file on stdin is opened anew (/proc/self/fd/0: a file position of its own), so that two readers of it
+    # (a sample read ahead, then the capture) do not move each other's place as copies of one descriptor would.
     try:
         fd = sys.stdin.fileno()
-        f = os.fdopen(os.dup(fd), "rb")
+        regular = stat.S_ISREG(os.fstat(fd).st_mode)
+        if regular and not _STDIN_START:
+            _STDIN_START.append(os.lseek(fd, 0, os.SEEK_CUR))
+        own = f"/proc/self/fd/{fd}"
+        f = open(own, "rb") if regular and os.path.exists(own) else os.fdopen(os.dup(fd), "rb")
     except (OSError, ValueError, AttributeError) as e:
         raise CaptureError(f"-: there is no standard input to read ({getattr(e, 'strerror', None) or e})") from None
-    try:
-        if stat.S_ISREG(os.fstat(f.fileno()).st_mode):
-            if not _STDIN_START:
-                _STDIN_START.append(f.tell())
+    if regular:
+        try:
             f.seek(_STDIN_START[0])
-    except OSError as e:
-        f.close()
-        raise CaptureError(f"-: cannot read: {e.strerror}") from None
+        except OSError as e:
+            f.close()
+            raise CaptureError(f"-: cannot read: {e.strerror}") from None
     return f

@@ -275,3 +275,22 @@ def test_an_mcap_on_a_real_pipe_is_one_line(tmp_path):
     assert proc.returncode == 2 and proc.stdout == b""
     assert proc.stderr == b"rs30x-sniff: error: -: an MCAP capture needs a seekable file, not a pipe " \
                           b"(save it to a file first)\n"
+
+
+@pytest.mark.parametrize("fmt", ["thex", "hex", "mcap"])
+def test_info_of_a_file_on_stdin_is_info_of_the_file(tmp_path, fmt):
+    # A file on stdin is read ahead (its rate, its unit, what its times mark) and then read: each reader opens
+    # it anew, so the sample cannot leave the capture's reader at its end (it once read "no data").
+    import json
+
+    src = {"thex": SESSION, "hex": MANUAL}.get(fmt)
+    if src is None:
+        src = tmp_path / "s.mcap"
+        assert _cli(["convert", str(SESSION), "-o", str(src), "--isolated"]).returncode == 0
+    direct = _cli(["info", str(src), "--isolated", "--format", "json"])
+    with open(src, "rb") as stdin:
+        given = _cli(["info", "-", "--isolated", "--format", "json"], stdin=stdin)
+    assert given.returncode == direct.returncode == 0, given.stderr
+    a, b = json.loads(direct.stdout), json.loads(given.stdout)
+    a.pop("input"), b.pop("input")
+    assert a == b and a["bytes"] > 0
