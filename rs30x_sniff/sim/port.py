@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections import deque
 from typing import Callable, Iterable
 
 Chunk = tuple[bytes, float]
@@ -12,6 +13,8 @@ Chunk = tuple[bytes, float]
 # between a request's end and its reply's end (the reply's own bytes plus the servo's 100 us return delay,
 # table 4.6 No. 7), so a reader can still tell the two apart.
 COALESCE = 0.0005
+LOOKAHEAD = 1.0  # seconds of chunks made ahead of the writes
+SPARE = 0.001    # no chunk is made this close to a write's time (the simulator takes up to a few hundred us for one)
 
 
 def play(chunks: Iterable[Chunk], write: Callable[[bytes], object], *, speed: float = 1.0,
@@ -24,24 +27,42 @@ def play(chunks: Iterable[Chunk], write: Callable[[bytes], object], *, speed: fl
     receiving: a reader that stamps bytes on arrival and lays them back at the line rate then finds each
     frame where it was. Without it, a chunk is written at its first byte's time.
 
+    ``chunks`` may be made as they are asked for (the simulator's generator): they are taken up to LOOKAHEAD
+    seconds in advance, while waiting for a write, never within SPARE of one, so making them never delays a write.
+
     ``write`` takes bytes (``os.write`` on a pty, a pyserial port's ``write``). ``on_write(offset,
     wall_time)`` is told the stream offset of every write's first byte and when it was written
     (benchmarks use it). Returns the number of bytes written.
     """
+    source = iter(chunks)
+    pending: deque[tuple[bytes, float]] = deque()  # (bytes, seconds after the start when they are due)
+
+    def pull() -> bool:
+        for data, t in source:
+            pending.append((data, (t + len(data) * byte_seconds) / speed))
+            return True
+        return False
+
+    more = True
+    while more and (not pending or pending[-1][1] < LOOKAHEAD):
+        more = pull()
     start = clock()
     sent = 0
-    buf = bytearray()
-    first = due = 0.0
-    for data, t in chunks:
-        target = start + (t + len(data) * byte_seconds) / speed
-        if buf and target - first > COALESCE:
-            sent += _flush(buf, write, due, clock, sleep, sent, on_write)
-        if not buf:
-            first = target
-        due = max(due, target) if buf else target  # the group goes out when its last byte is due
-        buf += data
-    if buf:
-        sent += _flush(buf, write, due, clock, sleep, sent, on_write)
+    while pending or (more and (more := pull())):
+        data, first = pending.popleft()
+        buf, due = bytearray(data), first
+        while True:  # chunks due within COALESCE of the first go out with it, when the last is due
+            if not pending and not (more and (more := pull())):
+                break
+            data, at = pending[0]
+            if at - first > COALESCE:
+                break
+            pending.popleft()
+            buf += data
+            due = max(due, at)
+        while more and (not pending or pending[-1][1] - due < LOOKAHEAD) and clock() < start + due - SPARE:
+            more = pull()
+        sent += _flush(buf, write, start + due, clock, sleep, sent, on_write)
     return sent
 
 
