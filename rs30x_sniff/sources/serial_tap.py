@@ -485,13 +485,13 @@ class LiveSource:
         if self.announce and self.reason == LOST:
             print(f"rs30x-sniff: {self.port}: port lost ({self.message}); "
                   f"{self.tap.bytes_read} bytes received", file=sys.stderr)
-        elif self.announce and self.message != "closed":
-            # The end line of a command reading a port (decode, lint, info): why it stopped, what it read.
-            print(f"rs30x-sniff: {self.message}: {self.port}: {self.tap.bytes_read:,} bytes received",
-                  file=sys.stderr)
         report = self.stall_report()
         if self.announce and report:
             print(report, file=sys.stderr)
+        if self.announce and self.reason != LOST and self.message != "closed":
+            # The end line of a command reading a port (decode, lint, info): why it stopped, what it read.
+            print(f"rs30x-sniff: {self.message}: {self.port}: {self.tap.bytes_read:,} bytes received",
+                  file=sys.stderr)
 
     def close(self) -> None:
         """End the capture now (idempotent)."""

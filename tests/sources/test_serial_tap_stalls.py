@@ -138,4 +138,5 @@ def test_the_stalls_are_reported_once_at_the_end(capsys):
     src._close(type("End", (), {"reason": "stopped", "message": "Ctrl-C"})())
     err = capsys.readouterr().err.splitlines()
     assert err == ["rs30x-sniff: /dev/ttyFAKE: the reader fell behind 2 times (longest 2.604 s at 0.496 s); "
-                   "their bytes are timed at the line rate"]
+                   "their bytes are timed at the line rate",
+                   f"rs30x-sniff: Ctrl-C: /dev/ttyFAKE: {tap.bytes_read:,} bytes received"]  # the end line, last
