@@ -4,8 +4,9 @@ The simulator plays a scenario onto a pty at its baud-rate pacing (230400 baud, 
 full) once per reader: a bare pyserial loop that appends what `in_waiting` says to a file (the floor: what
 reading the port costs at all); `record` with triggers on records, a pre-trigger ring and windows saved to a
 folder (the black box); the same with `sev>=error` too, a trigger on findings, which lints the bus as it goes;
-and plain `record` to one MCAP (for reference). Each reader's CPU time is
-taken from /proc while the bytes flow, and its resident memory every half second (flat: bounded by --pre).
+and plain `record` to one MCAP (for reference). Each reader's CPU time (with its children: the port's reader
+process) is taken from /proc while the bytes flow, and its resident memory every half second (flat: bounded by
+--pre).
 
 Target (issue 26): the black box at most 1.5x the bare loop's CPU; memory flat over the run (bounded by
 --pre: the ring, plus about 50 MB of interpreter and libraries).
@@ -46,19 +47,46 @@ with open(sys.argv[3], "ab", buffering=0) as out:
 """
 
 
+def tree(pid: int) -> list[int]:
+    """``pid`` and its descendants (Linux /proc): a recorder reads its port in a child process."""
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        out.append(p)
+        try:
+            for task in os.listdir(f"/proc/{p}/task"):
+                with open(f"/proc/{p}/task/{task}/children") as f:
+                    todo += [int(c) for c in f.read().split()]
+        except OSError:
+            pass
+    return out
+
+
 def cpu_seconds(pid: int) -> float:
-    """User + system CPU time of a running process so far (Linux /proc)."""
-    with open(f"/proc/{pid}/stat") as f:
-        fields = f.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / TICK
+    """User + system CPU time of a running process and its children so far (Linux /proc)."""
+    total = 0
+    for p in tree(pid):
+        try:
+            with open(f"/proc/{p}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+            total += int(fields[11]) + int(fields[12])
+        except OSError:
+            pass
+    return total / TICK
 
 
 def rss_mb(pid: int) -> float:
-    with open(f"/proc/{pid}/statm") as f:
-        return int(f.read().split()[1]) * PAGE / 1e6
+    total = 0
+    for p in tree(pid):
+        try:
+            with open(f"/proc/{p}/statm") as f:
+                total += int(f.read().split()[1])
+        except OSError:
+            pass
+    return total * PAGE / 1e6
 
 
-def measure(cmd: list[str], ready: Path | None, chunks, master: int) -> dict:
+def measure(cmd: list[str], ready: Path | None, chunks, master: int, baud: int) -> dict:
     """Start ``cmd``, wait until it reads the port (``ready`` exists, or it prints "ready"), play the chunks,
     and return its CPU seconds over the playing, the wall time and its memory samples."""
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -81,7 +109,7 @@ def measure(cmd: list[str], ready: Path | None, chunks, master: int) -> dict:
         sampler = threading.Thread(target=sample)
         sampler.start()
         cpu0, t0 = cpu_seconds(proc.pid), time.monotonic()
-        play(chunks, lambda b: os.write(master, b))
+        play(chunks, lambda b: os.write(master, b), byte_seconds=byte_time(baud))
         time.sleep(0.3)  # the last bytes read
         cpu1, t1 = cpu_seconds(proc.pid), time.monotonic()
         done.set()
@@ -124,7 +152,7 @@ def main() -> int:
     }
     got = {}
     for name, (cmd, ready) in runs.items():
-        got[name] = measure(cmd, ready, chunks, master)
+        got[name] = measure(cmd, ready, chunks, master, args.baud)
     os.close(master)
     os.close(slave)
     print(f"{args.scenario} at {args.baud} baud, {args.duration:g} s per reader: {total:,} bytes, "
