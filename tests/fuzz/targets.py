@@ -41,8 +41,17 @@ def check_bin(data: bytes) -> None:
 
 def _reference_text(data: bytes, timestamped: bool) -> list[tuple[bytes, float | None]] | None:
     """What a text capture holds, by a slow, independent reading of the format (None: it is invalid)."""
+    # The encodings and line ends a text capture may come in (README): UTF-32 is refused, UTF-16 with its mark
+    # read, and CRLF or a lone CR end a line as LF does.
+    if data.startswith((b"\xff\xfe\x00\x00", b"\x00\x00\xfe\xff")):
+        return None
+    for bom, encoding in ((b"\xff\xfe", "utf-16-le"), (b"\xfe\xff", "utf-16-be")):
+        if data.startswith(bom):
+            data = data[2:].decode(encoding, "replace").encode("utf-8")
+            break
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
+    data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     out: list[tuple[bytes, float | None]] = []
     for line in data.split(b"\n"):
         tokens = line.split(b"#", 1)[0].split()

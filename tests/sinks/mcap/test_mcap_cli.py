@@ -49,10 +49,11 @@ def test_convert_writes_lint_findings_as_foxglove_logs(tmp_path, capsys):
 
 def test_select_and_ignore_choose_the_rules(tmp_path):
     out = tmp_path / "m.mcap"
-    assert main(["convert", str(MANUAL), "-o", str(out), "--select", "Q004,P009", "--ignore", "P009"]) == 0
+    # A family selected and one of its rules ignored: a refinement (one rule both selected and ignored is refused).
+    assert main(["convert", str(MANUAL), "-o", str(out), "--select", "Q004,P", "--ignore", "P009"]) == 0
     with open(out, "rb") as f:
         names = {json.loads(m.data)["name"] for _, _, m in make_reader(f).iter_messages(topics=["/rs30x/diagnostics"])}
-    assert names == {"Q004 goal-while-torque-off"}
+    assert names == {"Q004 goal-while-torque-off", "P008 command-packet-format"}
 
 
 def test_convert_refuses_to_overwrite_without_force(tmp_path, capsys):
