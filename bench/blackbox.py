@@ -31,59 +31,8 @@ from rs30x_sniff.protocol.wire import byte_time  # noqa: E402
 from rs30x_sniff.sim import run  # noqa: E402
 from rs30x_sniff.sim.port import play  # noqa: E402
 
-TICK = os.sysconf("SC_CLK_TCK")
-PAGE = os.sysconf("SC_PAGE_SIZE")
-
-# The floor: read what has arrived (at least one byte, waiting for it), append it to a file.
-BARE_LOOP = """
-import sys, serial
-ser = serial.serial_for_url(sys.argv[1], baudrate=int(sys.argv[2]), timeout=0.05)
-with open(sys.argv[3], "ab", buffering=0) as out:
-    print("ready", flush=True)
-    while True:
-        data = ser.read(ser.in_waiting or 1)
-        if data:
-            out.write(data)
-"""
-
-
-def tree(pid: int) -> list[int]:
-    """``pid`` and its descendants (Linux /proc): a recorder reads its port in a child process."""
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        out.append(p)
-        try:
-            for task in os.listdir(f"/proc/{p}/task"):
-                with open(f"/proc/{p}/task/{task}/children") as f:
-                    todo += [int(c) for c in f.read().split()]
-        except OSError:
-            pass
-    return out
-
-
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU time of a running process and its children so far (Linux /proc)."""
-    total = 0
-    for p in tree(pid):
-        try:
-            with open(f"/proc/{p}/stat") as f:
-                fields = f.read().rsplit(")", 1)[1].split()
-            total += int(fields[11]) + int(fields[12])
-        except OSError:
-            pass
-    return total / TICK
-
-
-def rss_mb(pid: int) -> float:
-    total = 0
-    for p in tree(pid):
-        try:
-            with open(f"/proc/{p}/statm") as f:
-                total += int(f.read().split()[1])
-        except OSError:
-            pass
-    return total * PAGE / 1e6
+# The floor and the /proc readings are bench/live.py's: one bare loop and one way of counting CPU and memory.
+from live import BARE_LOOP, cpu_seconds, rss_mb  # noqa: E402  (bench/ is on the path: run as a script)
 
 
 def measure(cmd: list[str], ready: Path | None, chunks, master: int, baud: int) -> dict:

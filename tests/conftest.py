@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import pytest
@@ -62,3 +63,13 @@ def decode_three_ways(data: bytes, t0: float | None = None, **kw):
 @pytest.fixture
 def manual_examples() -> Path:
     return CAPTURES / "manual-examples.hex"
+
+
+@pytest.fixture
+def utc(monkeypatch):
+    """Local time is UTC while the test runs (an absolute time is shown as the local time of day)."""
+    monkeypatch.setenv("TZ", "UTC")
+    time.tzset()
+    yield
+    monkeypatch.undo()
+    time.tzset()

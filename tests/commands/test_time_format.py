@@ -4,7 +4,6 @@ the capture's own times (JSON)."""
 from __future__ import annotations
 
 import json
-import time
 
 import pytest
 
@@ -19,14 +18,6 @@ T0 = 1795832946.25  # 2026-11-28 02:29:06.25 UTC
 SOCAT = str(CAPTURES / "foreign" / "socat.log")     # a log with wall-clock stamps (local time, no zone)
 SESSION = str(CAPTURES / "session-mixed.thex")       # times counted from the capture's start
 
-
-@pytest.fixture
-def utc(monkeypatch):
-    monkeypatch.setenv("TZ", "UTC")
-    time.tzset()
-    yield
-    monkeypatch.undo()
-    time.tzset()
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ from __future__ import annotations
 import io
 import json
 import re
-import time
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -26,15 +25,6 @@ T0 = 1795832946.25  # 2026-11-28 02:29:06.25 UTC: a live port's wall-clock times
 SETTINGS = settings(max_examples=25, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 
-
-@pytest.fixture
-def utc(monkeypatch):
-    """Local time is UTC while the test runs (absolute times are the local time of day)."""
-    monkeypatch.setenv("TZ", "UTC")
-    time.tzset()
-    yield
-    monkeypatch.undo()
-    time.tzset()
 
 
 @pytest.fixture(params=[1, blocks_module.MIN_BLOCK], ids=["tiny blocks", "default blocks"])

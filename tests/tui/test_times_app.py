@@ -3,9 +3,7 @@ bus (a port's times) and on a capture timed from its start."""
 
 from __future__ import annotations
 
-import time
 
-import pytest
 
 from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.sim import run as simulate
@@ -20,14 +18,6 @@ T0 = 1795832946.25  # 2026-11-28 02:29:06.25 UTC: a live port's wall-clock times
 WIDE = (230, 30)    # the timeline's full columns (delta, latency)
 NARROW = (100, 30)  # its compact columns
 
-
-@pytest.fixture
-def utc(monkeypatch):
-    monkeypatch.setenv("TZ", "UTC")
-    time.tzset()
-    yield
-    monkeypatch.undo()
-    time.tzset()
 
 
 def wall_bus():
