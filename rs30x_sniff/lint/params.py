@@ -135,6 +135,13 @@ def said(template: str, params: Mapping[str, Any], missing: str = MISSING) -> Me
     return Message("".join(text), "".join(key), params)
 
 
+def said_as(template: str, params: Mapping[str, Any], shown: Mapping[str, str]) -> Message:
+    """:func:`said`, but the fields named in ``shown`` are written as given there (a count in words, "once" or
+    "2 chunks"; a span in seconds): the key still masks each one whose value is :class:`Measured`, and the
+    parameters keep the typed values."""
+    return Message(str(said(template, {**params, **shown})), said(template, params).key, params)
+
+
 def _converted(v: Any, conv: str) -> str:
     return repr(v) if conv == "r" else ascii(v) if conv == "a" else str(v)
 
