@@ -10,6 +10,7 @@ rule's own words) stays in it.
 
 from __future__ import annotations
 
+import functools
 import math
 import string
 from dataclasses import dataclass
@@ -109,7 +110,7 @@ def said(template: str, params: Mapping[str, Any], missing: str = MISSING) -> Me
     """``template`` (``str.format`` fields by name, with an optional conversion and format spec) filled from
     ``params``: a :class:`Measured` value with its unit, any other value as it is; a field with no value (or
     None) reads ``missing``. A value its format spec does not fit is written plainly."""
-    parts = list(string.Formatter().parse(template))
+    parts = _parsed(template)
     text: list[str] = []
     key: list[str] = []
     for i, (literal, field, spec, conv) in enumerate(parts):
@@ -140,6 +141,12 @@ def said_as(template: str, params: Mapping[str, Any], shown: Mapping[str, str]) 
     "2 chunks"; a span in seconds): the key still masks each one whose value is :class:`Measured`, and the
     parameters keep the typed values."""
     return Message(str(said(template, {**params, **shown})), said(template, params).key, params)
+
+
+@functools.lru_cache(maxsize=1024)
+def _parsed(template: str) -> tuple:
+    # A rule that can fire on every frame says the same few templates: parse each once.
+    return tuple(string.Formatter().parse(template))
 
 
 def _converted(v: Any, conv: str) -> str:
