@@ -5,6 +5,7 @@ from __future__ import annotations
 from ...protocol.wire import (
     RETURN_FLASH_WRITE_ERROR, RETURN_RECEIVED_ERROR, RETURN_TEMPERATURE_ALARM, RETURN_TEMPERATURE_LIMIT,
     encode_return)
+from ..params import said
 from ..registry import example, rule
 
 _NOTE = """
@@ -38,7 +39,7 @@ it cools down and is rebooted (see Q009); the motor is then at 120-140 degC.
 """, kinds=("return",), when="flagged", column="silent")
 def temperature_limit(lint, rec, ev):
     if _turned_on(lint, ev, RETURN_TEMPERATURE_LIMIT):
-        lint.emit("S001", rec, f"ID {ev.id} passed its temperature limit and cut torque")
+        lint.emit("S001", rec, said("ID {id} passed its temperature limit and cut torque", {"id": ev.id}))
 
 
 @rule("S002", "temperature-alarm", "warning", "A servo reports a temperature alarm.", f"""
@@ -53,7 +54,7 @@ It is the last warning before the servo cuts its torque (S001). Reduce the load 
 """, kinds=("return",), when="flagged", column="silent")
 def temperature_alarm(lint, rec, ev):
     if _turned_on(lint, ev, RETURN_TEMPERATURE_ALARM):
-        lint.emit("S002", rec, f"ID {ev.id} is within 10 degC of its temperature limit")
+        lint.emit("S002", rec, said("ID {id} is within 10 degC of its temperature limit", {"id": ev.id}))
 
 
 @rule("S003", "flash-write-error", "error", "A servo reports that writing its flash ROM failed.", f"""
@@ -69,7 +70,7 @@ comes back with old values, maybe on another ID or baud rate.
 """, kinds=("return",), when="flagged", column="silent")
 def flash_write_error(lint, rec, ev):
     if _turned_on(lint, ev, RETURN_FLASH_WRITE_ERROR):
-        lint.emit("S003", rec, f"ID {ev.id} failed to write its flash ROM")
+        lint.emit("S003", rec, said("ID {id} failed to write its flash ROM", {"id": ev.id}))
 
 
 @rule("S004", "received-packet-error", "warning", "A servo reports it received a bad packet.", f"""
@@ -86,4 +87,4 @@ differs from the tap's (noise near the servo, a marginal baud rate).
 """, kinds=("return",), when="flagged", column="silent")
 def received_packet_error(lint, rec, ev):
     if _turned_on(lint, ev, RETURN_RECEIVED_ERROR):
-        lint.emit("S004", rec, f"ID {ev.id} received a packet it could not accept")
+        lint.emit("S004", rec, said("ID {id} received a packet it could not accept", {"id": ev.id}))

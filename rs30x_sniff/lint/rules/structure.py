@@ -6,11 +6,17 @@ from ...protocol.wire import (
     BROADCAST_ID, COMMAND_ADDRESS, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, FLAG_RESERVED, FLAG_WRITE_FLASH,
     MAX_READ_ADDRESS, RETURN_FLAGS_RESERVED, RETURN_MODES, RETURN_SPECIFIED, encode_long, encode_read,
     encode_return, encode_short)
+from ..params import Measured, said
 from ..registry import example, frame, rule
 
 _G90, _P10, _P50 = bytes.fromhex("8403"), bytes.fromhex("6400"), bytes.fromhex("F401")  # 90.0 deg, 10.0 deg, 50.0 deg
 _RET = bytes.fromhex("FDDF")
 _FLASH_REBOOT = FLAG_WRITE_FLASH | FLAG_REBOOT  # table 4.2: the manual wants these in separate packets
+
+# Messages are made by said() (lint.params): the header fields a rule names (flag, Length, Count, Address,
+# IDs, return mode) are what the host sent, the same in every recording of the same host, so they stay in
+# the finding's key; only P013's whole return-flags byte, whose status bits follow the servo's state, is
+# Measured.
 
 
 def _cmds(ev) -> str:
@@ -31,7 +37,7 @@ wrong variable.
 """, kinds=("short",), column="header")
 def reserved_flag_bit(lint, rec, ev):
     if ev.flag & FLAG_RESERVED:
-        lint.emit("P001", rec, f"flag 0x{ev.flag:02X} sets reserved bit 7")
+        lint.emit("P001", rec, said("flag 0x{flag:02X} sets reserved bit 7", {"flag": ev.flag}))
 
 
 @rule("P002", "long-packet-flags", "error", "A long packet whose flag is not 0.", f"""
@@ -47,7 +53,7 @@ there are at best ignored and at worst make some servos act on them.
 """, kinds=("long",), column="header")
 def long_packet_flags(lint, rec, ev):
     if ev.flag:
-        lint.emit("P002", rec, f"long packet with flag 0x{ev.flag:02X} (must be 0)")
+        lint.emit("P002", rec, said("long packet with flag 0x{flag:02X} (must be 0)", {"flag": ev.flag}))
 
 
 @rule("P003", "long-packet-length", "error", "A long packet with Length below 2 or Count 0.", f"""
@@ -65,7 +71,8 @@ Length without the VID byte or sent an empty batch.
 """, kinds=("long",), column="header")
 def long_packet_length(lint, rec, ev):
     if ev.length < 2 or ev.count == 0:
-        lint.emit("P003", rec, f"long packet with Length {ev.length} and Count {ev.count} writes nothing")
+        lint.emit("P003", rec, said("long packet with Length {length} and Count {count} writes nothing",
+                                    {"length": ev.length, "count": ev.count}))
 
 
 @rule("P004", "duplicate-vid", "warning", "A long packet addresses the same servo twice.", f"""
@@ -83,7 +90,7 @@ def duplicate_vid(lint, rec, ev):
     vids = [r[0] for r in ev.records]
     if len(set(vids)) != len(vids):
         dup = sorted({v for v in vids if vids.count(v) > 1})
-        lint.emit("P004", rec, f"VID {', '.join(map(str, dup))} appears more than once")
+        lint.emit("P004", rec, said("VID {vids} appears more than once", {"vids": ", ".join(map(str, dup))}))
 
 
 @rule("P005", "invalid-id", "error", "An ID outside 1-127 (and not 255 for a short packet).", f"""
@@ -104,12 +111,12 @@ def invalid_id(lint, rec, ev):
     if kind == "long":
         bad = [r[0] for r in ev.records if not 1 <= r[0] <= 127]
         if bad:
-            lint.emit("P005", rec, f"VID {', '.join(map(str, bad))} outside 1-127", sid=bad[0])
+            lint.emit("P005", rec, said("VID {vids} outside 1-127", {"vids": ", ".join(map(str, bad))}), sid=bad[0])
     elif kind == "short":
         if 128 <= ev.id <= 254:
-            lint.emit("P005", rec, f"ID {ev.id} outside 1-127 (255 is broadcast)")
+            lint.emit("P005", rec, said("ID {id} outside 1-127 (255 is broadcast)", {"id": ev.id}))
     elif not 1 <= ev.id <= 127:
-        lint.emit("P005", rec, f"return from ID {ev.id}, outside 1-127")
+        lint.emit("P005", rec, said("return from ID {id}, outside 1-127", {"id": ev.id}))
 
 
 @rule("P006", "bad-count", "error", "Count is not 1 on a short write, or not 0 on a flag-0F read.", f"""
@@ -129,9 +136,10 @@ def bad_count(lint, rec, ev):
         return
     if ev.return_mode == RETURN_SPECIFIED:
         if ev.count != 0:
-            lint.emit("P006", rec, f"flag-0F read with Count {ev.count} (must be 0)")
+            lint.emit("P006", rec, said("flag-0F read with Count {count} (must be 0)", {"count": ev.count}))
     elif ev.length and ev.count != 1:
-        lint.emit("P006", rec, f"short write with Length {ev.length} and Count {ev.count} (Count must be 1)")
+        lint.emit("P006", rec, said("short write with Length {length} and Count {count} (Count must be 1)",
+                                    {"length": ev.length, "count": ev.count}))
 
 
 @rule("P007", "undefined-return-mode", "error", "Flag bits 3-0 are not a return mode of table 4.3.", f"""
@@ -149,7 +157,7 @@ request with a reply either, so a stray return may follow and collide with the n
 def undefined_return_mode(lint, rec, ev):
     mode = ev.return_mode
     if mode not in RETURN_MODES:
-        lint.emit("P007", rec, f"return mode {mode:04b} is not in table 4.3")
+        lint.emit("P007", rec, said("return mode {mode:04b} is not in table 4.3", {"mode": mode}))
 
 
 @rule("P008", "command-packet-format", "error", "A flash / reboot / initialize packet not sent as Address FF, Length 0, Count 0.", f"""
@@ -167,17 +175,20 @@ the flash or the reboot, or at all.
 {example(frame(1, 0x40, 0x07, 1, 1, 0x12), note="a flash write that also carries return_delay 18:")}
 """, kinds=("command",), column="silent")
 def command_packet_format(lint, rec, ev):
-    problems = []
+    problems = []  # the template's pieces, one per field out of form
     if ev.address != COMMAND_ADDRESS:
-        problems.append(f"Address {ev.address:02X}")
+        problems.append("Address {address:02X}")
     if ev.count != 0:
-        problems.append(f"Count {ev.count}")
+        problems.append("Count {count}")
     if ev.length != 0 and not (ev.flag & FLAG_INITIALIZE and ev.length == 0xFF):
-        problems.append(f"Length {ev.length}")
+        problems.append("Length {length}")
     if ev.data:
-        problems.append(f"{len(ev.data)} data byte(s)")
+        problems.append("{data} data byte(s)")  # Length x Count, so the host's packet form, not a measurement
     if problems:
-        lint.emit("P008", rec, f"{_cmds(ev)} command with {', '.join(problems)} (expected Address FF, Length 0, Count 0, no data)")
+        lint.emit("P008", rec, said("{command} command with " + ", ".join(problems)
+                                    + " (expected Address FF, Length 0, Count 0, no data)",
+                                    {"command": _cmds(ev), "address": ev.address, "count": ev.count,
+                                     "length": ev.length, "data": len(ev.data)}))
 
 
 @rule("P009", "combined-flash-reboot", "error", "Flash write and reboot requested in one packet.", f"""
@@ -194,7 +205,8 @@ configuration (the manual warns not to cut power during a flash write).
 """, kinds=("command",), column="silent")
 def combined_flash_reboot(lint, rec, ev):
     if ev.flag & _FLASH_REBOOT == _FLASH_REBOOT:
-        lint.emit("P009", rec, "flash write and reboot in one packet; send the reboot separately, after the flash write")
+        lint.emit("P009", rec, said("flash write and reboot in one packet; send the reboot separately, "
+                                    "after the flash write", {}))
 
 
 @rule("P010", "broadcast-return-request", "error", "A packet to ID 255 asks for a reply.", f"""
@@ -210,7 +222,8 @@ and the host gets garbage (and may conclude servos are missing).
 """, kinds=("short",), column="header")
 def broadcast_return_request(lint, rec, ev):
     if ev.id == BROADCAST_ID and rec.expects is not None:
-        lint.emit("P010", rec, f"broadcast packet asks every servo for {'an ACK' if rec.expects == 'ack' else 'a return'}")
+        lint.emit("P010", rec, said("broadcast packet asks every servo for {reply}",
+                                    {"reply": "an ACK" if rec.expects == "ack" else "a return"}))
 
 
 @rule("P011", "read-out-of-range", "error", "A flag-0F read of length 0 or past address 139.", f"""
@@ -230,9 +243,10 @@ def read_out_of_range(lint, rec, ev):
         return
     top = rec.model.readable_to if rec.model is not None else MAX_READ_ADDRESS
     if ev.length == 0:
-        lint.emit("P011", rec, "read of length 0")
+        lint.emit("P011", rec, said("read of length 0", {}))
     elif ev.address + ev.length - 1 > top:
-        lint.emit("P011", rec, f"read of {ev.address}-{ev.address + ev.length - 1} goes past address {top}")
+        lint.emit("P011", rec, said("read of {first}-{last} goes past address {top}",
+                                    {"first": ev.address, "last": ev.address + ev.length - 1, "top": top}))
 
 
 @rule("P012", "return-count", "warning", "A return packet whose Count is not 1.", f"""
@@ -248,7 +262,7 @@ matched by chance) or comes from a device that only imitates the protocol.
 """, kinds=("return",), column="header")
 def return_count(lint, rec, ev):
     if ev.count != 1:
-        lint.emit("P012", rec, f"return with Count {ev.count} (always 1)")
+        lint.emit("P012", rec, said("return with Count {count} (always 1)", {"count": ev.count}))
 
 
 @rule("P013", "return-reserved-flag", "warning", "A return packet sets a reserved status bit.", f"""
@@ -264,5 +278,7 @@ does not know; its other status bits are then not to be trusted either.
 """, kinds=("return",), when="flagged", column="silent")
 def return_reserved_flag(lint, rec, ev):
     if ev.flags & RETURN_FLAGS_RESERVED:
-        lint.emit("P013", rec, f"return flags 0x{ev.flags:02X} set reserved bit(s) "
-                               f"0x{ev.flags & RETURN_FLAGS_RESERVED:02X}")
+        # The whole flags byte also holds the status bits (table 4.4: temperature, flash, received error),
+        # which come and go with the servo's state: measured. The reserved bits set are the behaviour.
+        lint.emit("P013", rec, said("return flags 0x{flags:02X} set reserved bit(s) 0x{reserved:02X}",
+                                    {"flags": Measured(ev.flags), "reserved": ev.flags & RETURN_FLAGS_RESERVED}))
