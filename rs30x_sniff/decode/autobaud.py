@@ -144,25 +144,6 @@ class NoFrameStretch:
         return False
 
 
-def wrong_baud_message(nbytes: int, span: float | None, baud: int, estimate: BaudEstimate | None = None) -> str:
-    """F007's text: what was seen, and which rates to try."""
-    where = f"no valid frame in {nbytes} bytes" + (f" ({span:.2f} s)" if span is not None else "")
-    rates = ", ".join(str(r) for r in BAUD_RATES if r != baud)
-    if estimate is None:
-        return (f"{where} read at {baud} bit/s: is the bus at another rate? The bytes alone cannot tell which; "
-                f"try --baud auto on a port, or the other rates of table 4.7 ({rates})")
-    if estimate.baud is not None and estimate.baud != baud:
-        return (f"{where} read at {baud} bit/s: the timestamps put bytes {estimate.per_byte * 1e6:.1f} us apart, "
-                f"a byte time of {estimate.baud} bit/s: try --baud {estimate.baud}")
-    if estimate.baud == baud:
-        # A receiver at the wrong rate still delivers its bytes at its own pace, so its timestamps
-        # show the rate it was set to, not the line's.
-        return (f"{where} read at {baud} bit/s: the bytes arrived at the reader's own pace, which says nothing "
-                f"of the bus's rate; try --baud auto on a port, or the other rates of table 4.7 ({rates})")
-    return (f"{where} read at {baud} bit/s: is the bus at another rate? The timestamps do not tell which; "
-            f"try --baud auto on a port, or the other rates of table 4.7 ({rates})")
-
-
 # ---- scanning a port ------------------------------------------------------------------------
 @dataclass(frozen=True)
 class RateScore:

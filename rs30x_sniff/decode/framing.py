@@ -63,16 +63,7 @@ class Seam:
     t_end: float | None         # end of the last byte before the seam (None: that segment had no time)
     t_start: float              # the new segment's first time
     note: str = ""              # SEAM_SOURCE: what the source said of its gap (a port re-plugged)
-
-    def describe(self) -> str:
-        if self.kind == SEAM_SOURCE:
-            idle = "" if self.t_end is None else f" ({self.t_start - self.t_end:.3f} s from the last byte before)"
-            return f"{self.note}{idle}: a new time segment begins (nothing is paired or timed across it)"
-        if self.kind == SEAM_RESTART:
-            back = "" if self.t_end is None else f", {self.t_end - self.t_start:.3f} s back"
-            return f"the capture's clock restarts here (stamped {self.t_start:.6f} s{back}): a new time segment begins"
-        idle = "" if self.t_end is None else f" after {self.t_start - self.t_end:.3f} s without bytes"
-        return f"the capture resumes here{idle}: a new time segment begins (nothing is timed across the gap)"
+    # What the linter says of a seam (F010) is rs30x_sniff.lint.rules.timebase's.
 
 
 @dataclass

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from ...protocol.baud import BaudEstimate
 from ...protocol.chunks import UART_ERRORS
 from ...protocol.events import CAPTURE_EDGES, RAW, REASON, T_END, T_START, TRUNCATED
-from ...protocol.wire import AT_ID, SUM_SIZE, encode_short
+from ...protocol.wire import AT_ID, BAUD_RATES, SUM_SIZE, encode_short
+from ..params import DURATION, Measured, Message, said, said_as
 from ..registry import example, rule
 
 _GOAL = encode_short(1, 0, 0x1E, b"\x84\x03")  # goal_position 90.0 deg on ID 1
@@ -26,7 +28,9 @@ a weak pull-up, a long cable, or two talkers at once.
 """, kinds=("corrupt",), column="silent")
 def checksum_mismatch(lint, rec, ev):
     raw = ev.raw
-    lint.emit("F001", rec, f"Sum is 0x{raw[-1]:02X} but the bytes from ID on XOR to 0x{_xor(raw[AT_ID:-SUM_SIZE]):02X}")
+    # Both Sums follow from the packet's data: measured, so a corrupted packet of other data is the same finding.
+    lint.emit("F001", rec, said("Sum is 0x{sum:02X} but the bytes from ID on XOR to 0x{xor:02X}",
+                                {"sum": Measured(raw[-1]), "xor": Measured(_xor(raw[AT_ID:-SUM_SIZE]))}))
 
 
 def _xor(data: bytes) -> int:
@@ -60,7 +64,7 @@ def garbage_bytes(lint, rec, ev):
             and prev.event.reason != "truncated" and prev.event.reason not in UART_ERRORS:
         return  # the next piece of a long run (the decoder hands runs out in pieces): said once
     what = "no frame header" if ev.reason == "noise" else "a header whose length cannot be a frame"
-    lint.emit("F002", rec, f"{len(ev.raw)} byte(s) with {what}")
+    lint.emit("F002", rec, said("{count} byte(s) with {what}", {"count": Measured(len(ev.raw)), "what": what}))
 
 
 @rule("F003", "truncated-frame", "error", "A frame that was cut short.", f"""
@@ -81,7 +85,8 @@ was pre-empted, or filled a transmit buffer.
 def truncated_frame(lint, rec, ev):
     if ev.reason == "truncated":
         raw = ev.raw
-        lint.emit("F003", rec, f"frame cut short after {len(raw)} byte(s)", sid=raw[AT_ID] if len(raw) > AT_ID else None)
+        lint.emit("F003", rec, said("frame cut short after {count} byte(s)", {"count": Measured(len(raw))}),
+                  sid=raw[AT_ID] if len(raw) > AT_ID else None)
 
 
 def _inter_byte_gap_columns(view) -> bool:
@@ -115,7 +120,8 @@ def inter_byte_gap(lint, rec, ev):
     bt = lint.byte_time
     idle = (t1 - t0) - len(ev[RAW]) * bt
     if idle > lint.config.inter_byte_gap * bt:
-        lint.emit("F004", rec, f"{idle * 1e3:.3f} ms ({idle / bt:.1f} byte times) of idle line inside the frame")
+        lint.emit("F004", rec, said("{idle} ms ({byte_times:.1f} byte times) of idle line inside the frame",
+                                    {"idle": Measured(idle, DURATION), "byte_times": Measured(idle / bt, "byte times")}))
 
 
 _ONE_FRAME = (TRUNCATED, *CAPTURE_EDGES)
@@ -178,10 +184,34 @@ def wrong_baud_rate(st, lint, rec, ev):
     # count, though it does not end the stretch either.
     if ev.kind != "garbage" or ev[REASON] in _ONE_FRAME or not st.run.garbage(len(ev[RAW]), t0, ev[T_END]):
         return
-    from ...decode.autobaud import wrong_baud_message
-
     est = st.times.estimate if lint.timed else None
-    lint.emit("F007", rec, wrong_baud_message(st.run.bytes, st.run.span, lint.config.baud, est), sid=None)
+    lint.emit("F007", rec, _wrong_baud_message(st.run.bytes, st.run.span, lint.config.baud, est), sid=None)
+
+
+def _wrong_baud_message(nbytes: int, span: float | None, baud: int, estimate: BaudEstimate | None = None) -> Message:
+    """F007's text: what was seen, and which rates to try (``estimate``: the rate the timestamps give,
+    rs30x_sniff.decode.autobaud.BaudFromTimes; None for a capture without times)."""
+    where = "no valid frame in {bytes} bytes" + (" ({span} s)" if span is not None else "") + " read at {baud} bit/s: "
+    params = {"bytes": Measured(nbytes), "baud": baud, "rates": ", ".join(str(r) for r in BAUD_RATES if r != baud)}
+    shown = {}
+    if span is not None:  # a stretch is long: written in seconds
+        params["span"], shown["span"] = Measured(span, DURATION), f"{span:.2f}"
+    if estimate is None:
+        return said_as(where + "is the bus at another rate? The bytes alone cannot tell which; "
+                       "try --baud auto on a port, or the other rates of table 4.7 ({rates})", params, shown)
+    if estimate.baud is not None and estimate.baud != baud:
+        # The rate the times give names the fault (the bus is at that rate): it stays in the key.
+        return said_as(where + "the timestamps put bytes {per_byte} us apart, a byte time of {line} bit/s: "
+                       "try --baud {line}", {**params, "per_byte": Measured(estimate.per_byte, DURATION),
+                                             "line": estimate.baud},
+                       {**shown, "per_byte": f"{estimate.per_byte * 1e6:.1f}"})
+    if estimate.baud == baud:
+        # A receiver at the wrong rate still delivers its bytes at its own pace, so its timestamps
+        # show the rate it was set to, not the line's.
+        return said_as(where + "the bytes arrived at the reader's own pace, which says nothing of the bus's rate; "
+                       "try --baud auto on a port, or the other rates of table 4.7 ({rates})", params, shown)
+    return said_as(where + "is the bus at another rate? The timestamps do not tell which; "
+                   "try --baud auto on a port, or the other rates of table 4.7 ({rates})", params, shown)
 
 
 @wrong_baud_rate.on("packet", "ack", "nack")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ...protocol.memmap import ModelError, default_registry
 from ...protocol.wire import encode_long, encode_read, encode_return, encode_short
+from ..params import Measured, said, said_as
 from ..registry import example, rule
 
 
@@ -29,7 +30,8 @@ the host's register offsets are off by a few bytes.
 def write_read_only(lint, rec, plan, ids):
     if plan.read_only:
         who, sid = _who(ids)
-        lint.emit("M001", rec, f"writes read-only {', '.join(plan.read_only)} of {who}", sid=sid)
+        lint.emit("M001", rec, said("writes read-only {registers} of {who}",
+                                    {"registers": ", ".join(plan.read_only), "who": who}), sid=sid)
 
 
 @rule("M002", "write-reserved", "warning", "A write to a reserved or undocumented address.", f"""
@@ -48,7 +50,8 @@ instead of 0x0A, a typo that lands in a reserved area.
 def write_reserved(lint, rec, plan, ids):
     if plan.reserved:
         who, sid = _who(ids)
-        lint.emit("M002", rec, f"writes {', '.join(plan.reserved)} of {who}", sid=sid)
+        lint.emit("M002", rec, said("writes {registers} of {who}", {"registers": ", ".join(plan.reserved), "who": who}),
+                  sid=sid)
 
 
 def _value_out_of_range_columns(view) -> bool:
@@ -82,9 +85,20 @@ def value_out_of_range(lint, rec, plan, targets):
             if lo <= v <= hi:
                 continue
             reg = plan.parts[j][0]
-            shown = reg.convert(v)
-            lint.emit("M003", rec, f"{name}={v} (raw) on ID {sid} outside {lo}-{hi}"
-                      + (f" ({shown}{reg.unit or ''})" if isinstance(shown, float) else ""), sid=sid)
+            lint.emit("M003", rec, _out_of_range(name, v, reg, sid, lo, hi), sid=sid)
+
+
+def _out_of_range(name: str, raw: int, reg, sid: int, lo: int, hi: int):
+    """M003's message: the value written (measured) against the table's range (the manual's, so named)."""
+    params = {"name": name, "raw": Measured(raw), "id": sid, "lo": lo, "hi": hi}
+    template = "{name}={raw} (raw) on ID {id} outside {lo}-{hi}"
+    value = reg.convert(raw)
+    if not isinstance(value, float):
+        return said(template, params)
+    # A scaled register also shows its value in units, written as str() writes the float (160.0deg),
+    # as the reports have always written it.
+    return said_as(template + " ({value})", {**params, "value": Measured(value, reg.unit or "")},
+                   {"value": f"{value}{reg.unit or ''}"})
 
 
 @rule("M004", "partial-register-write", "warning", "A write that covers one byte of a 2-byte register.", f"""
@@ -102,7 +116,8 @@ alone is written becomes a goal nobody asked for. The usual cause is a Length on
 def partial_register_write(lint, rec, plan, ids):
     if plan.partial:
         who, sid = _who(ids)
-        lint.emit("M004", rec, f"writes only {', '.join(plan.partial)} of {who}", sid=sid)
+        lint.emit("M004", rec, said("writes only {registers} of {who}", {"registers": ", ".join(plan.partial), "who": who}),
+                  sid=sid)
 
 
 def _known_models() -> str:
@@ -115,7 +130,7 @@ def _known_models() -> str:
     return ", ".join(f"0x{n:04X} {m.name}" for n, m in sorted(registry.by_number.items()))
 
 
-def _unknown_model_number_columns(said, view) -> bool:
+def _unknown_model_number_columns(named, view) -> bool:
     """M005 on a Block: no return of the model number to judge (one sends the Block row by row)."""
     return not (view.is_return & (view.address == 0) & (view.data_len >= 2)).any()
 
@@ -136,8 +151,8 @@ a memory map for the model under decoders/.
 ## Example
 {example(encode_read(1, 0x00, 2), encode_return(1, 0x00, bytes.fromhex("0C30")), note="a servo answers model number 0x300C:")}
 """, kinds=("return",), state=set, column=_unknown_model_number_columns)
-def unknown_model_number(said, lint, rec, ev):
-    # said: servo IDs already named
+def unknown_model_number(named, lint, rec, ev):
+    # named: servo IDs already named
     if ev.address != 0:
         return
     data = ev.data
@@ -145,10 +160,12 @@ def unknown_model_number(said, lint, rec, ev):
         return
     number = data[0] | data[1] << 8
     model = rec.model
-    if model is None or number == model.model_number or ev.id in said:
+    if model is None or number == model.model_number or ev.id in named:
         return
     if number in default_registry().by_number:
         return  # a known model (decoded as another only if --model says so)
-    said.add(ev.id)
-    lint.emit("M005", rec, f"ID {ev.id} reports model number 0x{number:04X}, which no memory map knows "
-                           f"({_known_models()}); decoding it with the {model.name} map instead")
+    named.add(ev.id)
+    # The model number names which model the servo is (as a model's name would): it stays in the key.
+    lint.emit("M005", rec, said("ID {id} reports model number 0x{number:04X}, which no memory map knows ({known}); "
+                                "decoding it with the {model} map instead",
+                                {"id": ev.id, "number": number, "known": _known_models(), "model": model.name}))

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from ...decode.framing import TIME_BACKWARDS, TIME_TOO_CLOSE
+from ...decode.framing import SEAM_RESTART, SEAM_SOURCE, TIME_BACKWARDS, TIME_TOO_CLOSE, Seam
 from ...protocol.wire import encode_read, encode_short
+from ..params import DURATION, TIME, Measured, Message, said_as
 from ..registry import example, rule
 
 _GOAL = encode_short(1, 0, 0x1E, b"\x84\x03")  # goal_position 90.0 deg on ID 1
@@ -12,6 +13,10 @@ _READ = encode_read(1, 0x2A, 2)                # present_position of ID 1
 
 def _times(n: int) -> str:
     return "once" if n == 1 else f"{n} times"
+
+
+def _chunks(n: int) -> str:
+    return f"{n} chunk{'s' if n > 1 else ''}"
 
 
 @rule("F005", "time-went-backwards", "warning", "The capture's timestamps go back in time.", f"""
@@ -32,10 +37,13 @@ Read as they stand they give negative latencies, a zero-length capture and a bus
 def time_went_backwards(lint):
     fault = getattr(lint, "time_faults", {}).get(TIME_BACKWARDS)
     if fault is not None:
-        lint.emit_at("F005", fault.offset, fault.placed,
-                     f"the capture's clock goes backwards {_times(fault.count)}: first here, stamped "
-                     f"{fault.t:.6f} s, {(fault.earliest - fault.t) * 1e3:.3f} ms before the previous bytes "
-                     f"ended (held at the previous chunk's time, so no time runs backwards)")
+        # How often is counted in words ("once"), yet measured: the key masks it.
+        lint.emit_at("F005", fault.offset, fault.placed, said_as(
+            "the capture's clock goes backwards {count}: first here, stamped {t} s, {back} ms before the previous "
+            "bytes ended (held at the previous chunk's time, so no time runs backwards)",
+            {"count": Measured(fault.count), "t": Measured(fault.t, TIME),
+             "back": Measured(fault.earliest - fault.t, DURATION)},
+            {"count": _times(fault.count)}))
 
 
 @rule("F006", "time-too-close", "warning",
@@ -57,11 +65,13 @@ before their requests end and latencies come out negative.
 def time_too_close(lint):
     fault = getattr(lint, "time_faults", {}).get(TIME_TOO_CLOSE)
     if fault is not None:
-        lint.emit_at("F006", fault.offset, fault.placed,
-                     f"{fault.count} chunk{'s' if fault.count > 1 else ''} stamped before the bytes ahead "
-                     f"could have crossed the wire at {lint.config.baud} bit/s (first here, "
-                     f"{(fault.earliest - fault.t) * 1e6:.0f} us early): are the times each read's arrival "
-                     f"(--time-ref arrival), or is the baud rate another?")
+        early = fault.earliest - fault.t
+        # The count with its noun's plural, and the lead in microseconds (it is below a byte time or two).
+        lint.emit_at("F006", fault.offset, fault.placed, said_as(
+            "{count} stamped before the bytes ahead could have crossed the wire at {baud} bit/s (first here, "
+            "{early} us early): are the times each read's arrival (--time-ref arrival), or is the baud rate another?",
+            {"count": Measured(fault.count), "baud": lint.config.baud, "early": Measured(early, DURATION)},
+            {"count": _chunks(fault.count), "early": f"{early * 1e6:.0f}"}))
 
 
 @rule("F010", "capture-seam", "info", "The capture's clock restarts, or resumes after a long silence.", f"""
@@ -81,4 +91,26 @@ false (a duration of half the traffic, a bus load of 100 %, latencies of 0 ms) a
 {example((3.0, _GOAL), (0.0, _READ), note="a capture that ended at 3 s joined to one that starts at 0 s:")}
 """, kinds=("seam",), needs_time=True, column="silent")
 def capture_seam(lint, seam):
-    lint.emit_at("F010", seam.offset, seam.t_start, seam.describe())
+    lint.emit_at("F010", seam.offset, seam.t_start, _seam_message(seam))
+
+
+def _seam_message(seam: Seam) -> Message:
+    """F010's text: where the new time segment begins and why, with the span across the seam in seconds."""
+    params: dict = {}
+    shown: dict = {}
+    timed = seam.t_end is not None
+    if timed:
+        # Back by how much at a restart, forward by how much elsewhere.
+        gap = seam.t_end - seam.t_start if seam.kind == SEAM_RESTART else seam.t_start - seam.t_end
+        params["gap"], shown["gap"] = Measured(gap, DURATION), f"{gap:.3f}"
+    if seam.kind == SEAM_SOURCE:
+        # The note is the source's own words (sources.reconnect writes how long the port was gone in it).
+        params["note"] = seam.note
+        return said_as("{note}" + (" ({gap} s from the last byte before)" if timed else "")
+                       + ": a new time segment begins (nothing is paired or timed across it)", params, shown)
+    if seam.kind == SEAM_RESTART:
+        params["t"] = Measured(seam.t_start, TIME)
+        return said_as("the capture's clock restarts here (stamped {t} s" + (", {gap} s back" if timed else "")
+                       + "): a new time segment begins", params, shown)
+    return said_as("the capture resumes here" + (" after {gap} s without bytes" if timed else "")
+                   + ": a new time segment begins (nothing is timed across the gap)", params, shown)
