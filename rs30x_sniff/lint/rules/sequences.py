@@ -9,6 +9,7 @@ from ...protocol.wire import (
     BROADCAST_ID, FLAG_REBOOT as _REBOOT, FLAG_WRITE_FLASH as _FLASH, RETURN_TEMPERATURE_LIMIT, encode_command,
     encode_long, encode_return, encode_short)
 from ..batch import UNKNOWN
+from ..params import DURATION, OFFSET, Measured, Message, said, said_as
 from ..registry import example, rule
 
 # A flash write or reboot still due when a timed capture ends this soon after the write that needs it
@@ -16,8 +17,10 @@ from ..registry import example, rule
 ENDED_SOON = 1.0
 
 
-def _deg(raw: int) -> str:
-    return f"{raw / 10:.1f}deg"
+def _deg(raw: int) -> Measured:
+    """A raw angle (0.1 deg steps, table 4.9 No. 30) as the value this recording carried; the templates
+    write it ``{goal:.1f}deg``."""
+    return Measured(raw / 10, "deg")
 
 
 def _carry(memory, lint, rec, moves) -> None:
@@ -63,6 +66,16 @@ def baud_change_not_applied(pending, lint, rec, plan, targets):
 baud_change_not_applied.on("moved")(_carry)
 
 
+# Q001's and Q002's messages: the rate code written and the write's offset are this recording's; the IDs and
+# the missing step name the finding.
+_Q001_REBOOTED = ("{rebooted} before any flash write of the baud_rate code {code} written to {who} @{offset}: "
+                  "the change is lost, it keeps its old rate")
+_Q001_PENDING = "baud_rate code {code} written to {who} but {why}: it keeps its old rate"
+_Q002_REBOOTED = ("{rebooted} before any flash write undoes the change of ID {old} to {new} @{offset}: "
+                  "the servo comes back on the ID in its flash, not {new}")
+_Q002_PENDING = "ID {old} changed to {new} but no flash write to ID {new} followed: it reverts at the next power-up"
+
+
 def _rebooted(sid: int) -> str:
     return "a reboot of every servo (ID 255)" if sid == BROADCAST_ID else f"a reboot of ID {sid}"
 
@@ -82,8 +95,9 @@ def _baud_change_flashed_or_rebooted(pending, lint, rec, ev):
             # Rebooted before any flash write: the servo restarts with the rate in its flash, for certain.
             # (A reboot of one servo says nothing of the others a write to ID 255 reached.)
             w, _, code, to = pending.pop(key)
-            lint.emit("Q001", rec, f"{_rebooted(sid)} before any flash write of the baud_rate code {code} written "
-                                   f"to {_who(to, key)} @{w.offset}: the change is lost, it keeps its old rate", sid=to)
+            lint.emit("Q001", rec, said(_Q001_REBOOTED, {"rebooted": _rebooted(sid), "code": Measured(code),
+                                                         "who": _who(to, key), "offset": Measured(w.offset, OFFSET)}),
+                      sid=to)
 
 
 def _who(to: int, now: int) -> str:
@@ -103,10 +117,8 @@ def _baud_change_left_pending(pending, lint, seam=None):
     for sid, (rec, stage, code, to) in pending.items():
         if not _left_pending(lint, rec, end_t):
             continue
-        rate = f"code {code}"
-        who = _who(to, sid)
         why = "no flash write followed" if stage == "flash" else "it was flashed but the servo was never rebooted"
-        lint.emit("Q001", rec, f"baud_rate {rate} written to {who} but {why}: it keeps its old rate", sid=to)
+        lint.emit("Q001", rec, said(_Q001_PENDING, {"code": Measured(code), "who": _who(to, sid), "why": why}), sid=to)
     if seam is not None:
         pending.clear()  # told or let go: nothing waits across a seam
 
@@ -156,9 +168,8 @@ def _id_change_flashed(pending, lint, rec, ev):
         # Rebooted with no flash write since the change: the servo restarts with the ID in its flash, for certain.
         for new in (list(pending) if ev.id == BROADCAST_ID else [ev.id] if ev.id in pending else []):
             w, old = pending.pop(new)
-            lint.emit("Q002", rec, f"{_rebooted(ev.id)} before any flash write undoes the change of ID {old} "
-                                   f"to {new} @{w.offset}: the servo comes back on the ID in its flash, not {new}",
-                      sid=old)
+            lint.emit("Q002", rec, said(_Q002_REBOOTED, {"rebooted": _rebooted(ev.id), "old": old, "new": new,
+                                                         "offset": Measured(w.offset, OFFSET)}), sid=old)
 
 
 @id_change_not_persisted.on("close")
@@ -167,8 +178,7 @@ def _id_change_left_pending(pending, lint, seam=None):
     for new, (rec, old) in pending.items():
         if not _left_pending(lint, rec, end_t):
             continue
-        lint.emit("Q002", rec, f"ID {old} changed to {new} but no flash write to ID {new} followed: "
-                               f"it reverts at the next power-up", sid=old)
+        lint.emit("Q002", rec, said(_Q002_PENDING, {"old": old, "new": new}), sid=old)
     if seam is not None:
         pending.clear()
 
@@ -204,15 +214,23 @@ def reboot_too_soon_after_flash(flashed, lint, rec, ev):
         for key in (sid, BROADCAST_ID):
             entry = flashed.get(key)
             if entry is not None and ev[T_START] < entry[0]:
-                dt = ev[T_START] - (entry[1] or 0)
-                when = f"{dt * 1e3:.1f} ms after" if dt > 0 else "right after"  # never a held clock's 0 or less
-                lint.emit("Q003", rec, f"reboot {when} the flash write @{entry[2]}; "
-                                       f"allow {lint.config.flash_write_time * 1e3:.0f} ms (or wait for its ACK)")
+                lint.emit("Q003", rec, _reboot_too_soon(ev[T_START] - (entry[1] or 0), entry[2],
+                                                        lint.config.flash_write_time))
                 break
         flashed.pop(sid, None)
 
 
 reboot_too_soon_after_flash.on("moved")(_carry)
+
+# Q003's message: the gap and the flash write's offset are measured; the allowance is the configured
+# flash-write-time, so a changed setting is a changed finding.
+_Q003 = "reboot {gap} the flash write @{offset}; allow {allow:.0f} ms (or wait for its ACK)"
+
+
+def _reboot_too_soon(gap: float, offset: int, allow_s: float) -> Message:
+    when = f"{gap * 1e3:.1f} ms after" if gap > 0 else "right after"  # never a held clock's 0 ms or less
+    return said_as(_Q003, {"gap": Measured(gap, DURATION), "offset": Measured(offset, OFFSET), "allow": allow_s * 1e3},
+                   {"gap": when})
 
 
 @reboot_too_soon_after_flash.on("seam")
@@ -220,7 +238,7 @@ def _flash_times_end_at_seam(flashed, lint, seam):
     flashed.clear()  # a flash write's time says nothing of a reboot on the other side of a seam
 
 
-def _goal_while_torque_off_columns(said, view) -> bool:
+def _goal_while_torque_off_columns(told, view) -> bool:
     """Q004 on a Block: no goal_position to a servo whose torque is off and that Q004 has not named yet
     (torque_enable writes take the record path: torque stays as it was before the Block)."""
     torque = view.shadows("torque")
@@ -229,7 +247,7 @@ def _goal_while_torque_off_columns(said, view) -> bool:
             continue
         ids = t.ids
         off = (torque[ids] == 0) & (ids != BROADCAST_ID)
-        if off.any() and any(s not in said for s in ids[off].tolist()):
+        if off.any() and any(s not in told for s in ids[off].tolist()):
             return False
     return True
 
@@ -247,29 +265,30 @@ step after power-up or a reboot.
 ## Example
 {example(encode_short(1, 0, 0x24, bytes((0,))), encode_short(1, 0, 0x1E, bytes.fromhex("8403")))}
 """, kinds=("target", "command", "moved"), fields=("goal_position", "torque_enable"), state=set, column=_goal_while_torque_off_columns)
-def goal_while_torque_off(said, lint, rec, plan, targets):
-    # said: servos Q004 spoke for in their current torque-off spell; a torque_enable write or a reboot
+def goal_while_torque_off(told, lint, rec, plan, targets):
+    # told: servos Q004 spoke for in their current torque-off spell; a torque_enable write or a reboot
     # ends the spell.
     idx = plan.index
     g = idx.get("goal_position")
     j = idx.get("torque_enable")
     for sid, raws, sh in targets:
-        if g is not None and sh.torque == 0 and sid not in said and sid != BROADCAST_ID:
+        if g is not None and sh.torque == 0 and sid not in told and sid != BROADCAST_ID:
             if j is not None and raws[j] != 0:
                 continue  # torque comes on in this very packet: Q005
-            said.add(sid)
-            lint.emit("Q004", rec, f"goal_position {_deg(raws[g])} to ID {sid}, whose torque is off", sid=sid)
+            told.add(sid)
+            lint.emit("Q004", rec, said("goal_position {goal:.1f}deg to ID {id}, whose torque is off",
+                                        {"goal": _deg(raws[g]), "id": sid}), sid=sid)
         if j is not None:
-            said.discard(sid)
+            told.discard(sid)
 
 
 @goal_while_torque_off.on("command")
-def _torque_off_spell_rebooted(said, lint, rec, ev):
+def _torque_off_spell_rebooted(told, lint, rec, ev):
     if ev.flag & _REBOOT:
         if ev.id == BROADCAST_ID:
-            said.clear()
+            told.clear()
         else:
-            said.discard(ev.id)
+            told.discard(ev.id)
 
 
 goal_while_torque_off.on("moved")(_carry)
@@ -293,8 +312,9 @@ def torque_on_with_goal(lint, rec, plan, targets):
         return
     for sid, raws, sh in targets:
         if raws[idx["torque_enable"]] == 1 and sh.torque != 1:
-            lint.emit("Q005", rec, f"torque on and goal_position {_deg(raws[idx['goal_position']])} in one packet "
-                                   f"to ID {sid}: the servo will not move", sid=sid)
+            lint.emit("Q005", rec, said("torque on and goal_position {goal:.1f}deg in one packet to ID {id}: "
+                                        "the servo will not move", {"goal": _deg(raws[idx["goal_position"]]), "id": sid}),
+                      sid=sid)
 
 
 def _goal_beyond_angle_limit_columns(view) -> bool:
@@ -333,10 +353,14 @@ def goal_beyond_angle_limit(lint, rec, plan, targets):
             continue
         g = raws[j]
         if sh.cw is not None and g > sh.cw:
-            lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its cw_angle_limit {_deg(sh.cw)}", sid=sid)
+            side, limit = "cw", sh.cw
         elif sh.ccw is not None and g < sh.ccw:
-            lint.emit("Q006", rec, f"goal_position {_deg(g)} to ID {sid} beyond its ccw_angle_limit {_deg(sh.ccw)}",
-                      sid=sid)
+            side, limit = "ccw", sh.ccw
+        else:
+            continue
+        # The limit is a register value the recording carried (written or read), so measured like the goal.
+        lint.emit("Q006", rec, said("goal_position {goal:.1f}deg to ID {id} beyond its {side}_angle_limit {limit:.1f}deg",
+                                    {"goal": _deg(g), "id": sid, "side": side, "limit": _deg(limit)}), sid=sid)
 
 
 def too_fast(dist, top_speed_s_per_60deg, goal_time):
@@ -368,6 +392,9 @@ def _goal_time_too_fast_columns(view) -> bool:
     return True
 
 
+_Q007 = "{dist:.1f} deg in {time:.0f} ms on ID {id} asks {speed:.0f} deg/s; {model} tops out at {top:.0f} deg/s"
+
+
 @rule("Q007", "goal-time-too-fast", "warning", "A move faster than the model's top speed.", f"""
 ## What it does
 Flags a goal_position with a goal_time (same packet, or the last one written) that asks for more speed
@@ -397,8 +424,11 @@ def goal_time_too_fast(lint, rec, plan, targets):
         dist = abs(raws[g] - pos)
         if not too_fast(dist, ts, gt):
             continue
-        lint.emit("Q007", rec, f"{dist / 10:.1f} deg in {gt * 10} ms on ID {sid} asks {dist * 10 / gt:.0f} deg/s; "
-                               f"{plan.model.name} tops out at {60 / ts:.0f} deg/s", sid=sid)
+        # The move (distance, goal_time at 10 ms a step, the speed it asks) is measured; the model and its top
+        # speed (the manual's 60 deg in ts seconds) name the finding.
+        lint.emit("Q007", rec, said(_Q007, {"dist": Measured(dist / 10, "deg"), "time": Measured(gt / 100, DURATION),
+                                            "id": sid, "speed": Measured(dist * 10 / gt, "deg/s"),
+                                            "model": plan.model.name, "top": 60 / ts}), sid=sid)
 
 
 @rule("Q008", "too-many-servos", "warning", "More than 24 servo IDs on one TTL bus.", f"""
@@ -413,11 +443,12 @@ load and the time each poll cycle takes both grow with every servo.
 ## Example
 {example(encode_long(0x23, [(i, bytes((100,))) for i in range(1, 26)]), note="max_torque to 25 servos in one long packet:")}
 """, kinds=("short", "long", "return"), when="crowded", state=list, column="silent")
-def too_many_servos(said, lint, rec, ev):
-    # said: empty until Q008 has spoken (it speaks once)
-    if not said and len(lint.ids) > lint.config.max_servos:
-        said.append(rec)
-        lint.emit("Q008", rec, f"{len(lint.ids)} servo IDs on the bus; a TTL bus carries at most {lint.config.max_servos}")
+def too_many_servos(told, lint, rec, ev):
+    # told: empty until Q008 has spoken (it speaks once)
+    if not told and len(lint.ids) > lint.config.max_servos:
+        told.append(rec)
+        lint.emit("Q008", rec, said("{seen} servo IDs on the bus; a TTL bus carries at most {most}",
+                                    {"seen": Measured(len(lint.ids)), "most": lint.config.max_servos}))
 
 
 @rule("Q009", "torque-on-after-temperature-limit", "error", "Torque on for a servo locked by its temperature limit.", f"""
@@ -436,5 +467,5 @@ def torque_on_after_temperature_limit(lint, rec, plan, targets):
     j = plan.index["torque_enable"]
     for sid, raws, sh in targets:
         if sh.temp_limit and raws[j] == 1:
-            lint.emit("Q009", rec, f"torque on for ID {sid}, which tripped its temperature limit and was not "
-                                   f"rebooted since", sid=sid)
+            lint.emit("Q009", rec, said("torque on for ID {id}, which tripped its temperature limit and was not "
+                                        "rebooted since", {"id": sid}), sid=sid)
