@@ -23,13 +23,13 @@ REFERENCE = {
     "lint/Q001-baud-change-not-applied.hex": [
         "baud_rate code 4 written to ID 2 but it was flashed but the servo was never rebooted: it keeps its old rate",
         "baud_rate code 9 written to ID 3 but no flash write followed: it keeps its old rate",
-        "a reboot of ID 4 before any flash write of the baud_rate code 4 written to ID 4 @51: the change is lost, "
-        "it keeps its old rate",
+        ("a reboot of ID 4 before any flash write of the baud_rate code 4 written to ID 4 @51: the change is lost, "
+         "it keeps its old rate"),
     ],
     "lint/Q002-id-change-not-persisted.hex": [
         "ID 2 changed to 6 but no flash write to ID 6 followed: it reverts at the next power-up",
-        "a reboot of ID 7 before any flash write undoes the change of ID 3 to 7 @42: the servo comes back on the "
-        "ID in its flash, not 7",
+        ("a reboot of ID 7 before any flash write undoes the change of ID 3 to 7 @42: the servo comes back on the "
+         "ID in its flash, not 7"),
     ],
     "lint/Q003-reboot-too-soon-after-flash.thex": [
         "reboot 1.3 ms after the flash write @0; allow 100 ms (or wait for its ACK)",
@@ -75,13 +75,13 @@ KEYS = {
     "Q001": [
         "baud_rate code * written to ID 2 but it was flashed but the servo was never rebooted: it keeps its old rate",
         "baud_rate code * written to ID 3 but no flash write followed: it keeps its old rate",
-        "a reboot of ID 4 before any flash write of the baud_rate code * written to ID 4 @*: the change is lost, "
-        "it keeps its old rate",
+        ("a reboot of ID 4 before any flash write of the baud_rate code * written to ID 4 @*: the change is lost, "
+         "it keeps its old rate"),
     ],
     "Q002": [
         "ID 2 changed to 6 but no flash write to ID 6 followed: it reverts at the next power-up",
-        "a reboot of ID 7 before any flash write undoes the change of ID 3 to 7 @*: the servo comes back on the "
-        "ID in its flash, not 7",
+        ("a reboot of ID 7 before any flash write undoes the change of ID 3 to 7 @*: the servo comes back on the "
+         "ID in its flash, not 7"),
     ],
     "Q003": ["reboot * the flash write @*; allow 100 ms (or wait for its ACK)"],
     "Q004": ["goal_position *deg to ID 1, whose torque is off"] * 2,
