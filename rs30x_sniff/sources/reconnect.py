@@ -113,7 +113,8 @@ class ReconnectingSource:
                     return
                 self.source = back
                 t_back = back.tap.wall_start_ns / 1e9
-                note = f"the port was gone {t_back - lost_at:.3f} s ({why}); reopened"
+                # Words only: F010 measures the span itself, so a known loss keeps its baseline fingerprint.
+                note = f"the port was lost ({why}) and reopened"
                 self.gaps.append((lost_at, t_back, why))
                 if self.say:
                     self.say(f"rs30x-sniff: {self.port}: back after {t_back - lost_at:.1f} s; recording goes on")

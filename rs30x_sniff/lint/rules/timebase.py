@@ -104,7 +104,7 @@ def _seam_message(seam: Seam) -> Message:
         gap = seam.t_end - seam.t_start if seam.kind == SEAM_RESTART else seam.t_start - seam.t_end
         params["gap"], shown["gap"] = Measured(gap, DURATION), f"{gap:.3f}"
     if seam.kind == SEAM_SOURCE:
-        # The note is the source's own words (sources.reconnect writes how long the port was gone in it).
+        # The note is the source's own words, no measurement (sources.reconnect: why the port was lost).
         params["note"] = seam.note
         return said_as("{note}" + (" ({gap} s from the last byte before)" if timed else "")
                        + ": a new time segment begins (nothing is paired or timed across it)", params, shown)
