@@ -8,6 +8,8 @@ from ...decode.pairing import ANSWERED, EXTRA, MISSING, PAIRED, UNSOLICITED
 from ...protocol.events import OFFSET, RAW, T_END, T_START
 from ...protocol.wire import ACK, BROADCAST_ID, FRAME_OVERHEAD, NACK, encode_read, encode_return, encode_short
 from ..batch import UNKNOWN
+from ..params import DURATION, Measured, Message, said, said_as
+from ..params import OFFSET as AT
 from ..registry import example, follows_cut, rule
 
 _READ = encode_read(1, 0x2A, 2)              # present_position of ID 1
@@ -38,6 +40,16 @@ def reply_due(lint, req) -> float:
     size = 1 if rr is None else FRAME_OVERHEAD + rr[1]
     due = expected_latency(rd) + size * lint.byte_time + lint.config.latency_margin
     return min(due, lint.config.reply_timeout)
+
+
+# Messages are made by said() (lint.params): a stream offset (unit AT: events.OFFSET is the event's field), a
+# time or a count this capture measured is a Measured value (``*`` in the finding's key, which a baseline
+# fingerprints); IDs, register names and the rule's words name the behaviour and stay in the key.
+
+def _keyed_as(text_template: str, key_template: str, params) -> Message:
+    """The message ``text_template`` says, with the key of ``key_template``: for a figure that only a timed
+    capture gives (B003's gap, B009's latency), left out of the key so that the finding stays the same one."""
+    return Message(said(text_template, params), said(key_template, params).key, params)
 
 
 def _asked(rec) -> str:
@@ -71,9 +83,13 @@ def request_before_return(lint, rec, ev):
         return
     gap = ev[T_START] - t1
     if gap <= reply_due(lint, p):
-        # A gap the clock puts at or below zero is no duration to print (F005/F006 say why).
-        when = f"{gap * 1e3:.3f} ms after" if gap > 0 else "right after"
-        lint.emit("B001", rec, f"sent {when} request @{p.offset} to ID {p.id}, whose reply was still due")
+        params = {"gap": Measured(gap, DURATION), "offset": Measured(p.offset, AT), "id": p.id}
+        # A gap the clock puts at or below zero is no duration to print (F005/F006 say why): the words say
+        # "right after", the key stays that of any gap.
+        lint.emit("B001", rec, said(_B001, params) if gap > 0 else said_as(_B001, params, {"gap": "right"}))
+
+
+_B001 = "sent {gap} after request @{offset} to ID {id}, whose reply was still due"
 
 
 @rule("B002", "missing-return", "error", "A request that asked for a reply got none.", f"""
@@ -103,7 +119,8 @@ def missing_return(lint, rec, ev):
     # Ended by time (a later record past the reply timeout, or the end of a capture that ran on past it):
     # whatever comes later, even from this ID, came too late to be its reply (B003 says so).
     late = " within the reply timeout" if by is None or not by.is_request else ""
-    lint.emit("B002", rec, f"ID {ev.id} did not answer{late}; the request asked for {_asked(rec)}")
+    lint.emit("B002", rec, said("ID {id} did not answer{late}; the request asked for {asked}",
+                                {"id": ev.id, "late": late, "asked": _asked(rec)}))
 
 
 @rule("B003", "unsolicited-return", "warning", "A reply no request asked for.", f"""
@@ -124,27 +141,38 @@ the host had given up on it and will read it as the answer to its next question.
 def unsolicited_return(lint, rec, ev):
     if rec.status != UNSOLICITED:
         return
-    who = f" from ID {ev.id}" if ev.kind == "return" else ""
-    what = ev.kind.upper() if ev.kind != "return" else "return"
-    lint.emit("B003", rec, f"{what}{who} that no request asked for{_since_request(lint.last_request, ev)}")
+    # An ACK or NACK names no ID.
+    head, params = ("return from ID {id}", {"id": ev.id}) if ev.kind == "return" else (ev.kind.upper(), {})
+    req = lint.last_request
+    if req is None:  # none in this capture, or since the seam
+        lint.emit("B003", rec, said(head + _B003, params))
+        return
+    since, gap = _since_request(req, ev, params)
+    key = head + _B003 + "; after " + since
+    # The gap is left out of the key: a held clock (or a capture without times) leaves it out of the words.
+    text = head + _B003 + ("; {gap} after " if gap is not None and gap > 0 else "; after ") + since
+    lint.emit("B003", rec, _keyed_as(text, key, params))
 
 
-def _since_request(req, ev) -> str:
-    """How an unsolicited reply stands to the latest request before it (None: none in this capture, or
-    since the seam): what the pairing saw, in facts the bytes show."""
-    if req is None:
-        return ""
+_B003 = " that no request asked for"
+
+
+def _since_request(req, ev, params: dict) -> tuple[str, float | None]:
+    """How an unsolicited reply stands to the latest request before it, what the pairing saw in facts the
+    bytes show: the template's words after "after" (their values put in ``params``), and the gap."""
     r = req.event
     gap = None if ev[T_START] is None or r[T_END] is None else ev[T_START] - r[T_END]
-    when = f"{gap * 1e3:.3f} ms after" if gap is not None and gap > 0 else "after"  # never a held clock's 0
-    to = f"request @{req.offset} to ID {r.id}" if r.kind == "short" else f"long packet @{req.offset}"
+    params.update(offset=Measured(req.offset, AT), asked=r.id)
+    if gap is not None:
+        params["gap"] = Measured(gap, DURATION)
+    to = "request @{offset} to ID {asked}" if r.kind == "short" else "long packet @{offset}"
     if req.status == ANSWERED:
-        return f"; {when} {to}, which had its reply"
+        return to + ", which had its reply", gap
     if req.status == MISSING:  # ended by time: a later request would be the latest one
-        return f"; {when} {to}, past its reply timeout"
+        return to + ", past its reply timeout", gap
     if req.expects is None:
-        return f"; {when} {to}, which asked for no reply"
-    return f"; {when} {to}"
+        return to + ", which asked for no reply", gap
+    return to, gap
 
 
 @rule("B004", "return-id-mismatch", "error", "A return from another ID than the one asked.", f"""
@@ -163,7 +191,8 @@ or a servo answered a packet meant for another: the host files data under the wr
 def return_id_mismatch(lint, rec, ev):
     req = rec.request
     if rec.status == PAIRED and req is not None and req.event.id != BROADCAST_ID and req.event.id != ev.id:
-        lint.emit("B004", rec, f"return from ID {ev.id} answers request @{req.offset} to ID {req.event.id}")
+        lint.emit("B004", rec, said("return from ID {id} answers request @{offset} to ID {asked}",
+                                    {"id": ev.id, "offset": Measured(req.offset, AT), "asked": req.event.id}))
 
 
 @rule("B005", "return-range-mismatch", "error", "A reply that does not carry what was asked.", f"""
@@ -183,17 +212,21 @@ def return_range_mismatch(lint, rec, ev):
     req = rec.request
     if rec.status != PAIRED or req is None:
         return
+    # The addresses and lengths name the mismatch (a firmware's or a host's): they stay in the key.
+    offset = Measured(req.offset, AT)
     if ev.kind == "ack":
         if req.expects == "return":
-            lint.emit("B005", rec, f"ACK where request @{req.offset} asked for a return")
+            lint.emit("B005", rec, said("ACK where request @{offset} asked for a return", {"offset": offset}))
         return
     if req.expects == "ack":
-        lint.emit("B005", rec, f"return where request @{req.offset} asked for an ACK")
+        lint.emit("B005", rec, said("return where request @{offset} asked for an ACK", {"offset": offset}))
         return
     rr = req.event.read_range
     if rr is not None and (ev.address, ev.length) != rr:
-        lint.emit("B005", rec, f"returns {ev.length} byte(s) from address {ev.address}; request @{req.offset} "
-                               f"asked for {rr[1]} from {rr[0]}")
+        lint.emit("B005", rec, said("returns {length} byte(s) from address {address}; request @{offset} asked for "
+                                    "{asked_length} from {asked_address}",
+                                    {"length": ev.length, "address": ev.address, "offset": offset,
+                                     "asked_length": rr[1], "asked_address": rr[0]}))
 
 
 def latency_off(lint, latency, expected):
@@ -240,8 +273,13 @@ def return_latency(lint, rec, ev):
     rd = sh.return_delay if sh is not None and sh.return_delay is not None else None
     expected = expected_latency(rd or 0)
     if latency_off(lint, lat, expected):
-        lint.emit("B006", rec, f"reply {lat * 1e3:.3f} ms after the request; return_delay "
-                               f"{rd if rd is not None else '0 (assumed)'} means {expected * 1e3:.3f} ms", sid=sid)
+        # return_delay is a register value this capture showed (written or read); unseen, the manual's
+        # default is assumed, in words that stay in the key.
+        params = {"latency": Measured(lat, DURATION),
+                  "return_delay": Measured(rd) if rd is not None else "0 (assumed)",
+                  "expected": Measured(expected, DURATION)}
+        lint.emit("B006", rec, said("reply {latency} after the request; return_delay {return_delay} means {expected}",
+                                    params), sid=sid)
 
 
 @rule("B007", "bus-collision", "error", "A frame that starts inside another.", f"""
@@ -265,7 +303,9 @@ def bus_collision(lint, rec, ev):
     if pe[T_END] is not None and ev[T_START] is not None \
             and ev[T_START] - pe[T_END] > lint.config.gap_bytes * lint.byte_time:
         return
-    lint.emit("B007", rec, f"frame starts inside the {len(pe[RAW])}-byte frame cut short at @{pe[OFFSET]}")
+    # Where the other frame was cut (so its length) is the collision's timing: measured.
+    lint.emit("B007", rec, said("frame starts inside the {size}-byte frame cut short at @{offset}",
+                                {"size": Measured(len(pe[RAW])), "offset": Measured(pe[OFFSET], AT)}))
 
 
 @rule("B008", "nack", "warning", "A servo answered NACK.", f"""
@@ -281,7 +321,11 @@ malformed packet the host keeps sending.
 """, kinds=("nack",), column="silent")
 def nack(lint, rec, ev):
     req = rec.request
-    lint.emit("B008", rec, f"NACK{f' from ID {req.event.id} to request @{req.offset}' if req is not None else ''}")
+    if req is None:
+        lint.emit("B008", rec, said("NACK", {}))
+    else:
+        lint.emit("B008", rec, said("NACK from ID {id} to request @{offset}",
+                                    {"id": req.event.id, "offset": Measured(req.offset, AT)}))
 
 
 @rule("B009", "multiple-returns", "error", "Two replies to one request: two servos share an ID.", f"""
@@ -303,11 +347,19 @@ def multiple_returns(lint, rec, ev):
     if rec.status != EXTRA or req is None or req.event.id == BROADCAST_ID:
         return
     sid = ev.id if ev.kind == "return" else req.event.id  # an ACK/NACK names no ID: the one asked
-    what = f"return from ID {sid}" if ev.kind == "return" else ev.kind.upper()
+    what = "return from ID {id}" if ev.kind == "return" else ev.kind.upper()
     lat = rec.latency
-    when = f", {lat * 1e3:.3f} ms after it" if lat is not None else ""
-    lint.emit("B009", rec, f"{what} is a second reply to request @{req.offset} to ID {req.event.id}{when}: "
-                           f"two servos answer to ID {sid}", sid=sid)
+    params = {"id": sid, "offset": Measured(req.offset, AT), "asked": req.event.id}
+    if lat is not None:
+        params["latency"] = Measured(lat, DURATION)
+    # The latency is left out of the key: a reply too soon after the request to time has none.
+    key = what + _B009
+    text = key if lat is None else what + _B009_TIMED
+    lint.emit("B009", rec, _keyed_as(text, key, params), sid=sid)
+
+
+_B009 = " is a second reply to request @{offset} to ID {asked}: two servos answer to ID {id}"
+_B009_TIMED = " is a second reply to request @{offset} to ID {asked}, {latency} after it: two servos answer to ID {id}"
 
 
 _ = ACK  # (ACK is the byte the ACK events carry; kept for readers of the examples)

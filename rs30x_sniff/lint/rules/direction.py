@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ...protocol.chunks import HOST, SERVO
 from ...protocol.events import OFFSET, T_START
+from ..params import Measured, said
 from ..registry import rule
 
 _EXPECTED = {"short": HOST, "long": HOST, "return": SERVO, "ack": SERVO, "nack": SERVO}
@@ -96,8 +97,14 @@ def _sender_mismatch_report(st, lint):
         return
     offset, t, sid, kind, sent = st.first
     n, of = st.wrong, st.checked
-    how = ("every packet checked disagrees" if n == of else f"{n} of {of} packets checked disagree") + \
-        " with the capture about who sent it"
+    # The counts are this capture's (measured); whether every packet disagreed is what the finding says.
+    how = _F009_ALL if n == of else _F009_SOME
     hint = (": the capture's directions are the wrong way round (was the logger on the servo's side, or "
             "RX and TX swapped?)" if n == of and n > 1 else "")
-    lint.emit_at("F009", offset, t, f"{how}; first here, {_WHAT[kind]} the capture says the {sent} sent{hint}", sid)
+    params = {"wrong": Measured(n), "checked": Measured(of), "what": _WHAT[kind], "sent": sent, "hint": hint}
+    lint.emit_at("F009", offset, t, said(how + _F009_FIRST, params), sid)
+
+
+_F009_ALL = "every packet checked disagrees"
+_F009_SOME = "{wrong} of {checked} packets checked disagree"
+_F009_FIRST = " with the capture about who sent it; first here, {what} the capture says the {sent} sent{hint}"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ...protocol.chunks import FRAMING_ERROR, UART_ERRORS
 from ...protocol.wire import byte_time, encode_short
+from ..params import Measured, said
 from ..registry import rule
 
 _GOAL = encode_short(1, 0, 0x1E, b"\x84\x03")  # goal_position 90.0 deg on ID 1
@@ -57,5 +58,7 @@ def uart_error(lint, rec, ev):
         why = "a framing error (its stop bit was low)"
     else:
         why = "a parity error (the bus has no parity bit: is the analyzer set to 8N1?)"
-    lint.emit("F008", rec, f"byte 0x{ev.raw[0]:02X} flagged by the capturing tool with {why}: its value cannot be "
-                           "trusted, and a frame it falls in is lost", sid=None)
+    # The byte's value is what the tool read (measured); the kind of error names the finding.
+    lint.emit("F008", rec, said("byte 0x{byte:02X} flagged by the capturing tool with {why}: its value cannot be "
+                                "trusted, and a frame it falls in is lost", {"byte": Measured(ev.raw[0]), "why": why}),
+              sid=None)
