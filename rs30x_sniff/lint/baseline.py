@@ -7,10 +7,11 @@ A fingerprint is the rule's code, the servo ID and the stable part of the messag
 (the IDs, register names, addresses, flag and model codes in it), without what varies from one recording of
 the same bus to the next (stream offsets, times and latencies, values measured or written, counts).
 
-A finding made from typed parameters (rs30x_sniff.lint.params: the user rules, the figure checks, and the
-built-in rules that give them) is fingerprinted by its key: its template with every measured value left
-out, never by reading its text. A message given as plain text is still read by the per-rule patterns
-below (``_SHAPES``), which say what in it is a measurement.
+A finding made from typed parameters (rs30x_sniff.lint.params: every built-in rule, the user rules and the
+figure checks; tests/lint/test_every_finding_typed.py holds the built-in ones to it) is fingerprinted by its
+key: its template with every measured value left out, never by reading its text. The per-rule patterns below
+(``_SHAPES``) read a text only where no key is given: a version 1 file's fingerprints, and a message a
+library caller's own rule gives as plain text.
 
 The file is JSON, its entries sorted, with a ``version``: version 2 (written since the typed parameters)
 keys the findings that have them; a version 1 file is still read, and matched by the fingerprints version
