@@ -55,6 +55,18 @@ class Step(list):
             return len(self)
         return sum(len(x) if type(x) is Block else 1 for x in self)
 
+    def loose(self) -> list:
+        """The findings of this step on none of its records and not late: what the decoder found between records
+        (F010 at a seam of the capture: a clock restart, a lost port). An output that writes findings with their
+        records places each of these before the first record at or past its offset."""
+        if not self.findings:
+            return []
+        on = {id(f) for f in self.late}
+        for x in self:
+            for rec in (x.made_rows.values() if type(x) is Block else (x,)):
+                on.update(map(id, rec.findings))
+        return [f for f in self.findings if id(f) not in on]
+
     def expanded(self) -> Step:
         """This step with each Block's rows as Records (itself when it holds no Block)."""
         if not self.blocks:

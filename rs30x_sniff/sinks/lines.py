@@ -62,7 +62,15 @@ class _LineSink(Sink):
         line = self.line
         if step.blocks and flt is not None:
             step = step.expanded()  # the filter language reads records
+        # Findings between records (F010 at a seam: a clock restart, a lost port) go before the first record at
+        # or past their place, as lint names them there.
+        loose = [f for f in step.loose() if (ids is None or f.id is None or f.id in ids)
+                 and (flt is None or flt.matches_finding(f))] if step.findings else ()
         for rec in step:
+            if loose:
+                first = int(rec.offsets[0]) if type(rec) is Block else rec.event.offset
+                while loose and loose[0].offset <= first:
+                    write(self.finding_line(loose.pop(0)))
             if type(rec) is Block:
                 rows = None if ids is None else block_rows_involving(rec, ids)
                 text = self.block_lines(rec, rows)
@@ -75,6 +83,8 @@ class _LineSink(Sink):
                 self.records += 1
             else:
                 self.passed(rec)
+        for f in loose:  # past every record of the step
+            write(self.finding_line(f))
         # Findings only the end of input reveals belong to records already written: they come last,
         # each naming its record's offset. The filter judges them by what it can (id, sev, t, text).
         for f in step.late:

@@ -92,9 +92,10 @@ class PcapngSink(Sink):
 
     Times are in nanoseconds: the capture's own (plus ``start_time``, a wall-clock anchor, when given), or
     for a capture without times the moment each byte would reach the wire at ``baud`` (8N1), counted from
-    ``start_time`` or 0. Findings on a record are comments on its packet; the few only the end of input
-    reveals concern packets already written, and go as comments on an Interface Statistics Block at the end,
-    each naming its frame.
+    ``start_time`` or 0. Findings on a record are comments on its packet; one on no record (F010 at a seam of
+    the capture: a clock restart, a lost port) is a comment on the first packet at or past its place; the few
+    only the end of input reveals concern packets already written, and go as comments on an Interface
+    Statistics Block at the end, each naming its frame.
     """
 
     def __init__(self, out: IO[bytes], *, source: str, baud: int, timed: bool,
@@ -108,6 +109,7 @@ class PcapngSink(Sink):
         self.packets = 0
         self.bytes_written = 0
         self.late: list = []
+        self.loose: list = []  # findings on no record, waiting for the first packet at or past their offset
         self.first_ns: int | None = None
         self.last_ns = 0
         self.tags = exported_pdu_tags()
@@ -148,6 +150,9 @@ class PcapngSink(Sink):
         write = self._write
         tags = self.tags
         offsets = self.offsets
+        if step.findings:
+            self.loose += step.loose()
+        loose = self.loose
         for rec in step:
             ev = rec.event
             kind = ev.kind
@@ -161,6 +166,10 @@ class PcapngSink(Sink):
                 self.first_ns = ns
             self.last_ns = max(self.last_ns, ns)
             opts = [(OPT_COMMENT, finding_comment(f).encode("utf-8")) for f in rec.findings]
+            if loose:
+                here = [f for f in loose if f.offset <= ev.offset]
+                opts += [(OPT_COMMENT, finding_comment(f).encode("utf-8")) for f in here]
+                loose[:] = [f for f in loose if f.offset > ev.offset]
             opts.append((EPB_FLAGS, struct.pack("<I", DIRECTION_OF_KIND[kind])))
             n = len(payload)
             body = (struct.pack("<IIIII", 0, ns >> 32, ns & 0xFFFFFFFF, n, n) + payload + b"\0" * _pad4(n)
@@ -175,7 +184,7 @@ class PcapngSink(Sink):
         """The end: an Interface Statistics Block (packets, first and last times, late findings)."""
         first = self.first_ns or 0
         opts = [(OPT_COMMENT, f"frame {self.frame_of(f.offset)} (offset {f.offset}): {finding_comment(f)}"
-                 .encode("utf-8")) for f in self.late]
+                 .encode("utf-8")) for f in self.late + self.loose]
         opts += [(ISB_STARTTIME, struct.pack("<II", first >> 32, first & 0xFFFFFFFF)),
                  (ISB_ENDTIME, struct.pack("<II", self.last_ns >> 32, self.last_ns & 0xFFFFFFFF)),
                  (ISB_IFRECV, struct.pack("<Q", self.packets))]

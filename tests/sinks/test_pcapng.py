@@ -108,8 +108,16 @@ def converted(tmp_path_factory):
         assert main(["convert", str(path), "-o", str(pcapng), "--isolated"]) == 0
         assert main(["decode", str(path), "--format", "jsonl", "-o", str(jsonl), "--isolated"]) == 0
         lines = [json.loads(line) for line in jsonl.read_text().splitlines()]
-        out[path] = (pcapng, [x for x in lines if x["type"] != "diagnostic"],
-                     [x for x in lines if x["type"] == "diagnostic"])
+        # A diagnostic line before a record is a finding between records (F010 at a seam): a comment on that
+        # record's packet, as on its own findings; those after the last record came at the end of input.
+        records, before = [], []
+        for x in lines:
+            if x["type"] == "diagnostic":
+                before.append(x)
+            else:
+                records.append({**x, "diagnostics": before + x["diagnostics"]})
+                before = []
+        out[path] = (pcapng, records, before)
     return out
 
 

@@ -193,3 +193,26 @@ def test_a_cut_recording_keeps_its_gap(tmp_path):
     (tmp_path / "killed.mcap").write_bytes(data[:last.chunk_start_offset + last.chunk_length + 5])
     got, figures = read_again(tmp_path / "killed.mcap")
     assert [c for c, _ in got].count("F010") == 1 and figures["segments"] == 2
+
+
+def test_decode_and_pcapng_of_a_recording_show_the_gap_where_it_was(tmp_path, capsys):
+    """decode's lines and JSON, and convert's pcapng, carry the F010 of a lost port before the first packet after
+    it (a finding between records), as lint names it there."""
+    from rs30x_sniff.cli import main
+
+    chunks = traffic("hexapod")
+    cut = len(chunks) // 2
+    out = tmp_path / "rig.mcap"
+    live(with_gap(chunks, cut, 3.0), mcap_sink(out))
+    after = sum(len(d) for d, _ in chunks[:cut])  # the stream offset of the first byte after the gap
+    assert main(["decode", str(out), "--isolated"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    (k,) = [i for i, line in enumerate(lines) if " F010 capture-seam: the port was gone (test)" in line]
+    assert f"@{after} " in lines[k] and f"@{after} " in lines[k + 1] and " lint " not in lines[k + 1]
+    assert main(["decode", str(out), "--isolated", "--format", "jsonl"]) == 0
+    objs = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    (k,) = [i for i, o in enumerate(objs) if o["type"] == "diagnostic"]
+    assert objs[k]["code"] == "F010" and objs[k + 1]["offset"] == after
+    pcap = tmp_path / "rig.pcapng"
+    assert main(["convert", str(out), "-o", str(pcap), "--isolated"]) == 0
+    assert b"F010 capture-seam: the port was gone (test)" in pcap.read_bytes()
