@@ -20,7 +20,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import tty
 from pathlib import Path
@@ -29,10 +28,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from rs30x_sniff.protocol.wire import byte_time  # noqa: E402
 from rs30x_sniff.sim import run  # noqa: E402
-from rs30x_sniff.sim.port import play  # noqa: E402
 
 # The floor and the /proc readings are bench/live.py's: one bare loop and one way of counting CPU and memory.
-from live import BARE_LOOP, cpu_seconds, rss_mb  # noqa: E402  (bench/ is on the path: run as a script)
+from live import BARE_LOOP, played  # noqa: E402  (bench/ is on the path: run as a script)
 
 
 def measure(cmd: list[str], ready: Path | None, chunks, master: int, baud: int) -> dict:
@@ -48,25 +46,11 @@ def measure(cmd: list[str], ready: Path | None, chunks, master: int, baud: int) 
                     raise SystemExit(proc.stderr.read().decode())
                 time.sleep(0.02)
         time.sleep(0.5)  # its start-up is not what is measured
-        rss: list[float] = []
-        done = threading.Event()
-
-        def sample() -> None:
-            while not done.wait(0.5):
-                rss.append(rss_mb(proc.pid))
-
-        sampler = threading.Thread(target=sample)
-        sampler.start()
-        cpu0, t0 = cpu_seconds(proc.pid), time.monotonic()
-        play(chunks, lambda b: os.write(master, b), byte_seconds=byte_time(baud))
-        time.sleep(0.3)  # the last bytes read
-        cpu1, t1 = cpu_seconds(proc.pid), time.monotonic()
-        done.set()
-        sampler.join()
+        cpu, _, wall, rss = played(proc.pid, chunks, master, baud)
     finally:
         proc.terminate()
         _, err = proc.communicate(timeout=60)
-    return {"cpu": cpu1 - cpu0, "wall": t1 - t0, "rss": rss, "stderr": err.decode()}
+    return {"cpu": cpu, "wall": wall, "rss": rss, "stderr": err.decode()}
 
 
 def main() -> int:

@@ -113,6 +113,27 @@ def drain(fd: int) -> threading.Thread:
     return th
 
 
+def played(pid: int, chunks, master: int, baud: int) -> tuple[float, float, float, list[float]]:
+    """Play ``chunks`` onto the pty's ``master`` at the line rate while the reader ``pid`` reads it: its CPU seconds
+    (with its children, and its own), the wall time, and its memory every half second."""
+    rss: list[float] = []
+    done = threading.Event()
+
+    def sample() -> None:
+        while not done.wait(0.5):
+            rss.append(rss_mb(pid))
+
+    sampler = threading.Thread(target=sample)
+    sampler.start()
+    cpu0, own0, t0 = cpu_seconds(pid), cpu_seconds(pid, False), time.monotonic()
+    play(chunks, lambda b: os.write(master, b), byte_seconds=byte_time(baud))
+    time.sleep(0.3)  # the last bytes read
+    cpu1, own1, t1 = cpu_seconds(pid), cpu_seconds(pid, False), time.monotonic()
+    done.set()
+    sampler.join()
+    return cpu1 - cpu0, own1 - own0, t1 - t0, rss
+
+
 def measure(name: str, cmd: list[str], ready, chunks, master: int, baud: int, terminal: bool = False) -> dict:
     """Start ``cmd``, wait until it reads the port (``ready()``), play the chunks, and return its CPU seconds over
     the playing, the wall time and its memory samples."""
@@ -133,21 +154,7 @@ def measure(name: str, cmd: list[str], ready, chunks, master: int, baud: int, te
         if not terminal:
             drain(proc.stdout.fileno())  # record --print's lines
         time.sleep(0.5)  # its start-up is not what is measured
-        rss: list[float] = []
-        done = threading.Event()
-
-        def sample() -> None:
-            while not done.wait(0.5):
-                rss.append(rss_mb(proc.pid))
-
-        sampler = threading.Thread(target=sample)
-        sampler.start()
-        cpu0, own0, t0 = cpu_seconds(proc.pid), cpu_seconds(proc.pid, False), time.monotonic()
-        play(chunks, lambda b: os.write(master, b), byte_seconds=byte_time(baud))
-        time.sleep(0.3)  # the last bytes read
-        cpu1, own1, t1 = cpu_seconds(proc.pid), cpu_seconds(proc.pid, False), time.monotonic()
-        done.set()
-        sampler.join()
+        cpu, own, wall, rss = played(proc.pid, chunks, master, baud)
     finally:
         proc.send_signal(signal.SIGTERM)
         try:
@@ -157,7 +164,7 @@ def measure(name: str, cmd: list[str], ready, chunks, master: int, baud: int, te
             proc.wait()
         if term is not None:
             os.close(term_master)
-    return {"name": name, "cpu": cpu1 - cpu0, "children": (cpu1 - cpu0) - (own1 - own0), "wall": t1 - t0, "rss": rss, "code": proc.returncode}
+    return {"name": name, "cpu": cpu, "children": cpu - own, "wall": wall, "rss": rss, "code": proc.returncode}
 
 
 def cost(args: argparse.Namespace) -> int:
