@@ -106,7 +106,7 @@ class _Opened:
     @property
     def encoding(self) -> str | None:
         """The encoding a byte-order mark names (None: no mark, read as ASCII/UTF-8)."""
-        return next((enc for bom, enc in _BOMS if self.head.startswith(bom)), None)
+        return _bom_of(self.head)
 
     @property
     def text(self) -> bytes:
@@ -115,7 +115,7 @@ class _Opened:
 
 
 def _as_utf8_lf(head: bytes, encoding: str | None, complete: bool) -> bytes:
-    if encoding in _READ_ENCODINGS or encoding in _ENCODING_NAMES:
+    if encoding in _ENCODING_NAMES:  # UTF-16 or UTF-32: decoded to sniff (UTF-32 is then named and refused)
         head = codecs.getincrementaldecoder(encoding)("replace").decode(head, final=complete).encode("utf-8")
         head = head.removeprefix(_BOM)  # the decoded mark
     elif head.startswith(_BOM):
@@ -192,8 +192,8 @@ def _read_head(read: Callable[[int], bytes], fd: int | None) -> tuple[bytes, boo
     """
     head = bytearray()
     while len(head) < _HEAD_SIZE:
-        if fd is not None and head and _first_line_kind(_as_utf8_lf(bytes(head), _bom_of(head), False),
-                                                         definite=True) is None and not _ready(fd, SAMPLE_PATIENCE):
+        # A first line that leaves the format open (no whole line yet, or ``10 FA AF``) waits for more.
+        if fd is not None and head and not _ready(fd, SAMPLE_PATIENCE):
             if _data_lines(_as_utf8_lf(bytes(head), _bom_of(head), False), False):
                 break  # a whole data line, then silence: judge by what came
         block = read(_HEAD_SIZE - len(head))
@@ -481,7 +481,7 @@ class CaptureReader:
                     raise _encoding_error(path, named)
                 if opened.note and self._warn is not None:
                     self._say(f"{path}: {opened.note}")
-                self._gen = _read_text(_text_lines(opened), path, fmt == TIMESTAMPED, self._lines,
+                self._gen = _read_text(_Lines(opened), path, fmt == TIMESTAMPED, self._lines,
                                        self.context.options.get("time_unit"), self._unit_decided, self._now)
         return self._gen
 
@@ -685,10 +685,6 @@ class _Lines:
         self._close()
 
 
-def _text_lines(opened: _Opened) -> _Lines:
-    return _Lines(opened)
-
-
 def _read_text(lines: _Lines, path: str, timestamped: bool, index: _LineIndex | None,
                time_unit: str | None = None, decided: Callable[[TimeUnit], None] | None = None,
                now: float | None = None) -> Iterator[Chunk]:
@@ -711,6 +707,16 @@ def _read_text(lines: _Lines, path: str, timestamped: bool, index: _LineIndex | 
     unit: TimeUnit | None = None
     exp = 0  # the unit's power of ten below a second, once known
     sample: list[_SampledLine] = []
+
+    def settle(found: TimeUnit) -> Iterator[Chunk]:
+        """The unit is known: said once, and the sampled lines handed on in it."""
+        nonlocal unit, exp
+        unit, exp = found, found.exponent
+        if decided is not None:
+            decided(unit)
+        yield from _in_seconds(sample, unit, path)
+        sample.clear()
+
     try:
         while True:
             line = readline()
@@ -722,11 +728,7 @@ def _read_text(lines: _Lines, path: str, timestamped: bool, index: _LineIndex | 
                 if sample and unit is None and time_unit is None:
                     found = _sampled_unit(sample, now)
                     if found.how in (timeunit.SPACING, timeunit.SIZE) or quiet >= SAMPLE_PATIENCE:
-                        unit, exp = found, found.exponent
-                        if decided is not None:
-                            decided(unit)
-                        yield from _in_seconds(sample, unit, path)
-                        sample.clear()
+                        yield from settle(found)
                 continue
             if not line:
                 break
@@ -793,11 +795,7 @@ def _read_text(lines: _Lines, path: str, timestamped: bool, index: _LineIndex | 
                         found = _sampled_unit(sample, now)
                         if k < _UNIT_SAMPLE and found.how != timeunit.SPACING:
                             continue  # not clear yet: sample on
-                        unit, exp = found, found.exponent
-                        if decided is not None:
-                            decided(unit)
-                        yield from _in_seconds(sample, unit, path)
-                        sample.clear()
+                        yield from settle(found)
                         continue
                     unit = timeunit.given(time_unit, t, now)
                     exp = unit.exponent
@@ -814,17 +812,11 @@ def _read_text(lines: _Lines, path: str, timestamped: bool, index: _LineIndex | 
         if pending:
             yield bytes(pending), None
         if sample:
-            unit = _sampled_unit(sample, now)
-            if decided is not None:
-                decided(unit)
-            yield from _in_seconds(sample, unit, path)
+            yield from settle(_sampled_unit(sample, now))
     except CaptureError:
         if sample and unit is None:
             # A bad line within the sample: the lines before it are read (in the unit they tell) first.
-            unit = _sampled_unit(sample, now)
-            if decided is not None:
-                decided(unit)
-            yield from _in_seconds(sample, unit, path)
+            yield from settle(_sampled_unit(sample, now))
         raise
     finally:
         lines.close()

@@ -248,8 +248,6 @@ class SerialTap:
         except Exception as e:  # noqa: BLE001 - SerialException, OSError, a vanished device: all end the capture
             put(TapEnd(LOST, _one_line(e)))
 
-    _run = run
-
     def _read_device(self, ser, fd: int) -> bytes:
         """A local device's chunk in one wait and one read: all that has arrived (a plain reading loop makes two
         more calls per chunk through pyserial: a read of one byte, then one of what is waiting). A backlog
