@@ -143,6 +143,13 @@ def said_as(template: str, params: Mapping[str, Any], shown: Mapping[str, str]) 
     return Message(str(said(template, {**params, **shown})), said(template, params).key, params)
 
 
+def said_keyed(text_template: str, key_template: str, params: Mapping[str, Any]) -> Message:
+    """The message ``text_template`` says, with the key of ``key_template``: for a figure that only a timed
+    capture gives (B003's gap, B009's latency), left out of the key so that the finding stays the same one
+    whether the capture was timed or not."""
+    return Message(said(text_template, params), said(key_template, params).key, params)
+
+
 @functools.lru_cache(maxsize=1024)
 def _parsed(template: str) -> tuple:
     # A rule that can fire on every frame says the same few templates: parse each once.

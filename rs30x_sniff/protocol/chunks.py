@@ -7,6 +7,11 @@ from typing import Any
 
 Chunk = tuple  # (data: bytes, t: float | None), or a Marked one
 
+# A chunk time this large counts seconds since 1970 (a live port, a logger's wall clock), not seconds since the
+# capture began: 1e9 s is 2001, and no capture counted from its own start runs 31 years. One threshold for every
+# output that tells the two apart (tables, info's summary, the text lines' --time-format).
+EPOCH_MIN = 1e9
+
 # Who sent a chunk's bytes, where the capture says so (a logger's TX/RX column, an analyzer's channel).
 HOST, SERVO = "host", "servo"
 SENDERS = (HOST, SERVO)

@@ -7,13 +7,12 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
+from ..protocol.chunks import EPOCH_MIN
+
 RELATIVE, ABSOLUTE, DELTA, EPOCH = "relative", "absolute", "delta", "epoch"
 TIME_FORMATS = (RELATIVE, ABSOLUTE, DELTA, EPOCH)
 DEFAULT_TIME_FORMAT = RELATIVE
 
-# A capture time this large counts seconds since 1970 (a live port, a logger's wall clock): 1e9 s is 2001,
-# and no capture counted from its own start runs 31 years (sinks/tables.py and sinks/summary.py say the same).
-EPOCH_MIN = 1e9
 WIDTH = 12                        # a time in seconds: f"{t:12.6f}", as decode has always written it
 ABSOLUTE_WIDTH = 26               # 2026-11-27 14:32:05.123456
 NO_TIME = f"{'-':>{WIDTH}}"       # an untimed event's time

@@ -5,11 +5,10 @@ from __future__ import annotations
 from datetime import datetime, timezone
 from typing import Any
 
+from ..protocol.chunks import EPOCH_MIN
 from ..render.times import ABSOLUTE
 from .health import FLAG_NAMES, PRESENT, WRITTEN, HealthRecorder, ServoHealth
 
-# Times above this are seconds since 1970 (a logger's wall clock), not seconds since the capture began.
-EPOCH_MIN = 1e9
 # The findings the summary tells through the figures (flags, missing replies, bad bytes), not as rule lines.
 _TOLD = frozenset({"S001", "S002", "S003", "S004", "Q009", "B002", "F001", "F002"})
 _MAX_LINES = 8

@@ -6,6 +6,7 @@ import csv
 from datetime import datetime, timezone
 from typing import IO, Any, Callable, Iterable
 
+from ..protocol.chunks import EPOCH_MIN
 from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
 from ..protocol.memmap import ModelRegistry
 from .pipeline import Sink
@@ -25,9 +26,6 @@ PARQUET_HINT = "Parquet needs pyarrow: pip install 'rs30x-sniff[parquet]'"
 INT, FLOAT, STR, BOOL, STRS, WALL = "int", "float", "str", "bool", "strs", "wall"
 Column = tuple[str, str]
 
-# A capture time this large is seconds since the epoch (a live port, a logger's clock): 1e9 s is 2001,
-# and no capture counted from its own start runs 31 years.
-EPOCH_MIN = 1e9
 # Rows buffered per Parquet row group: a long capture is written as it is read, never held whole.
 BATCH_ROWS = 64 * 1024
 

@@ -191,9 +191,9 @@ def _fit(pairs: list[tuple[int, int, float]], scale: float, step: float, rates: 
     fastest = byte_time(max(rates))
     overlaps = sum(1 for n1, n2, d in pairs
                    if d * scale + step < (1 - OVERLAP_TOLERANCE) * min(n1, n2) * fastest)
-    seams = sum(1 for _, _, d in pairs if d * scale > SEAM_GAP)
+    far = [d for _, _, d in pairs if d * scale > SEAM_GAP]  # each a time segment of its own to the decoder
     span = sum(d for _, _, d in pairs)
-    seam_share = sum(d for _, _, d in pairs if d * scale > SEAM_GAP) / span if span > 0 else 0.0
+    seams, seam_share = len(far), (sum(far) / span if span > 0 else 0.0)
     slowest = byte_time(min(rates))
     reach = max(CLOSE_GAP, CLOSE_BYTES * slowest) + step
     near = sum(1 for n1, n2, d in pairs if d * scale <= max(n1, n2) * slowest + reach)

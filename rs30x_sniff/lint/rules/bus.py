@@ -8,7 +8,7 @@ from ...decode.pairing import ANSWERED, EXTRA, MISSING, PAIRED, UNSOLICITED
 from ...protocol.events import OFFSET, RAW, T_END, T_START
 from ...protocol.wire import ACK, BROADCAST_ID, FRAME_OVERHEAD, NACK, encode_read, encode_return, encode_short
 from ..batch import UNKNOWN
-from ..params import DURATION, Measured, Message, said, said_as
+from ..params import DURATION, Measured, said, said_as, said_keyed
 from ..params import OFFSET as AT
 from ..registry import example, follows_cut, rule
 
@@ -45,12 +45,6 @@ def reply_due(lint, req) -> float:
 # Messages are made by said() (lint.params): a stream offset (unit AT: events.OFFSET is the event's field), a
 # time or a count this capture measured is a Measured value (``*`` in the finding's key, which a baseline
 # fingerprints); IDs, register names and the rule's words name the behaviour and stay in the key.
-
-def _keyed_as(text_template: str, key_template: str, params) -> Message:
-    """The message ``text_template`` says, with the key of ``key_template``: for a figure that only a timed
-    capture gives (B003's gap, B009's latency), left out of the key so that the finding stays the same one."""
-    return Message(said(text_template, params), said(key_template, params).key, params)
-
 
 def _asked(rec) -> str:
     if rec.expects == "ack":
@@ -151,7 +145,7 @@ def unsolicited_return(lint, rec, ev):
     key = head + _B003 + "; after " + since
     # The gap is left out of the key: a held clock (or a capture without times) leaves it out of the words.
     text = head + _B003 + ("; {gap} after " if gap is not None and gap > 0 else "; after ") + since
-    lint.emit("B003", rec, _keyed_as(text, key, params))
+    lint.emit("B003", rec, said_keyed(text, key, params))
 
 
 _B003 = " that no request asked for"
@@ -355,7 +349,7 @@ def multiple_returns(lint, rec, ev):
     # The latency is left out of the key: a reply too soon after the request to time has none.
     key = what + _B009
     text = key if lat is None else what + _B009_TIMED
-    lint.emit("B009", rec, _keyed_as(text, key, params), sid=sid)
+    lint.emit("B009", rec, said_keyed(text, key, params), sid=sid)
 
 
 _B009 = " is a second reply to request @{offset} to ID {asked}: two servos answer to ID {id}"
