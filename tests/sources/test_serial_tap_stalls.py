@@ -65,7 +65,7 @@ def capture(events, **port_options):
     tap._serial = port
     tap.wall_start_ns = round(WALL0 * S)
     tap.start_ns = 0
-    tap._run()
+    tap.run()
     chunks = []
     while not tap.queue.empty():
         item = tap.queue.get_nowait()
@@ -127,7 +127,7 @@ def test_a_wrong_baud_is_not_a_stall():
     tap = SerialTap("fake", 9600)
     port = FakePort(tap, [(0.01 * i, bytes(180)) for i in range(1, 200)])
     tap.clock, tap._serial, tap.wall_start_ns, tap.start_ns = port.clock, port, round(WALL0 * S), 0
-    tap._run()
+    tap.run()
     assert tap.stalls == []
 
 
