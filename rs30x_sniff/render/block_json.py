@@ -18,7 +18,7 @@ import numpy as np
 from ..protocol.events import OFFSET, RAW, LongPacket, ReturnPacket, ShortPacket
 from ..protocol.wire import AT_DATA, AT_ID, AT_LENGTH, HEADER_SIZE, SUM_SIZE
 from ..decode.frame_runs import LONG
-from .layout_json import fields_json, record_fields_json
+from .layout_json import fields_json, fields_plan, mixed_fields_json, record_fields_json
 from .records import COMPACT, NO_FIELDS, SPACED, record_json, record_json_text
 
 # What varies between rows of one shape (besides the fields). The templates are kept by the model
@@ -46,8 +46,8 @@ def block_json_lines(blk: Any, only: set[int] | None = None, compact: bool = Fal
 def block_json_rows(blk: Any, only: set[int] | None = None, compact: bool = False, rows: Any = None,
                     end: str = "") -> list[str]:
     """The JSON text of each row (or of ``rows``), each followed by ``end``."""
-    if blk.linted_by_rows or blk.vid_models is not None:
-        # Rows checked one by one (they may carry findings), or servos of mixed models: the records.
+    if blk.linted_by_rows:
+        # Rows checked one by one (they may carry findings): the records.
         recs = blk.records()
         chosen = recs if rows is None else [recs[k] for k in rows]
         return [record_json_line(r, only, compact) + end for r in chosen]
@@ -70,7 +70,7 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
                 raise _not_finite(base + starts[k], what, float(col[k]))
         t0, t1 = blk.t0.tolist(), blk.t1.tolist()
         lat = blk.latencies().tolist()
-    models, default = blk.models, blk.default
+    models, default, vid_models = blk.models, blk.default, blk.vid_models
     only_key = None if only is None else frozenset(only)
     out = []
     for k in (range(len(starts)) if rows is None else rows):
@@ -79,8 +79,10 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
         kind = kinds[k]
         if kind == LONG:
             model = default
-            key = ("json", raw[:HEADER_SIZE], e - s, raw[AT_DATA:-SUM_SIZE:raw[AT_LENGTH] or 1], timed, compact,
-                   only_key)
+            vids = raw[AT_DATA:-SUM_SIZE:raw[AT_LENGTH] or 1]
+            # Servos of mixed models: the VIDs' models are part of the shape (a model learned later changes it).
+            key = ("json", raw[:HEADER_SIZE], e - s, vids, timed, compact, only_key,
+                   None if vid_models is None or not raw[AT_LENGTH] else tuple([vid_models[v].name for v in vids]))
         else:
             model = models[raw[AT_ID]]
             key = ("json", raw[:HEADER_SIZE], e - s, b"", timed, compact, only_key)
@@ -110,6 +112,8 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
             else:  # fields
                 if layout is None:
                     vals.append("")
+                elif type(layout) is tuple:  # a long packet to servos of mixed models
+                    vals.append(mixed_fields_json(layout, raw[AT_DATA:-SUM_SIZE], only, compact))
                 else:
                     data = raw[AT_DATA:-SUM_SIZE]
                     # fields_json reads the values only to pick fields by ID (``only``)
@@ -150,8 +154,8 @@ def _template(blk: Any, k: int, model: Any, key: tuple, only: set[int] | None, c
     kept by ``model``, the row's."""
     rec = blk.record(k)
     text, slots = _line_template(rec, only, compact)
-    # The Block's servos share a model here (block_json_rows), so this is one Layout (or None).
-    return model.keep(key, (text, slots, rec.data_layout()[0]))
+    # One Layout (or None); for a long packet to servos of mixed models, its MixedParts.
+    return model.keep(key, (text, slots, fields_plan(rec)))
 
 
 def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = False) -> str:

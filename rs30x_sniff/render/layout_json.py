@@ -17,7 +17,8 @@ from ..decode.pairing import Record
 from ..protocol.codegen import SERVO, percent_function
 from ..protocol.memmap import ByRaw, Layout, Register
 
-__all__ = ["fields_json", "json_scalar", "record_fields_json", "value_text"]
+__all__ = ["MixedParts", "fields_json", "fields_plan", "json_scalar", "mixed_fields_json", "record_fields_json",
+           "value_text"]
 
 _TEMPLATES = "json fields"  # Layout.cache key: ((per-part templates, whole fill) spaced, (...) compact)
 _INF = float("inf")
@@ -117,6 +118,32 @@ def fields_json(layout: Layout, data: bytes, values: tuple, servo_id: int | None
         for j, ((start, size, _, _), t) in enumerate(zip(parts, tmpl)):
             out.append(t % (sid, data[base + start:base + start + size].hex(), json_scalar(values[rec * n + j])))
     return sep.join(out)
+
+
+# A long packet to servos of mixed models has no one Layout: each record has its own servo's. Its fields, as a
+# template keeps them: (layout, start, stop, VID) of each record's data within the packet's data.
+MixedParts = tuple[tuple[Layout, int, int, int], ...]
+
+
+def fields_plan(rec: Record) -> Layout | MixedParts | None:
+    """What a template of ``rec``'s shape needs to write the fields of any packet of that shape (the same
+    header, length and VIDs): its Layout, or for a long packet to servos of mixed models the MixedParts."""
+    lay, _ = rec.data_layout()
+    if not isinstance(lay, list):
+        return lay
+    step = rec.event.length  # record k starts at k * Length with its VID (events.frame_event)
+    return tuple((sub, k * step + 1, k * step + 1 + len(d), vid) for k, (sub, d, vid) in enumerate(lay))
+
+
+def mixed_fields_json(parts: MixedParts, data: bytes, only: set[int] | None = None, compact: bool = False) -> str:
+    """record_fields_json of a long packet to servos of mixed models, from its shape's MixedParts."""
+    out = []
+    for sub, a, b, vid in parts:
+        d = data[a:b]
+        text = fields_json(sub, d, () if only is None else sub.values(d), vid, only, compact)
+        if text:
+            out.append(text)
+    return ("," if compact else ", ").join(out)
 
 
 def record_fields_json(rec: Record, only: set[int] | None = None, compact: bool = False) -> str:

@@ -13,7 +13,7 @@ from rs30x_sniff.decode import blocks
 from rs30x_sniff.render.block_json import block_json_lines, record_json_line
 from rs30x_sniff.decode.blocks import Block
 from rs30x_sniff.lint import Linter
-from rs30x_sniff.decode.decoder import Decoder
+from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.render.records import record_json_text
 from rs30x_sniff.sim import scenarios
 from tests.render.test_block_text import odd_traffic
@@ -26,10 +26,10 @@ from traffic import hexapod_frames  # noqa: E402
 ONLY = [None, {1}, {2, 3}]
 
 
-def check_blocks(chunks, lint: bool, group: int = 400) -> int:
+def check_blocks(chunks, lint: bool, group: int = 400, options=None) -> int:
     """Decode columnar; for every Block (before anything builds its records) compare the template
     lines with the records' own, whole, for some servos, compact and for a subset of rows."""
-    dec = Decoder(None, Linter() if lint else None, columnar=True)
+    dec = Decoder(options, Linter() if lint else None, columnar=True)
     seen = 0
     steps = [dec.feed_many(chunks[k:k + group]) for k in range(0, len(chunks), group)] + [dec.close()]
     for step in steps:
@@ -64,11 +64,27 @@ def test_scenarios(name):
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                   HealthCheck.function_scoped_fixture])
 @given(seed=st.integers(0, 10**6), n=st.integers(1, 200), timed=st.booleans(), rare=st.sampled_from([0.3, 0.05]),
-       lint=st.booleans())
-def test_random_traffic(monkeypatch, seed, n, timed, rare, lint):
+       lint=st.booleans(), mixed=st.booleans())
+def test_random_traffic(monkeypatch, seed, n, timed, rare, lint, mixed):
     monkeypatch.setattr(blocks, "MIN_BLOCK", 1)
     monkeypatch.setattr(memmap, "MAX_CACHED", 8)  # the models' template caches fill and clear too
-    check_blocks(traffic(seed, n, timed=timed, gaps=True, faults=False, rare=rare), lint, group=50)
+    # mixed: servo 2 is an RS304MD among RS303MRs, so a long packet's records have two models
+    check_blocks(traffic(seed, n, timed=timed, gaps=True, faults=False, rare=rare), lint, group=50,
+                 options=DecodeOptions(models={2: "RS304MD"}) if mixed else None)
+
+
+def test_mixed_models_are_written_from_templates(monkeypatch):
+    """A long packet to servos of two models is a template's row, not a Record's (no Record is built)."""
+    chunks = traffic(5, 400, timed=True, gaps=False, faults=False, rare=0.0)
+    dec = Decoder(DecodeOptions(models={2: "RS304MD"}), None, columnar=True)
+    step = dec.feed_many(chunks)
+    mixed = [b for b in step if type(b) is Block and b.vid_models is not None]
+    assert mixed
+    built = []
+    monkeypatch.setattr(Block, "records", lambda self: built.append(self) or [])
+    for blk in mixed:
+        assert block_json_lines(blk).count("\n") == len(blk)
+    assert not built
 
 
 def test_a_write_and_a_return_with_the_same_header_bytes():

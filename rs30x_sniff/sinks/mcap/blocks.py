@@ -12,7 +12,7 @@ from ...protocol.mcap_names import PACKETS_TOPIC, TRANSACTIONS_TOPIC, log_time_n
 from ...protocol.memmap import Layout
 from ...protocol.wire import (
     AT_ADDRESS, AT_COUNT, AT_DATA, AT_ID, AT_LENGTH, BROADCAST_ID, FRAME_OVERHEAD, HEADER_SIZE, SUM_SIZE)
-from ...render.layout_json import value_text
+from ...render.layout_json import MixedParts, value_text
 from .transactions import transaction_json
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
@@ -38,6 +38,26 @@ def _named_plan(layout: Layout) -> tuple:
     return plan
 
 
+def _mixed_layout(raw: bytes, vid_models: dict[int, Any]) -> Layout | MixedParts:
+    """The layout of a long packet's data when its servos may differ in model: the long layout of their one
+    model, or each record's (MixedParts), as Record.data_layout gives them; kept in the first VID's model."""
+    length, count = raw[AT_LENGTH], raw[AT_COUNT]
+    vids = raw[AT_DATA:-SUM_SIZE:length]
+    models = tuple([vid_models[v] for v in vids])
+    first = models[0]
+    key = ("mcap long", raw[AT_ADDRESS], length, len(raw), vids, tuple([m.name for m in models]))
+    got = first.cache.get(key)
+    if got is None:
+        address, n = raw[AT_ADDRESS], len(raw) - FRAME_OVERHEAD
+        if n == length * count and all(m is first for m in models):
+            got = first.long_layout(address, length, count)
+        else:  # records k * length apart, each its VID and then its data (events.frame_event)
+            got = tuple((m, k * length + 1, min(k * length + length, n), vids[k]) for k, m in enumerate(models))
+            got = tuple((m.layout(address, b - a), a, b, vid) for m, a, b, vid in got)
+        got = first.keep(key, got)
+    return got
+
+
 def _tx_template(blk: Any, k: int, model: Any, key: tuple) -> tuple[str | None, tuple[str, ...]]:
     """The /rs30x/transactions body of row ``k``'s shape with a %s where each row differs (None when
     the row's request expects no reply: no message) and the slots; kept by ``model``, the row's."""
@@ -51,7 +71,7 @@ def _tx_template(blk: Any, k: int, model: Any, key: tuple) -> tuple[str | None, 
 def block_messages(ch: Any, blk: Any, emit: Any) -> None:
     """Emit (channel, log_time, body) for each row of ``blk`` as ``ch.record`` would, in the same order:
     the packet, the state of each servo it sets, the transaction of a request that expects a reply."""
-    if blk.linted_by_rows or blk.vid_models is not None:
+    if blk.linted_by_rows:
         for rec in blk.records():
             ch.record(rec)
         return
@@ -71,7 +91,7 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
     models, known = servos.models, servos.known
     slot = ch.state_slot
     state_models = ch.model_names
-    blk_models, default = blk.models, blk.default
+    blk_models, default, vid_models = blk.models, blk.default, blk.vid_models
     for k, (s, e, kind) in enumerate(zip(starts, ends, kinds)):
         offset = base + s
         t = t0[k] if timed else None
@@ -80,8 +100,12 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
         raw = blob[s:e]
         if kind == LONG:
             model = default
-            layout = (model.long_layout(raw[AT_ADDRESS], raw[AT_LENGTH], raw[AT_COUNT])
-                      if raw[AT_LENGTH] and e - s > FRAME_OVERHEAD else None)
+            layout = None
+            if raw[AT_LENGTH] and e - s > FRAME_OVERHEAD:
+                if vid_models is None:
+                    layout = model.long_layout(raw[AT_ADDRESS], raw[AT_LENGTH], raw[AT_COUNT])
+                else:
+                    layout = _mixed_layout(raw, vid_models)
         else:
             sid = raw[AT_ID]
             model = blk_models[sid]
@@ -89,18 +113,32 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
                 models[sid] = model.name  # ServoStates.changes: the model name the servo's records used
             layout = model.layout(raw[AT_ADDRESS], e - s - FRAME_OVERHEAD) if e - s > FRAME_OVERHEAD else None
         if layout is not None:
-            values = layout.unpack_raw(raw[AT_DATA:-SUM_SIZE])
             changed: dict[int, list[tuple[str, str]]] = {}
-            for vid_at, parts in _named_plan(layout):
-                if not parts:
-                    continue
-                tid = raw[AT_ID] if vid_at is None else values[vid_at]
-                pairs = changed.get(tid)
-                if pairs is None:
-                    pairs = changed[tid] = []
-                    known[tid] = None
-                for at, name, prefix, text in parts:
-                    pairs.append((name, prefix + text[values[at]]))
+            if type(layout) is tuple:  # a long packet to servos of mixed models: each record by its servo's
+                data = raw[AT_DATA:-SUM_SIZE]
+                for sub, a, b, tid in layout:
+                    plan = _named_plan(sub)[0][1]
+                    if not plan:
+                        continue
+                    values = sub.unpack_raw(data[a:b])
+                    pairs = changed.get(tid)
+                    if pairs is None:
+                        pairs = changed[tid] = []
+                        known[tid] = None
+                    for at, name, prefix, text in plan:
+                        pairs.append((name, prefix + text[values[at]]))
+            else:
+                values = layout.unpack_raw(raw[AT_DATA:-SUM_SIZE])
+                for vid_at, parts in _named_plan(layout):
+                    if not parts:
+                        continue
+                    tid = raw[AT_ID] if vid_at is None else values[vid_at]
+                    pairs = changed.get(tid)
+                    if pairs is None:
+                        pairs = changed[tid] = []
+                        known[tid] = None
+                    for at, name, prefix, text in parts:
+                        pairs.append((name, prefix + text[values[at]]))
             if changed:
                 tail = f',"t":{"null" if t is None else repr(t)},"offset":{offset},'
                 fallback = model.name
