@@ -6,7 +6,7 @@
 # to the 5 ms switch interval), and a request and its reply 2.7 ms apart were read as one piece about a third
 # of the time, with no latency to give. Here the child does what SerialTap's thread did (read, drain a
 # backlog, stamp) on a core of its own, and sends the stamped chunks in batches, SEND_SECONDS apart, through
-# a pipe; a thread here puts them in the tap's queue. The parent's Ctrl-C and SIGTERM are the parent's to
+# a pipe, which this side reads as it takes them (PipeQueue). The parent's Ctrl-C and SIGTERM are the parent's to
 # act on: the child ignores them (systemd signals the whole group), and stops when its stdin closes, after
 # reading what the OS still holds, as the thread did.
 
@@ -14,13 +14,17 @@ from __future__ import annotations
 
 import os
 import pickle
+import queue
+import select
 import signal
+import struct
 import subprocess
 import sys
 import threading
 import time
 from array import array
 from collections import deque
+from itertools import accumulate
 from typing import Any, BinaryIO
 
 from .captures import CaptureError
@@ -31,8 +35,9 @@ _PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
 # not per chunk); a chunk reaches the parent's queue within this, well inside the drive loop's gather time.
 SEND_SECONDS = 0.01
 OPEN_TIMEOUT = 30.0  # the child starts Python and opens the port: a loaded machine can take seconds
+_HEAD = struct.Struct("<I")
 
-# Messages, child -> parent (each one pickle):
+# Messages, child -> parent (each its length, _HEAD, then its pickle):
 #   ("open", wall_start_ns, start_ns)          the port is open
 #   ("error", message)                         it could not be opened (a CaptureError's one line)
 #   ("data", blob, lengths, times, stalls, n)  chunks: lengths array("I"), times array("d") as bytes; the
@@ -41,8 +46,8 @@ OPEN_TIMEOUT = 30.0  # the child starts Python and opens the port: a loaded mach
 
 
 class PortProcess:
-    """The child reading ``tap``'s port: started (and the port open) when made, its chunks going to
-    ``tap.queue`` and its stalls to ``tap.stalls``; :meth:`stop` ends it."""
+    """The child reading ``tap``'s port: started (and the port open) when made; its chunks reach ``tap.queue`` (a
+    :class:`PipeQueue`, read by whoever takes from it) and its stalls ``tap.stalls``; :meth:`stop` ends it."""
 
     def __init__(self, tap: SerialTap) -> None:
         import serial
@@ -60,68 +65,25 @@ class PortProcess:
             self._proc.stdin.flush()
         except OSError:
             pass  # the child is gone already: its first message says so
-        msg = self._first()
+        self.queue = PipeQueue(self._proc.stdout.fileno(), tap)
+        msg = self.queue.first(OPEN_TIMEOUT)
         if msg[0] != "open":
             self._reap()
             raise CaptureError(msg[1] if msg[0] == "error" else f"{tap.port}: cannot open port: {msg[1]}")
         tap.wall_start_ns, tap.start_ns = msg[1], msg[2]
-        self._thread = threading.Thread(target=self._receive, name=f"tap {tap.port}", daemon=True)
-        self._thread.start()
-
-    def _first(self) -> tuple:
-        result: list[tuple] = []
-
-        def load() -> None:
-            try:
-                result.append(pickle.load(self._proc.stdout))
-            except Exception as e:  # noqa: BLE001 - EOF, a broken pipe: the child ended before opening
-                result.append(("failed", f"its reader process ended ({type(e).__name__})"))
-
-        waiter = threading.Thread(target=load, daemon=True)
-        waiter.start()
-        waiter.join(OPEN_TIMEOUT)
-        return result[0] if result else ("failed", f"its reader process did not answer in {OPEN_TIMEOUT:g} s")
+        tap.queue = self.queue
 
     @property
     def running(self) -> bool:
-        return self._thread.is_alive()
-
-    def _receive(self) -> None:
-        tap, put = self.tap, self.tap.queue.put
-        if hasattr(signal, "pthread_sigmask"):
-            # Ctrl-C and SIGTERM go to the main thread, whose handler stops the capture (see SerialTap.run).
-            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-        load = self._proc.stdout
-        end = TapEnd(LOST, "its reader process ended")
-        try:
-            while True:
-                msg = pickle.load(load)  # one load per message: an Unpickler kept across them keeps them all
-                if msg[0] == "data":
-                    _, blob, lengths, times, stalls, n = msg
-                    sizes, ts = array("I"), array("d")
-                    sizes.frombytes(lengths)
-                    ts.frombytes(times)
-                    at = 0
-                    for size, t in zip(sizes, ts):
-                        put((blob[at:at + size], t))
-                        at += size
-                    if stalls:
-                        tap.stalls.extend(stalls)
-                    tap.bytes_read = n
-                elif msg[0] == "end":
-                    end = TapEnd(msg[1], msg[2])
-                    break
-        except Exception:  # noqa: BLE001 - EOF or a broken pipe: the child died (killed, out of memory)
-            pass
-        put(end)
+        return not self.queue.ended
 
     def stop(self, timeout: float) -> None:
-        """Close the child's stdin (it reads what the OS holds, sends it and ends), wait for its last chunks."""
+        """Close the child's stdin (it reads what the OS holds, sends it and ends), and take its last chunks."""
         try:
             self._proc.stdin.close()
         except OSError:
             pass
-        self._thread.join(timeout)
+        self.queue.finish(timeout)
         self._reap(timeout)
 
     def _reap(self, timeout: float = 2.0) -> None:
@@ -136,6 +98,132 @@ class PortProcess:
                 f.close()
             except OSError:
                 pass
+
+
+class PipeQueue:
+    """The tap's queue (ChunkQueue's ``put``, ``get``, ``get_nowait``, ``empty``, ``take_all``) for a child's
+    pipe, read in the thread that takes from it: no thread of its own here to wake per message and contend for
+    the interpreter lock with the decoding (bench/live.py). The child keeps reading and stamping while this
+    side decodes: a full pipe holds up only its sender thread."""
+
+    def __init__(self, fd: int, tap: SerialTap) -> None:
+        self._fd = fd
+        self._tap = tap
+        self._items: deque = deque()
+        self._buf = bytearray()
+        self._eof = False
+        self.ended = False  # the child's end (or EOF) is read: nothing more comes
+
+    def put(self, item: object) -> None:
+        self._items.append(item)
+
+    def first(self, timeout: float) -> tuple:
+        """The child's first message (its port open, or why not), waiting up to ``timeout``."""
+        end = time.monotonic() + timeout
+        while True:
+            msg = self._message()
+            if msg is not None:
+                return msg
+            if self._eof:
+                return ("failed", "its reader process ended before opening the port")
+            left = end - time.monotonic()
+            if left <= 0:
+                return ("failed", f"its reader process did not answer in {timeout:g} s")
+            self._fill(left)
+
+    def _fill(self, timeout: float) -> None:
+        """Read what the pipe holds, waiting up to ``timeout`` for something (a signal's handler runs meanwhile)."""
+        if self.ended or self._eof:
+            return
+        if not select.select((self._fd,), (), (), max(0.0, timeout))[0]:
+            return
+        try:
+            data = os.read(self._fd, 1 << 20)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if data:
+            self._buf += data
+        else:
+            self._eof = True  # the child is gone: the whole messages before are still taken
+
+    def _message(self) -> tuple | None:
+        """The next whole message in the buffer, or None."""
+        buf = self._buf
+        if len(buf) < _HEAD.size:
+            return None
+        (n,) = _HEAD.unpack_from(buf)
+        if len(buf) < _HEAD.size + n:
+            return None
+        msg = pickle.loads(buf[_HEAD.size:_HEAD.size + n])
+        del buf[:_HEAD.size + n]
+        return msg
+
+    def _take(self, timeout: float) -> None:
+        """Read the pipe (waiting up to ``timeout``) and queue the chunks of every whole message in it."""
+        self._fill(timeout)
+        tap, items = self._tap, self._items
+        while not self.ended:
+            msg = self._message()
+            if msg is None:
+                if self._eof:  # killed, out of memory: what came is kept
+                    self._end(TapEnd(LOST, "its reader process ended"))
+                return
+            if msg[0] == "data":
+                _, blob, lengths, times, stalls, n = msg
+                sizes, ts = array("I"), array("d")
+                sizes.frombytes(lengths)
+                ts.frombytes(times)
+                ends = list(accumulate(sizes))
+                items.extend(zip([blob[a - k:a] for a, k in zip(ends, sizes)], ts))
+                if stalls:
+                    tap.stalls.extend(stalls)
+                tap.bytes_read = n
+            elif msg[0] == "end":
+                self._end(TapEnd(msg[1], msg[2]))
+
+    def _end(self, end: TapEnd) -> None:
+        if not self.ended:
+            self.ended = True
+            self._items.append(end)
+
+    def get(self, timeout: float | None = None) -> object:
+        items = self._items
+        if not items:
+            end = None if timeout is None else time.monotonic() + timeout
+            while not items:
+                left = 0.05 if end is None else end - time.monotonic()
+                if left <= 0 or self.ended:
+                    self._take(0)
+                    if items:
+                        break
+                    raise queue.Empty
+                self._take(left)
+        return items.popleft()
+
+    def get_nowait(self) -> object:
+        return self.get(0)
+
+    def empty(self) -> bool:
+        if not self._items:
+            self._take(0)
+        return not self._items
+
+    def take_all(self) -> list:
+        self._take(0)
+        items = self._items
+        return [items.popleft() for _ in range(len(items))]
+
+    def finish(self, timeout: float) -> None:
+        """After the child was asked to stop: queue what it still sends, up to its end (or ``timeout``)."""
+        end = time.monotonic() + timeout
+        while not self.ended:
+            left = end - time.monotonic()
+            if left <= 0:
+                self._end(TapEnd(LOST, "its reader process did not stop"))
+                return
+            self._take(left)
 
 
 class _Sender:
@@ -180,8 +268,14 @@ class _Sender:
                     array("d", [t for _, t in batch]).tobytes(), stalls, self.tap.bytes_read))
 
     def _dump(self, msg: tuple) -> None:
-        pickle.dump(msg, self.out, protocol=pickle.HIGHEST_PROTOCOL)
-        self.out.flush()
+        _send(self.out, msg)
+
+
+def _send(out: BinaryIO, msg: tuple) -> None:
+    """One message to the parent: its length, then its pickle (PipeQueue reads whole ones)."""
+    body = pickle.dumps(msg, protocol=pickle.HIGHEST_PROTOCOL)
+    out.write(_HEAD.pack(len(body)) + body)
+    out.flush()
 
 
 def serve(args: dict[str, Any], stdin: BinaryIO, out: BinaryIO) -> None:
@@ -200,11 +294,9 @@ def serve(args: dict[str, Any], stdin: BinaryIO, out: BinaryIO) -> None:
     try:
         tap.open_port()
     except CaptureError as e:
-        pickle.dump(("error", str(e)), out)
-        out.flush()
+        _send(out, ("error", str(e)))
         return
-    pickle.dump(("open", tap.wall_start_ns, tap.start_ns), out)
-    out.flush()
+    _send(out, ("open", tap.wall_start_ns, tap.start_ns))
     sender = _Sender(out, tap)
     tap.queue = sender
 
