@@ -15,6 +15,7 @@ Target: at least 80 % of the replies timed, with p50 within 0.15 ms of the file'
 machine's scheduler to wake the writer and the reader within about 0.05 ms: on a loaded machine it is not met.)
 
 Run: .venv/bin/python bench/live.py [--duration 15] [--baud 230400] [--no-monitor] [--no-latency] [--no-cost]
+     [--only bare,record]
 """
 
 from __future__ import annotations
@@ -202,6 +203,11 @@ def cost(args: argparse.Namespace) -> int:
     ]
     if not args.no_monitor:
         runs.append(("monitor", [*CLI, "monitor", port, "--baud", baud], started, True, None))
+    if args.only:
+        keep = set(args.only.split(","))
+        runs = [r for r in runs if r[0] in keep or (r[0].startswith("bare") and "bare" in keep)]
+        if not runs:
+            raise SystemExit(f"--only {args.only}: no such reader (bare, record, record --print, monitor)")
     got = []
     for name, cmd, ready, terminal, out in runs:
         r = measure(name, cmd, ready, chunks, master, args.baud, terminal)
@@ -215,21 +221,27 @@ def cost(args: argparse.Namespace) -> int:
     shutil.rmtree(tmp, ignore_errors=True)
     print(f"{args.scenario} at {args.baud} baud, {args.duration:g} s per reader: {total:,} bytes, "
           f"bus load {total * byte_time(args.baud) / span * 100:.0f} %")
-    floor = got[0]["cpu"]
+    floor = got[0]["cpu"] if got[0]["name"].startswith("bare") else None  # no floor, no ratios
     targets = {"record": 1.5, "record --print": 2.5, "monitor": 3.0}
     ok = True
     for r in got:
         rss = r["rss"]
         mem = f"RSS {rss[0]:.0f} -> {rss[-1]:.0f} MB (max {max(rss):.0f})" if rss else "RSS -"
+        if len(rss) >= 8:  # flat: the last half grows no more than 2 % over the first half's peak
+            half = len(rss) // 2
+            first, last = max(rss[:half]), max(rss[half:])
+            mem += f", {'flat' if last <= first * 1.02 else 'GROWING'} (peak {first:.0f} MB in the first half, " \
+                   f"{last:.0f} MB in the second)"
         kept = r.get("kept")
         kept_s = "" if kept is None else f"; kept {'every byte' if kept == total else f'{kept:,} of {total:,} B'}"
-        target = targets.get(r["name"])
+        target = None if floor is None else targets.get(r["name"])
         verdict = "" if target is None else (f" (target <= {target}x: {'met' if r['cpu'] / floor <= target else 'NOT met'})")
         if target is not None and r["cpu"] / floor > target:
             ok = False
         reader = f" (its port reader {r['children']:.2f} s)" if r["children"] > 0 else ""
-        print(f"  {r['name']:20s} CPU {r['cpu']:6.2f} s{reader} = {r['cpu'] / r['wall'] * 100:5.1f} % of a core, "
-              f"{r['cpu'] / floor:4.2f}x the bare loop{verdict}; {mem}{kept_s}")
+        ratio = "" if floor is None else f", {r['cpu'] / floor:4.2f}x the bare loop{verdict}"
+        print(f"  {r['name']:20s} CPU {r['cpu']:6.2f} s{reader} = {r['cpu'] / r['wall'] * 100:5.1f} % of a core"
+              f"{ratio}; {mem}{kept_s}")
     return 0 if ok else 1
 
 
@@ -288,6 +300,9 @@ def main() -> int:
     ap.add_argument("--scenario", default="hexapod")
     ap.add_argument("--latency-scenario", default="hexapod", help="the timing check's scenario (at 115200)")
     ap.add_argument("--no-monitor", action="store_true", help="leave out the monitor")
+    ap.add_argument("--only", metavar="NAMES", help="these readers alone, by name, comma-separated (bare, record, "
+                                                    "'record --print', monitor); without bare, no ratios: an "
+                                                    "hour of `record`'s memory is --duration 3600 --only record")
     ap.add_argument("--no-cost", action="store_true", help="only the timing check")
     ap.add_argument("--no-latency", action="store_true", help="only the cost")
     args = ap.parse_args()
