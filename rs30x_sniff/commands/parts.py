@@ -214,7 +214,11 @@ class Parts(Sink):
     takes_blocks = True  # the MCAP sink takes a Block as it is
 
     def chunk_group(self, chunks: list[tuple[bytes, float | None]]) -> None:
-        """A columnar group's chunks (record to one file: no part opens mid-group), in order with their records."""
+        """A columnar group's chunks (a port's gather), in order with their records: a part due opens before the
+        group (never mid-group, nor at the first bytes after a gap, which stay with it)."""
+        if chunks and not self.after_gap and self._due():
+            self._rotate()
+        self.after_gap = self.after_gap and not chunks
         self.sink.chunk_group(chunks)
         self.dirty = True
         self.idle()

@@ -24,7 +24,7 @@ from .blackbox import (POST, PRE, add_trigger_options, check_mode, parse_max_sav
                        window_writer)
 from ..lint import Linter
 from ..sinks.blackbox import MAX_WINDOW_S, BlackBox
-from ..sinks.pipeline import Pipeline
+from ..sinks.pipeline import Pipeline, columnar_for
 from ..sources.reconnect import ReconnectingSource
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
@@ -155,10 +155,11 @@ def run(args: argparse.Namespace) -> int:
     log = _Log()
     say = log.say
 
-    # Nothing shown as it comes (no --print, no Foxglove) and one file: the columnar path, as the black box takes it
-    # (bench/live.py: the per-record path cost a third more CPU).
-    columnar = not args.print_lines and args.foxglove is None and split is None and split_time is None
-    src = open_port(args, opts.baud, say, gather=BLACK_BOX_GATHER if columnar else GATHER_SECONDS)
+    # The columnar path, a gather at a time (sinks.pipeline.columnar_for). With nothing shown as it comes (no
+    # --print, no Foxglove) the gathers are longer, as the black box takes them: fewer, larger Blocks.
+    shown = args.print_lines or args.foxglove is not None
+    src = open_port(args, opts.baud, say, gather=GATHER_SECONDS if shown else BLACK_BOX_GATHER)
+    columnar = columnar_for(src)
 
     def make_sink(path: str | IO[bytes], part: int) -> McapSink:
         extra = dict(src.metadata)

@@ -174,14 +174,17 @@ def columnar_for(source: object, *, follow: bool = False) -> bool:
 
     A source says what it is: a port is ``live`` (rs30x_sniff.sources.serial_tap.LiveSource), a capture
     that is not a regular file (a pipe, a FIFO) is ``streamed`` (rs30x_sniff.sources.captures.CaptureReader).
-    A live port is decoded record by record, each record out as soon as its bytes are in; a file takes
-    the columnar path, GROUP_BYTES (256 KiB) at a time (the same output in a fraction of the time). A pipe may be
-    live too (`socat ... | rs30x-sniff decode -`): a command whose output follows its input (``follow``:
-    decode's lines) takes it record by record; one whose output comes at the end (a report, figures, a
-    file) takes the columnar path, as for a file.
+    A file takes the columnar path, GROUP_BYTES (256 KiB) at a time (the same output in a fraction of the
+    time). A live source that hands over its chunks in ``batched`` gathers, each ended by an empty chunk (a
+    port: LiveSource), takes it too, a gather at a time: each record is out as soon as the gather that
+    completes it is in, as on the record path, at a half to two thirds of its CPU (bench/live.py). Other live
+    sources (the monitor's replay and simulator) go record by record. A pipe may be live too
+    (`socat ... | rs30x-sniff decode -`): a command whose output follows its input (``follow``: decode's
+    lines) takes it record by record; one whose output comes at the end (a report, figures, a file) takes
+    the columnar path, as for a file.
     """
     if getattr(source, "live", False):
-        return False
+        return getattr(source, "batched", False)
     return not (follow and getattr(source, "streamed", False))
 
 

@@ -39,6 +39,7 @@ class ReconnectingSource:
     per loss and per return."""
 
     live = True
+    batched = True  # LiveSource.chunks' batches, each ended by an empty chunk, passed on
 
     def __init__(self, port: str, baud: int, *, duration: float | None = None,
                  open_source: Callable[[str, float | None], LiveSource] | None = None,

@@ -355,6 +355,7 @@ class LiveSource:
     """
 
     live = True
+    batched = True  # chunks() ends each batch with an empty chunk (sinks.pipeline.columnar_for)
 
     def __init__(self, port: str, baud: int, *, duration: float | None = None, announce: bool = True,
                  tap: SerialTap | None = None, gather: float = GATHER_SECONDS) -> None:
@@ -509,14 +510,14 @@ class LiveSource:
 
     def chunks(self, idle: float = 0.1) -> Iterator[Chunk]:
         """Like iterating, but an empty chunk ``(b"", None)`` after each ``idle`` seconds without bytes,
-        so a drive loop can refresh a status line or flush a file while the bus is quiet."""
+        so a drive loop can refresh a status line or flush a file while the bus is quiet, and after each
+        batch (``batched``): what came in one gather period is decoded as one group (Pipeline)."""
         try:
             while self.reason is None:
                 batch = self.poll(idle)
                 if batch:
                     yield from batch
-                else:
-                    yield b"", None
+                yield b"", None
         finally:
             self.close()
 

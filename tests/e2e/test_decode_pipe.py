@@ -41,8 +41,9 @@ def test_whole_files_and_streams(tmp_path):
 
 
 def test_the_columnar_choice(tmp_path):
-    """A file takes the columnar path in every command; a port never; a pipe unless the command's output
-    follows its input (decode's lines)."""
+    """A file takes the columnar path in every command; a port too, a gather at a time (its batches end with an
+    empty chunk); a live source that is not batched (the monitor's replay) never; a pipe unless the command's
+    output follows its input (decode's lines)."""
     f = tmp_path / "x.bin"
     f.write_bytes(b"\x00")
     fifo = tmp_path / "fifo"
@@ -51,7 +52,12 @@ def test_the_columnar_choice(tmp_path):
     assert columnar_for(file) and columnar_for(file, follow=True)
     assert columnar_for(pipe) and not columnar_for(pipe, follow=True)
     port = LiveSource.__new__(LiveSource)  # not opened: only what the class says of itself
-    assert not columnar_for(port) and not columnar_for(port, follow=True)
+    assert columnar_for(port) and columnar_for(port, follow=True)
+
+    class Paced:  # live, its chunks not in batches
+        live = True
+
+    assert not columnar_for(Paced()) and not columnar_for(Paced(), follow=True)
 
 
 def test_stdin_redirected_from_a_file_is_a_file(tmp_path):
