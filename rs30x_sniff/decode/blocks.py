@@ -64,17 +64,22 @@ class Block:
         return self.run.base + self.run.starts[self.lo:self.hi]
 
     def reply_latencies(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """(rows of the replies, their latencies) as bus.reply_latency computes them, in row order;
-        None for an untimed capture. Made once: the tracker, the linter and the statistics read it."""
+        """(rows of the replies, their latencies) as bus.reply_latency computes them, in row order, for the replies
+        that have one; None for an untimed capture. Made once: the tracker, the linter and the statistics read it."""
         got = self._latencies
         if got is None and self.run.t0 is not None:
             t0, t1 = self.t0, self.t1
             replies = np.flatnonzero(self.answered) + 1
-            got = self._latencies = (replies, t0[replies] - t1[replies - 1])  # none below the minimum (feed_run)
+            lat = t0[replies] - t1[replies - 1]
+            # A reply that came in one read with its request has no latency to give (pairing.reply_latency): it
+            # is paired all the same, and left out here.
+            timed = lat >= MIN_REPLY_LATENCY
+            got = self._latencies = (replies, lat) if timed.all() else (replies[timed], lat[timed])
         return got
 
     def latencies(self) -> np.ndarray | None:
-        """Per row: the reply latency of a return (NaN elsewhere), as the tracker computes it; None untimed."""
+        """Per row: the reply latency of a return that has one (NaN elsewhere), as the tracker computes it; None
+        untimed."""
         got = self.reply_latencies()
         if got is None:
             return None
@@ -255,9 +260,9 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     if run.t0 is not None and n > 1:
         in_time = np.zeros(n, dtype=bool)
         gap = run.t0[1:] - run.t1[:-1]
-        # Within the timeout, and no sooner than a servo can answer: a reply the clock puts earlier has no
-        # latency to give (pairing.reply_latency); the tracker takes that pair.
-        in_time[:-1] = (gap >= MIN_REPLY_LATENCY) & ~(gap > tracker.reply_timeout)
+        # Within the timeout, as the tracker pairs. A reply the clock puts sooner than a servo can answer (read in
+        # one piece with its request) is paired too, with no latency (Block.reply_latencies).
+        in_time[:-1] = ~(gap > tracker.reply_timeout)
         ok_pair &= in_time
     answered_return = np.zeros(n, dtype=bool)
     answered_return[1:] = ok_pair[:-1]

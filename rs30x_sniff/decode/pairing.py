@@ -107,8 +107,8 @@ def reply_latency(request: AnyEvent, reply: AnyEvent) -> float | None:
     None also where the clock cannot support one. A reply cannot start before its request ended, so stamps
     that say otherwise (a logger's arrival times read as first-byte times, a wrong baud) give no latency
     rather than a false 0; F005/F006 report them. Nor can it start sooner than MIN_REPLY_LATENCY after it:
-    closer times were computed for bytes that came in one read, not measured. Blocks
-    (rs30x_sniff.decode.blocks) hold only replies with a latency: ``Block.reply_latencies``.
+    closer times were computed for bytes that came in one read, not measured. A Block
+    (rs30x_sniff.decode.blocks) pairs such replies too; ``Block.reply_latencies`` gives only those with one.
     """
     t0, t1 = reply[T_START], request[T_END]
     if t0 is None or t1 is None:

@@ -85,7 +85,8 @@ def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) 
                    None if vid_models is None or not raw[AT_LENGTH] else tuple([vid_models[v].name for v in vids]))
         else:
             model = models[raw[AT_ID]]
-            key = ("json", raw[:HEADER_SIZE], e - s, b"", timed, compact, only_key)
+            # A reply with no latency (read with its request) has none in its line: a shape of its own.
+            key = ("json", raw[:HEADER_SIZE], e - s, b"", timed, compact, only_key, timed and lat[k] != lat[k])
         tpl = model.cache.get(key)
         if tpl is None:
             tpl = _template(blk, k, model, key, only, compact)

@@ -112,7 +112,9 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
         e = ends[k]
         h = blob[s:s + HEADER_SIZE]  # sync, ID, flag, address, length, count: with the frame's size, the shape
         if h[AT_ID] != LONG_PACKET_ID or h[0] == RETURN_FIRST:
-            key = (h, e - s)
+            x = lats[k]
+            # A reply with no latency (read with its request) has none in its line: a shape of its own.
+            key = (h, e - s) if x is None or x == x else (h, e - s, None)
         else:  # a long packet: its VIDs too (every record starts with one)
             key = (h, e - s, blob[s + AT_DATA:e - SUM_SIZE:h[AT_LENGTH]] if h[AT_LENGTH] else b"")
         shape = local.get(key)
@@ -207,7 +209,7 @@ def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: froz
     Block's default model, with the models of its VIDs in the key); ``tspec`` is how its time is written
     (_time_spec), ``at`` the row's shown time."""
     h = key[0]
-    is_long = len(key) == 3
+    is_long = h[AT_ID] == LONG_PACKET_ID and h[0] != RETURN_FIRST
     if is_long:
         vm = blk.vid_models
         vid_models = None if vm is None or not h[AT_LENGTH] else tuple([vm[v] for v in key[2]])

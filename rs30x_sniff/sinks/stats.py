@@ -214,9 +214,12 @@ class CaptureStats(Sink):
         if counts[RETURN]:
             health.returned_rows(blk, np.flatnonzero(is_return))
             got = blk.reply_latencies()
-            if got is not None and got[0].size:
-                self.latency.add_array(got[1])
-                self.servo_latency.add_arrays(sid[got[0]], got[1])  # a Block's replies are returns: their IDs
+            if got is not None:
+                # Every answered request's reply is paired; those read with their request have no latency.
+                self.latency.unmeasured += int(np.count_nonzero(blk.answered)) - got[0].size
+                if got[0].size:
+                    self.latency.add_array(got[1])
+                    self.servo_latency.add_arrays(sid[got[0]], got[1])  # a Block's replies are returns: their IDs
 
     def _reads(self, blk: Block, is_short: np.ndarray) -> np.ndarray:
         """The short packets of a Block counted by op; per row, whether its op asks for a return."""

@@ -149,7 +149,8 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
                     body = f'{{"id":{tid},"model":"{state_models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
                     emit(cid, log_time, body.encode())
         if answered[k]:
-            key = ("mcap transaction", raw[:HEADER_SIZE], e - s, timed)
+            # A reply with no latency (read with its request): a transaction without one, a shape of its own.
+            key = ("mcap transaction", raw[:HEADER_SIZE], e - s, timed, timed and lat[k + 1] != lat[k + 1])
             tpl = model.cache.get(key)
             if tpl is None:
                 tpl = _tx_template(blk, k, model, key)
