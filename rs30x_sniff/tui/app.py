@@ -30,8 +30,9 @@ from .feed import Batch, Feeder, default_linter
 from .sources import Source
 from .header import SessionInfo, StatusHeader
 from .help import HelpScreen
-from .panes import FindingsPane, PlotPane, ServosPane
+from .panes import FindingsPane, PlotPane
 from .rows import clean
+from .servos_pane import ServosPane
 from .plot_series import PLOT_REGISTERS
 from .store import DEFAULT_HISTORY, Store
 from .timeline import Timeline
@@ -282,11 +283,9 @@ class MonitorApp(App):
         seq = self.store.seq_of_offset(message.finding.offset)
         self._show_seq(seq, f"the packet at @{message.finding.offset} is no longer in the history")
 
-    @on(ServosPane.RowHighlighted)
-    def _on_servo_highlighted(self, event: ServosPane.RowHighlighted) -> None:
-        if event.data_table.id != "servos" or event.row_key.value is None:
-            return
-        sid = int(event.row_key.value)
+    @on(ServosPane.Highlighted)
+    def _on_servo_highlighted(self, event: ServosPane.Highlighted) -> None:
+        sid = event.sid
         if sid != self.store.plot_id:
             self.store.set_plot(sid)
             self.plot.update_from(self.store)

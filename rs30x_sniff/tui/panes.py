@@ -1,9 +1,9 @@
-"""The small panes under the timeline: servos (one row per ID), findings (newest first), and a register plot."""
+"""Two of the small panes under the timeline: findings (newest first) and a register plot (servos_pane: the servos)."""
 
 from __future__ import annotations
 
 import textwrap
-from typing import Any, Callable
+from typing import Any
 
 from rich.cells import cell_len
 from rich.text import Text
@@ -14,108 +14,9 @@ from textual.widgets import DataTable, Label, Static
 
 from .rows import SEVERITY_MARKS, SEVERITY_STYLES, clean
 from .plot import COLOURS, Window, render
-from .servos import SERVO_COLUMNS, ServoRow
 from .store import Store
 
-FLASH_SECONDS = 1.0  # how long a changed value stays highlighted
 FINDINGS_SHOWN = 1000  # the pane lists the newest ones; the header counts them all
-
-_SHORT = {"torque_enable": "torque", "goal_position": "goal", "present_position": "pos", "present_speed": "speed",
-          "present_current": "cur", "present_temperature": "temp", "present_voltage": "volt"}
-_HEADINGS = {"torque": "trq", "goal": "goal°", "pos": "pos°", "speed": "°/s", "cur": "mA", "temp": "°C",
-             "volt": "V", "finds": "!"}
-
-
-def value_text(value: Any, unit: str | None = None) -> str:
-    if value is None:
-        return "-"
-    if isinstance(value, float):
-        s = f"{value:.2f}" if unit == "V" else f"{value:.1f}"
-    else:
-        s = str(value)
-    return clean(s)
-
-
-def _ms(v: float | None) -> str:
-    return "-" if v is None else f"{v * 1e3:.2f}"
-
-
-class ServosPane(DataTable):
-    """One row per servo ID; a value that changed is shown highlighted for a moment."""
-
-    BORDER_TITLE = "servos"
-    COLUMNS = ("ID", "model", *(_SHORT[c] for c in SERVO_COLUMNS), "poll/s", "p50ms", "p95ms", "finds")
-    # The headings carry the units (the same in every model's map), so the cells stay narrow.
-    HEADINGS = _HEADINGS
-
-    def __init__(self, clock: Callable[[], float], **kwargs) -> None:
-        super().__init__(cursor_type="row", zebra_stripes=False, **kwargs)
-        self.clock = clock
-        self._shown: dict[tuple[int, str], str] = {}
-        self._changed: dict[tuple[int, str], float] = {}
-
-    def on_mount(self) -> None:
-        for name in self.COLUMNS:
-            self.add_column(self.HEADINGS.get(name, name), key=name)
-
-    def reset(self) -> None:
-        self.clear()
-        self._shown.clear()
-        self._changed.clear()
-
-    def update_from(self, store: Store, flash: bool = True) -> None:
-        """Show the store's servo rows; a changed value flashes unless ``flash`` is False (a file
-        loading: every value changes every batch, and each flash costs the table a redraw to end)."""
-        now = self.clock()
-        new_rows = False
-        for sid in sorted(store.servos):
-            row = store.servos[sid]
-            cells = self._cells(store, row)
-            key = str(sid)
-            if key not in self.rows:
-                self.add_row(*(Text(c) for c in cells.values()), key=key)
-                new_rows = True
-                for col, c in cells.items():
-                    self._shown[(sid, col)] = c
-                continue
-            for col, c in cells.items():
-                old = self._shown.get((sid, col))
-                if old != c:  # an unchanged cell keeps its paint (tick() ends a flash)
-                    if flash and old is not None and old != "-":
-                        self._changed[(sid, col)] = now
-                    self._shown[(sid, col)] = c
-                    self._paint(sid, col, now, old is None or cell_len(old) != cell_len(c))
-        if new_rows:
-            self.sort("ID", key=lambda v: int(v.plain))
-
-    def tick(self) -> None:
-        """Let flashes expire."""
-        now = self.clock()
-        for (sid, col), at in list(self._changed.items()):
-            if now - at >= FLASH_SECONDS:
-                del self._changed[(sid, col)]
-                self._paint(sid, col, now)
-
-    def _paint(self, sid: int, col: str, now: float, resized: bool = False) -> None:
-        c = self._shown.get((sid, col))
-        if c is None or str(sid) not in self.rows:
-            return
-        at = self._changed.get((sid, col))
-        style = "bold black on yellow" if at is not None and now - at < FLASH_SECONDS else ""
-        # The column is measured again only when the cell's width changed (the table measures every
-        # cell of a column that might have narrowed); the same width leaves the column as it is.
-        self.update_cell(str(sid), col, Text(c, style), update_width=resized)
-
-    def _cells(self, store: Store, row: ServoRow) -> dict[str, str]:
-        cells = {"ID": str(row.id), "model": clean(row.model)}
-        for name in SERVO_COLUMNS:
-            cells[_SHORT[name]] = value_text(row.values.get(name), row.units.get(name))
-        rate = store.poll_rate(row)
-        cells["poll/s"] = "-" if rate is None else f"{rate:.1f}"
-        cells["p50ms"] = _ms(row.latency_p50)
-        cells["p95ms"] = _ms(row.latency_p95)
-        cells["finds"] = str(store.findings_by_id.get(row.id, 0))
-        return cells
 
 
 class FindingsPane(DataTable):
