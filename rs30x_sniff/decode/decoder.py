@@ -184,14 +184,23 @@ class Decoder:
         return out
 
     def _lint(self, out: Step) -> None:
-        """Every item of ``out`` to the linter, in order: a Record by feed, a Block by feed_block."""
+        """Every item of ``out`` to the linter, in order: a Record by feed, a Block by feed_block (which may
+        halve it: its parts take its place in ``out``)."""
         linter = self.linter
         lint = linter.feed
+        parted = False
+        items = []
         for rec in out:
             if type(rec) is Block:
-                linter.feed_block(rec)
+                parts = linter.feed_block(rec)
+                if len(parts) > 1:
+                    parted = True
+                items += parts
             else:
                 lint(rec)
+                items.append(rec)
+        if parted:
+            out[:] = items
 
     def _decided(self, events: list) -> Step:
         if len(self.frames.seams) > self._seams:
