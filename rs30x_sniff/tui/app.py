@@ -283,9 +283,9 @@ class MonitorApp(App):
         seq = self.store.seq_of_offset(message.finding.offset)
         self._show_seq(seq, f"the packet at @{message.finding.offset} is no longer in the history")
 
-    @on(ServosPane.Highlighted)
+    @on(ServosPane.Highlighted, "#servos")
     def _on_servo_highlighted(self, event: ServosPane.Highlighted) -> None:
-        sid = event.sid
+        sid = event.key
         if sid != self.store.plot_id:
             self.store.set_plot(sid)
             self.plot.update_from(self.store)

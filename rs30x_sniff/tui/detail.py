@@ -78,6 +78,56 @@ def hex_dump(raw: bytes, span: tuple[int, int] | None = None) -> Text:
     return text
 
 
+_STATUS_LINES = {
+    "missing": ("no reply came", "red"),
+    "unsolicited": ("unsolicited: no request asked for this", "yellow"),
+    "unknown": ("the capture ended while its reply was still due", "grey70"),
+    "request-unseen": ("answers a request sent before the capture began", "grey70"),
+}
+
+
+def _same(a: Text, b: Text) -> bool:
+    return a.plain == b.plain and a.style == b.style and a.spans == b.spans
+
+
+def _relabel(node: TreeNode, label: Text, data: object) -> None:
+    """Set a node's label (only a changed one: each costs the tree a redraw of the node's lines) and data."""
+    if not _same(node.label, label):
+        node.set_label(label)
+    node.data = data
+
+
+class _Node:
+    """A node of the field tree as the pane would add it: its label, its data (a byte span or a Record to
+    jump to), its children (None: a leaf)."""
+
+    __slots__ = ("label", "data", "children", "expand", "allow_expand")
+
+    def __init__(self, label: Text, data: object = None, children: list[_Node] | None = None, *,
+                 expand: bool = False, allow_expand: bool = True) -> None:
+        self.label, self.data, self.children = label, data, children
+        self.expand, self.allow_expand = expand, allow_expand
+
+    def shape(self) -> tuple:
+        """What a tree built from this node looks like apart from its labels and data."""
+        kids = None if self.children is None else tuple(c.shape() for c in self.children)
+        return (kids, self.expand, self.allow_expand)
+
+    def add_to(self, parent: TreeNode) -> None:
+        if self.children is None and self.allow_expand:
+            parent.add_leaf(self.label, data=self.data)
+            return
+        node = parent.add(self.label, data=self.data, expand=self.expand, allow_expand=self.allow_expand)
+        for child in self.children or ():
+            child.add_to(node)
+
+    def relabel(self, node: TreeNode) -> None:
+        """Give ``node`` (built from a node of the same shape) this node's labels and data."""
+        _relabel(node, self.label, self.data)
+        for tree_node, spec in zip(node.children, self.children or ()):
+            spec.relabel(tree_node)
+
+
 class FieldTree(Tree):
     """The field tree; space pauses the monitor here too (as everywhere), enter opens a node or follows a link."""
 
@@ -102,6 +152,8 @@ class DetailPane(Vertical):
         super().__init__(**kwargs)
         self.rec: Record | None = None
         self.times = times  # how the title shows the record's time (--time-format)
+        self._shape: tuple | None = None  # the shape of the tree shown (_Node.shape), to relabel in place
+        self._hex_lines = 1
 
     def compose(self) -> ComposeResult:
         tree = self.field_tree = FieldTree(Text("no packet selected"), id="fields")
@@ -113,16 +165,19 @@ class DetailPane(Vertical):
             yield self.hex_view
 
     def show(self, rec: Record | None) -> None:
-        """Rebuild the tree for ``rec`` (None: clear the pane); showing the same record again is free."""
+        """Show ``rec`` (None: clear the pane); showing the same record again is free. A record of the same
+        shape as the one shown (the newest, as the capture follows a busy bus) has its labels set in
+        place: the tree keeps its size, so the screen needs no new layout, only the changed lines."""
         if (rec is self.rec and rec is not None) or not self.is_attached:
             return
         self.rec = rec
         tree = self.field_tree
-        tree.clear()
         hexw = self.hex_view
         if rec is None:
+            tree.clear()
             tree.root.set_label(Text("no packet selected"))
-            hexw.update(Text(""))
+            self._shape = None
+            self._hex(Text(""))
             return
         ev = rec.event
         word = kind_word(rec)
@@ -131,33 +186,43 @@ class DetailPane(Vertical):
         title.append(f" @{ev.offset} ({len(ev.raw)} bytes)", "grey70")
         if ev.t_start is not None:
             title.append(" " + time_label(ev.t_start, self.times), "grey70")
-        tree.root.set_label(title)
-        tree.root.data = None
-        self._add_header(tree.root, rec)
-        self._add_fields(tree.root, rec)
-        self._add_pair(tree.root, rec)
+        nodes = self._header(rec) + self._fields(rec) + self._pair(rec)
         width = max(24, self.size.width - 8)  # the tree's guides and the border
         for f in rec.findings:
             # Whole, never cut: the message wraps onto the lines of an expanded node.
-            node = tree.root.add(Text(f"! {f.code} {f.name}", SEVERITY_STYLES.get(f.severity, "")), data=None,
-                                 expand=True)
-            for piece in textwrap.wrap(clean(f.message), width) or [""]:
-                node.add_leaf(Text(piece), data=None)
-        tree.root.expand()
-        hexw.update(hex_dump(ev.raw))
+            nodes.append(_Node(Text(f"! {f.code} {f.name}", SEVERITY_STYLES.get(f.severity, "")), None,
+                               [_Node(Text(piece)) for piece in textwrap.wrap(clean(f.message), width) or [""]],
+                               expand=True))
+        shape = tuple(n.shape() for n in nodes)
+        if shape == self._shape:
+            _relabel(tree.root, title, None)
+            for node, spec in zip(tree.root.children, nodes):
+                spec.relabel(node)
+        else:
+            self._shape = shape
+            tree.clear()
+            tree.root.set_label(title)
+            tree.root.data = None
+            for spec in nodes:
+                spec.add_to(tree.root)
+            tree.root.expand()
+        self._hex(hex_dump(ev.raw))
 
-    def _add_header(self, root: TreeNode, rec: Record) -> None:
+    def _hex(self, dump: Text) -> None:
+        # A dump of as many lines as the last keeps the pane's layout (no new layout of the screen).
+        lines = len(dump.plain.split("\n"))
+        self.hex_view.update(dump, layout=lines != self._hex_lines)
+        self._hex_lines = lines
+
+    def _header(self, rec: Record) -> list[_Node]:
         ev = rec.event
         t = type(ev)
-        node = root.add(Text("header", "bold"), data=(0, min(HEADER_SIZE, len(ev.raw))), expand=False)
+        whole = (0, min(HEADER_SIZE, len(ev.raw)))
         if t is Garbage:
-            node.add_leaf(Text(f"skipped: {ev.reason}"), data=(0, len(ev.raw)))
-            return
+            return [_Node(Text("header", "bold"), whole, [_Node(Text(f"skipped: {ev.reason}"), (0, len(ev.raw)))])]
         if t not in (ShortPacket, ReturnPacket, LongPacket):
-            node.set_label(Text(f"{'ACK' if ev.kind == 'ack' else 'NACK'} byte 0x{ev.raw[0]:02X}", "bold"))
-            node.data = (0, 1)
-            node.allow_expand = False
-            return
+            return [_Node(Text(f"{'ACK' if ev.kind == 'ack' else 'NACK'} byte 0x{ev.raw[0]:02X}", "bold"), (0, 1),
+                          allow_expand=False)]
         flag = ev.flags if t is ReturnPacket else ev.flag
         items = [("header", 0, AT_ID, ev.raw[:AT_ID].hex(" ").upper()),
                  ("id", AT_ID, AT_FLAG, str(ev.raw[AT_ID])),
@@ -168,10 +233,12 @@ class DetailPane(Vertical):
                  ("count", AT_COUNT, AT_DATA, str(ev.count)),
                  ("sum", len(ev.raw) - SUM_SIZE, len(ev.raw),
                   f"0x{ev.raw[-1]:02X}" + ("" if ev.checksum_ok else " (mismatch)"))]
+        leaves = []
         for name, a, b, value in items:
             label = Text(f"{name:<10} {ev.raw[a:b].hex(' ').upper():<6} ")
             label.append(value, "red" if name == "sum" and not ev.checksum_ok else "")
-            node.add_leaf(label, data=(a, b))
+            leaves.append(_Node(label, (a, b)))
+        return [_Node(Text("header", "bold"), whole, leaves)]
 
     @staticmethod
     def _flag_text(rec: Record) -> str:
@@ -185,13 +252,13 @@ class DetailPane(Vertical):
             names = []
         return f" ({', '.join(names)})" if names else ""
 
-    def _add_fields(self, root: TreeNode, rec: Record) -> None:
+    def _fields(self, rec: Record) -> list[_Node]:
         fields = rec.fields
         if not fields:
-            return
+            return []
         spans = field_spans(rec)
-        node = root.add(Text(f"fields ({len(fields)})", "bold"), data=None, expand=True)
         long = type(rec.event) is LongPacket
+        children = []
         for f, span in zip(fields, spans):
             label = Text()
             if long:
@@ -202,13 +269,10 @@ class DetailPane(Vertical):
             if f.unit:
                 label.append(f" {f.unit}", "grey70")
             desc = f.register.description
-            if desc:
-                child = node.add(label, data=span, expand=False)
-                child.add_leaf(Text(clean(desc), "italic grey70"), data=span)
-            else:
-                node.add_leaf(label, data=span)
+            children.append(_Node(label, span, [_Node(Text(clean(desc), "italic grey70"), span)] if desc else None))
+        return [_Node(Text(f"fields ({len(fields)})", "bold"), None, children, expand=True)]
 
-    def _add_pair(self, root: TreeNode, rec: Record) -> None:
+    def _pair(self, rec: Record) -> list[_Node]:
         other = rec.request if rec.is_reply else rec.reply
         if other is not None:
             arrow = "↰ request" if rec.is_reply else "↳ reply"
@@ -218,15 +282,9 @@ class DetailPane(Vertical):
             if rec.latency is not None or other.latency is not None:
                 lat = rec.latency if rec.latency is not None else other.latency
                 label.append(f" ({lat * 1e3:.3f} ms)", "grey70")
-            root.add_leaf(label, data=other)
-        elif rec.status == "missing":
-            root.add_leaf(Text("no reply came", "red"), data=None)
-        elif rec.status == "unsolicited":
-            root.add_leaf(Text("unsolicited: no request asked for this", "yellow"), data=None)
-        elif rec.status == "unknown":
-            root.add_leaf(Text("the capture ended while its reply was still due", "grey70"), data=None)
-        elif rec.status == "request-unseen":
-            root.add_leaf(Text("answers a request sent before the capture began", "grey70"), data=None)
+            return [_Node(label, other)]
+        said = _STATUS_LINES.get(rec.status)
+        return [_Node(Text(*said))] if said else []
 
     # ---- events ---------------------------------------------------------------------------------------
     def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:

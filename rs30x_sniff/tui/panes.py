@@ -3,24 +3,29 @@
 from __future__ import annotations
 
 import textwrap
+from itertools import islice
 from typing import Any
 
 from rich.cells import cell_len
+from rich.style import Style
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.message import Message
-from textual.widgets import DataTable, Label, Static
+from textual.widgets import Label, Static
 
+from .line_table import LineTable
 from .rows import SEVERITY_MARKS, SEVERITY_STYLES, clean
 from .plot import COLOURS, Window, render
 from .store import Store
 
 FINDINGS_SHOWN = 1000  # the pane lists the newest ones; the header counts them all
+_SEVERITY_STYLES = {name: Style.parse(style) for name, style in SEVERITY_STYLES.items()}
 
 
-class FindingsPane(DataTable):
-    """Lint findings, newest first; enter asks the app to show the packet (``JumpTo``)."""
+class FindingsPane(LineTable):
+    """Lint findings, newest first; enter asks the app to show the packet (``JumpTo``). New findings are
+    put on top; the rows already shown keep their drawn lines (line_table), their wrapped messages too."""
 
     BORDER_TITLE = "findings"
 
@@ -30,43 +35,48 @@ class FindingsPane(DataTable):
             self.finding = finding
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(cursor_type="row", **kwargs)
+        super().__init__(("sev", "code", "ID", "message"), **kwargs)
         self._total = -1
-        self._shown: list = []
-
-    def on_mount(self) -> None:
-        for name in ("sev", "code", "ID", "message"):
-            self.add_column(name, key=name)
-        self._width = self.size.width
+        self._shown: dict[int, Any] = {}                  # row key (the finding's ordinal) -> finding
+        self._wrapped: dict[int, tuple[Any, str]] = {}    # ordinal -> (finding, its message as wrapped)
+        self._width = 0
 
     def on_resize(self) -> None:
         if self.size.width != self._width:
             self._width = self.size.width
+            self._wrapped.clear()
             self._fill()
 
     def update_from(self, store: Store) -> None:
         if store.findings_total == self._total:
             return
         self._total = store.findings_total
-        self._shown = list(store.findings)[-FINDINGS_SHOWN:][::-1]
+        newest = store.findings_total
+        self._shown = {newest - i: f for i, f in enumerate(islice(reversed(store.findings), FINDINGS_SHOWN))}
         self._fill()
         self.border_title = f"findings ({store.findings_total})"
 
     def _fill(self) -> None:
         # Messages wrap to the pane's width (a row grows to their lines) rather than being cut off.
         width = max(20, self.size.width - 22)  # sev, code, ID, the cell padding and a scrollbar
-        self.clear()
-        for i, f in enumerate(self._shown):
-            style = SEVERITY_STYLES.get(f.severity, "")
-            message = "\n".join(textwrap.wrap(clean(f"{f.name}: {f.message}"), width)) or "-"
-            self.add_row(Text(SEVERITY_MARKS.get(f.severity, "?"), style), Text(f.code, style),
-                         Text("-" if f.id is None else str(f.id)), Text(message), key=str(i), height=None)
+        wrapped = {}
+        rows = []
+        for key, f in self._shown.items():
+            done = self._wrapped.get(key)
+            if done is None or done[0] is not f:
+                done = (f, "\n".join(textwrap.wrap(clean(f"{f.name}: {f.message}"), width)) or "-")
+            wrapped[key] = done
+            style = _SEVERITY_STYLES.get(f.severity)
+            rows.append((key, (SEVERITY_MARKS.get(f.severity, "?"), f.code, "-" if f.id is None else str(f.id),
+                               done[1]), (style, style, None, None)))
+        self._wrapped = wrapped
+        self.set_rows(rows)
 
-    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+    def on_line_table_chosen(self, event: LineTable.Chosen) -> None:
         event.stop()
-        i = int(event.row_key.value)
-        if 0 <= i < len(self._shown):
-            self.post_message(self.JumpTo(self._shown[i]))
+        f = self._shown.get(event.key)
+        if f is not None:
+            self.post_message(self.JumpTo(f))
 
 
 def range_label(t0: float, t1: float, shown: str, vmin: float | None, vmax: float | None, width: int) -> str:

@@ -6,7 +6,7 @@ from rich.segment import Segment
 from rich.style import Style
 from textual.binding import Binding
 from textual.events import Click, MouseScrollUp
-from textual.geometry import Size
+from textual.geometry import Region, Size
 from textual.message import Message
 from textual.reactive import reactive
 from textual.scroll_view import ScrollView
@@ -65,6 +65,7 @@ class Timeline(ScrollView, can_focus=True):
         self._generation = store.generation
         self._cache: dict[tuple, Strip] = {}
         self._syncing = False
+        self._frame: tuple | None = None  # what the lines of the render under way share (render_lines)
 
     # ---- model -> view ------------------------------------------------------------------------------
     @property
@@ -188,34 +189,49 @@ class Timeline(ScrollView, can_focus=True):
             self._move_cursor(self.store.view_seq(row))
 
     # ---- rendering ------------------------------------------------------------------------------------
-    def render_line(self, y: int) -> Strip:
+    def render_lines(self, crop: Region) -> list[Strip]:
+        # What every line of one render shares (styles, sizes, the scroll) is worked out once for them all:
+        # a widget's rich_style walks its ancestors' styles on every call.
+        self._frame = self._frame_now()
+        try:
+            return super().render_lines(crop)
+        finally:
+            self._frame = None
+
+    def _frame_now(self) -> tuple:
         width = self.size.width
-        scroll_x = int(self.scroll_x)
-        compact = width < COMPACT_BELOW
-        if y == 0:
-            header = Strip([Segment(columns(self.times, compact), self.get_component_rich_style("timeline--header"))])
-            return header.crop_extend(scroll_x, scroll_x + width, self.rich_style)
-        row = int(self.scroll_y) + y - 1
-        seq = self.store.view_seq(row) if row < self._rows else None
-        rec = self.store.get(seq) if seq is not None else None
-        if rec is None:
-            return Strip.blank(width, self.rich_style)
-        cursor = seq == self.cursor_seq
-        key = (seq, len(rec.findings), cursor, self.has_focus, rec.latency, rec.status, compact)
         base: Style = self.rich_style
-        if cursor:
-            base = base + self.get_component_rich_style("timeline--cursor")
-        cached = self._cache.get(key)
-        if cached is None:
-            prev = self.store.get(seq - 1)
-            text = row_text(rec, prev.event.t_start if prev is not None else None, compact, self.times)
-            strip = Strip(text.render(self.app.console), text.cell_len)
-            strip = strip.extend_cell_length(ROW_WIDTH).apply_style(base)
-            cached = self._cache[key] = (strip, text.cell_len)
-        strip, length = cached
         # The mark goes at the last cell in sight: the scrollbar covers the line's last cells.
         shown = min(width, self.scrollable_content_region.width) or width
-        return _marked(strip, length, scroll_x, shown, base).extend_cell_length(width, self.rich_style)
+        return (width, int(self.scroll_x), int(self.scroll_y), width < COMPACT_BELOW, base,
+                base + self.get_component_rich_style("timeline--cursor"), shown, self.has_focus)
+
+    def render_line(self, y: int) -> Strip:
+        frame = self._frame or self._frame_now()
+        width, scroll_x, scroll_y, compact, base, cursor_style, shown, focus = frame
+        if y == 0:
+            header = Strip([Segment(columns(self.times, compact), self.get_component_rich_style("timeline--header"))])
+            return header.crop_extend(scroll_x, scroll_x + width, base)
+        row = scroll_y + y - 1
+        store = self.store
+        seq = store.view_seq(row) if row < self._rows else None
+        rec = store.get(seq) if seq is not None else None
+        if rec is None:
+            return Strip.blank(width, base)
+        cursor = seq == self.cursor_seq
+        # A row is drawn again only when what it shows changes (a finding, its reply's latency or
+        # status, the cursor) or the frame does (size, horizontal scroll, focus, styles).
+        key = (seq, len(rec.findings), cursor, rec.latency, rec.status, frame[:2], frame[3:])
+        cached = self._cache.get(key)
+        if cached is None:
+            prev = store.get(seq - 1)
+            text = row_text(rec, prev.event.t_start if prev is not None else None, compact, self.times)
+            style = cursor_style if cursor else base
+            strip = Strip(text.render(self.app.console), text.cell_len)
+            strip = strip.extend_cell_length(ROW_WIDTH).apply_style(style)
+            cached = _marked(strip, text.cell_len, scroll_x, shown, style).extend_cell_length(width, base)
+            self._cache[key] = cached
+        return cached
 
 
 def _marked(strip: Strip, length: int, x: int, width: int, style: Style) -> Strip:
