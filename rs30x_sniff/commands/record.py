@@ -29,7 +29,6 @@ from ..sources.reconnect import ReconnectingSource
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 IDLE_INTERVAL = 0.1     # a quiet port still hands the loop an empty chunk this often
-BLACK_BOX_GATHER = 0.1  # record --trigger: the busy bus's chunks handed to the loop this often (no live output)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -155,10 +154,8 @@ def run(args: argparse.Namespace) -> int:
     log = _Log()
     say = log.say
 
-    # The columnar path, a gather at a time (sinks.pipeline.columnar_for). With nothing shown as it comes (no
-    # --print, no Foxglove) the gathers are longer, as the black box takes them: fewer, larger Blocks.
-    shown = args.print_lines or args.foxglove is not None
-    src = open_port(args, opts.baud, say, gather=GATHER_SECONDS if shown else BLACK_BOX_GATHER)
+    # The columnar path, a gather at a time (sinks.pipeline.columnar_for).
+    src = open_port(args, opts.baud, say)
     columnar = columnar_for(src)
 
     def make_sink(path: str | IO[bytes], part: int) -> McapSink:
@@ -255,7 +252,7 @@ def run_black_box(args: argparse.Namespace) -> int:
     say = log.say
 
     # Nothing is shown as it comes: the bus is taken a tenth of a second at a time, for fewer passes of the loop.
-    src = open_port(args, opts.baud, say, gather=BLACK_BOX_GATHER)
+    src = open_port(args, opts.baud, say)
     try:
         window_folder(args.output, make=True)
     except BaseException:

@@ -42,10 +42,11 @@ READ_BYTES = 1 << 16
 # 64 KiB backlog drains in a few milliseconds.
 DRAIN_SECONDS = 0.02
 # A busy bus hands the drive loop its chunks in batches at most this often, each chunk keeping its own
-# arrival stamp: a pass of the loop per batch instead of per chunk (a packet each on a pty) takes a
-# saturated 230400-baud bus from about 35 % of a core to about 25 % (bench/live.py), for lines printed
-# up to this much later.
-GATHER_SECONDS = 0.02
+# arrival stamp: a pass of the loop per batch instead of per chunk (a packet each on a pty), and the batch decoded
+# as one group on the columnar path (sinks.pipeline.columnar_for). A tenth of a second holds some 90 frames of a
+# busy 230400-baud bus, enough for Blocks (decode.blocks.MIN_BLOCK: 20 ms held about 20, and every frame went record
+# by record), for lines printed up to this much later.
+GATHER_SECONDS = 0.1
 
 # End reasons of a live capture.
 STOPPED = "stopped"    # Ctrl-C, SIGTERM, SIGHUP, or stop() from the program
