@@ -26,7 +26,8 @@ import numpy as np
 
 from ..decode.frame_runs import LONG, RETURN, SHORT
 from ..protocol.events import RAW
-from ..protocol.wire import AT_DATA, BROADCAST_ID, COMMAND_BITS, HEADER_SIZE, SUM_SIZE, VID_SIZE
+from ..protocol.wire import (AT_DATA, AT_ID, AT_LENGTH, BROADCAST_ID, COMMAND_BITS, HEADER_SIZE, SUM_SIZE,
+                             VID_SIZE)
 from .registry import follows_cut
 
 UNKNOWN = -(1 << 40)  # an unknown shadow value in an int64 column (BlockView.shadows)
@@ -204,19 +205,30 @@ def _headers_quiet(lint: Any, memo: dict, blk: Any, run: tuple, vid_groups: list
             _, at = np.unique(v[hdr[rows] == h], return_index=True)
             samples += sub[at].tolist()
     header_rules = None
+    # The key of a sample, read from the bytes: what its Record would say (its bytes, its model or its VIDs'
+    # models, the bytes of the request it answers; Block.record), so a header seen before builds no Record.
+    blob, lo, starts, ends = blk.run.blob, blk.lo, blk.run.starts, blk.run.ends
+    answered, vid_models = blk.answered, blk.vid_models
     for k in samples:
-        rec = blk.record(k)
-        ev = rec.event
-        raw = ev[RAW]
-        asked = rec.request.event[RAW] if rec.request is not None else b""
-        vm = rec.vid_models
-        key = (raw[:HEADER_SIZE], len(raw), id(rec.model) if vm is None else tuple(map(id, vm)),
-               raw[AT_DATA:-SUM_SIZE:ev.length or 1] if ev.kind == "long" else b"", asked[:HEADER_SIZE], len(asked))
+        raw = blob[int(starts[lo + k]):int(ends[lo + k])]
+        row_kind = int(kind[k])
+        if row_kind == LONG:
+            ln = raw[AT_LENGTH]
+            models: Any = (id(blk.default) if vid_models is None
+                           else tuple([id(vid_models[v]) for v in (raw[AT_DATA:-SUM_SIZE:ln] if ln else b"")]))
+            vids = raw[AT_DATA:-SUM_SIZE:ln or 1]
+        else:
+            models, vids = id(blk.models[raw[AT_ID]]), b""
+        # A return in a Block answers the row before it.
+        asked = (blob[int(starts[lo + k - 1]):int(ends[lo + k - 1])]
+                 if row_kind == RETURN and k and answered[k - 1] else b"")
+        key = (raw[:HEADER_SIZE], len(raw), models, vids, asked[:HEADER_SIZE], len(asked))
         quiet = memo.get(key)
         if quiet is None:
             if header_rules is None:
                 header_rules = [r for r in run if r.column == "header"]
-            quiet = memo[key] = _header_sample_quiet(lint, header_rules, rec, ev)
+            rec = blk.record(k)
+            quiet = memo[key] = _header_sample_quiet(lint, header_rules, rec, rec.event)
         if not quiet:
             return False
     return True
