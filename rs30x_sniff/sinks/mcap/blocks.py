@@ -4,6 +4,7 @@ writes for each row, byte for byte, without building the rows' Records."""
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from typing import Any
 
 from ...render.block_json import block_json_rows, json_template
@@ -36,6 +37,22 @@ def _named_plan(layout: Layout) -> tuple:
                                          for j, reg in named)) for r in range(layout.records))
     layout.cache["mcap states"] = plan
     return plan
+
+
+def _named_parts(layout: Layout | MixedParts, raw: bytes) -> Iterator[tuple[int, tuple, tuple]]:
+    """(servo, its named parts as _named_plan gives them, the raw values they index) of each servo whose registers
+    the packet ``raw`` names, in field order; a long packet to servos of mixed models by each record's layout."""
+    data = raw[AT_DATA:-SUM_SIZE]
+    if type(layout) is tuple:
+        for sub, a, b, tid in layout:
+            parts = _named_plan(sub)[0][1]
+            if parts:
+                yield tid, parts, sub.unpack_raw(data[a:b])
+        return
+    values = layout.unpack_raw(data)
+    for vid_at, parts in _named_plan(layout):
+        if parts:
+            yield (raw[AT_ID] if vid_at is None else values[vid_at]), parts, values
 
 
 def _mixed_layout(raw: bytes, vid_models: dict[int, Any]) -> Layout | MixedParts:
@@ -114,31 +131,13 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
             layout = model.layout(raw[AT_ADDRESS], e - s - FRAME_OVERHEAD) if e - s > FRAME_OVERHEAD else None
         if layout is not None:
             changed: dict[int, list[tuple[str, str]]] = {}
-            if type(layout) is tuple:  # a long packet to servos of mixed models: each record by its servo's
-                data = raw[AT_DATA:-SUM_SIZE]
-                for sub, a, b, tid in layout:
-                    plan = _named_plan(sub)[0][1]
-                    if not plan:
-                        continue
-                    values = sub.unpack_raw(data[a:b])
-                    pairs = changed.get(tid)
-                    if pairs is None:
-                        pairs = changed[tid] = []
-                        known[tid] = None
-                    for at, name, prefix, text in plan:
-                        pairs.append((name, prefix + text[values[at]]))
-            else:
-                values = layout.unpack_raw(raw[AT_DATA:-SUM_SIZE])
-                for vid_at, parts in _named_plan(layout):
-                    if not parts:
-                        continue
-                    tid = raw[AT_ID] if vid_at is None else values[vid_at]
-                    pairs = changed.get(tid)
-                    if pairs is None:
-                        pairs = changed[tid] = []
-                        known[tid] = None
-                    for at, name, prefix, text in parts:
-                        pairs.append((name, prefix + text[values[at]]))
+            for tid, parts, values in _named_parts(layout, raw):
+                pairs = changed.get(tid)
+                if pairs is None:
+                    pairs = changed[tid] = []
+                    known[tid] = None
+                for at, name, prefix, text in parts:
+                    pairs.append((name, prefix + text[values[at]]))
             if changed:
                 tail = f',"t":{"null" if t is None else repr(t)},"offset":{offset},'
                 fallback = model.name
