@@ -169,11 +169,12 @@ class Feeder:
         self.options = options
         self.post = post
         self.linter = linter
-        # A file is decoded columnar (rs30x_sniff.decode.blocks): clean stretches come as Blocks, which the
-        # screen keeps as columns and makes Records of only for the rows it shows; a live source
-        # (port, simulator, replay) goes record by record as it comes.
-        self.loading = columnar_for(source)  # a file loads on the columnar path; a port, replay or simulator live
-        self.decoder = Decoder(options, linter=linter, columnar=self.loading)
+        # A file, and a port a gather at a time, are decoded columnar (rs30x_sniff.decode.blocks): clean
+        # stretches come as Blocks, which the screen keeps as columns and makes Records of only for the
+        # rows it shows; the simulator and a replay go record by record as they come.
+        columnar = columnar_for(source)
+        self.loading = columnar and not getattr(source, "live", False)  # a file: loaded, not followed live
+        self.decoder = Decoder(options, linter=linter, columnar=columnar)
         self._collect = _Collect(CaptureStats(options.baud), lambda: self.decoder.bytes_in,
                                  self._step if self.loading else None)
         self.pipeline = Pipeline(self.decoder, [self._collect], LOAD_GROUP_BYTES if self.loading else GROUP_BYTES)

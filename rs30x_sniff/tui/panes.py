@@ -158,7 +158,10 @@ class PlotPane(Vertical):
     def _label(self, selector: str, text: Text) -> None:
         # A label's new text may wrap to another number of lines (a layout of the whole screen): only
         # a changed one is updated.
+        # A label's new text of the same width on one line takes no layout either (its size is the same).
         key = (text.plain, str(text.style), tuple(text.spans))
-        if self._shown.get(selector) != key:
+        old = self._shown.get(selector)
+        if old != key:
             self._shown[selector] = key
-            self.query_one(selector, Label).update(text)
+            same_size = old is not None and "\n" not in old[0] + key[0] and cell_len(old[0]) == cell_len(key[0])
+            self.query_one(selector, Label).update(text, layout=not same_size)

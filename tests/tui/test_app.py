@@ -491,3 +491,30 @@ async def test_a_narrow_terminal_swaps_panes_with_d_and_b():
         await wait_done(pilot, app)
         assert not app.has_class("-narrow")
         assert app.detail.display and app.servos.display and app.findings.display and app.plot.display
+
+
+async def test_the_collector_thresholds_hold_while_the_monitor_runs_and_are_restored_after():
+    import gc
+
+    from rs30x_sniff.tui.app import GC_THRESHOLDS
+
+    before = gc.get_threshold()
+    app = manual_app()
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_done(pilot, app)
+        assert gc.get_threshold() == GC_THRESHOLDS
+    assert gc.get_threshold() == before
+
+
+async def test_rows_are_frozen_out_of_the_collector_every_freeze_rows_not_every_batch(monkeypatch):
+    from rs30x_sniff.tui import app as app_module
+
+    frozen: list[int] = []
+    monkeypatch.setattr(app_module.gc, "freeze", lambda: frozen.append(app.store.end_seq))
+    monkeypatch.setattr(app_module, "FREEZE_ROWS", 15)
+    chunks = [(encode_short(1, 0, 30, bytes((i, 0))), i * 0.01) for i in range(60)]
+    app = make_app(GatedSource(chunks, threading.Event()), DecodeOptions(), clock=FrozenClock(), post_interval=0)
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_done(pilot, app)
+    assert app.store.end_seq == 60 and app.batches > len(frozen) >= 3
+    assert all(b - a >= 15 for a, b in zip([0, *frozen], frozen))
