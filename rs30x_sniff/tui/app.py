@@ -26,7 +26,7 @@ from ..decode.decoder import DecodeOptions
 from ..filters import FilterError, parse_filter
 from ..render.times import ABSOLUTE, DEFAULT_TIME_FORMAT, DELTA, EPOCH, TimeForm
 from .detail import DetailPane
-from .feed import Batch, Feeder, default_linter
+from .feed import POST_INTERVAL, Batch, Feeder, default_linter
 from .sources import Source
 from .header import SessionInfo, StatusHeader
 from .help import HelpScreen
@@ -74,7 +74,7 @@ class MonitorConfig:
     wall: Callable[[], float] = time.time         # names recordings
     linter_factory: Callable[[], Any] = default_linter
     sink_factory: Callable[..., Any] | None = None
-    post_interval: float = 0.25
+    post_interval: float = POST_INTERVAL
     tick_interval: float = 0.5
     time_format: str = DEFAULT_TIME_FORMAT        # how the timeline shows times (--time-format)
     time_anchor: float | None = None              # epoch seconds of capture time 0 (the simulator: when it started)
@@ -129,7 +129,8 @@ class MonitorApp(App):
         self.batches = 0
         self._unfrozen = 0  # rows added since the last gc.freeze (_freeze)
         self._gc_thresholds: tuple[int, int, int] | None = None  # the process's, restored at unmount
-        self._refreshed = float("-inf")  # when a batch last redrew the panes (config.clock)
+        self._redraws = 0     # redraws of the panes for batches (_refresh_views)
+        self._ticked_at = -1  # _redraws at the last tick
         self._filter_task: asyncio.Task | None = None
         # The first bottom pane's class from the start: added at the first resize instead, it would
         # restyle every widget once more before the first frame.
@@ -280,7 +281,7 @@ class MonitorApp(App):
         self.findings.update_from(self.store)
         self.plot.update_from(self.store)
         self._refresh_header()
-        self._refreshed = self.config.clock()
+        self._redraws += 1
 
     def _refresh_header(self) -> None:
         self.info.models = self._models_text()
@@ -289,9 +290,10 @@ class MonitorApp(App):
         self.status.show(self.store, self.info)
 
     def _tick(self) -> None:
-        # The header's clock and the flashes between batches: while batches come, each redraw does this
-        # already, and a tick of its own would cost a redraw more.
-        if not self.status.is_attached or self.config.clock() - self._refreshed < self.config.tick_interval:
+        # The header's clock and the flashes between batches: while batches come (one came since the last
+        # tick), each redraw does this already, and a tick of its own would cost a redraw more.
+        seen, self._ticked_at = self._ticked_at, self._redraws
+        if not self.status.is_attached or self._redraws != seen:
             return
         self._refresh_header()
         self.servos.tick()

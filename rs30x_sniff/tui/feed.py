@@ -17,7 +17,10 @@ from ..sinks.stats import CaptureStats
 from .sources import Source
 from .servos import ServoRow, servo_snapshot
 
-POST_INTERVAL = 0.25    # seconds between batches: a few screen updates a second are plenty
+# Seconds between batches: two screen updates a second. Each redraws most of the screen (the timeline
+# scrolls, the newest packet's detail, the servos' values, the plot), some 20-40 ms of CPU in Textual: four a
+# second cost the monitor on a busy port twice the CPU for a screen that reads no better (issue 31, 5).
+POST_INTERVAL = 0.5
 MAX_BATCH = 50_000      # records per batch, so one batch never stalls the screen for long
 # While a file loads, the screen is told less often: a redraw of the whole screen costs the decoding
 # thread ~0.1 s of the GIL, and a file is not live (the first batch still comes at once, so the screen
