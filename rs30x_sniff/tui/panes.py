@@ -12,7 +12,9 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.message import Message
-from textual.widgets import Label, Static
+from textual.strip import Strip
+from textual.widget import Widget
+from textual.widgets import Label
 
 from .line_table import LineTable
 from .rows import SEVERITY_MARKS, SEVERITY_STYLES, clean
@@ -91,6 +93,32 @@ def range_label(t0: float, t1: float, shown: str, vmin: float | None, vmax: floa
     return values[:max(width - 1, 0)] + "…"
 
 
+class PlotLines(Widget):
+    """The plot's rows, drawn with the Line API: each row rendered once when set (a Static would take
+    the Text through its content pipeline again at every redraw)."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.rows: list[Text] = []
+        self._strips: list[Strip] = []
+
+    def show(self, rows: list[Text]) -> None:
+        console = self.app.console
+        self.rows = rows
+        self._strips = [Strip(list(row.render(console)), row.cell_len) for row in rows]
+        self.refresh()
+
+    def render(self) -> Text:
+        return Text("\n").join(self.rows)
+
+    def render_line(self, y: int) -> Strip:
+        width = self.size.width
+        base = self.rich_style
+        if y >= len(self._strips):
+            return Strip.blank(width, base)
+        return self._strips[y].crop_extend(0, width, base).apply_style(base)
+
+
 class PlotPane(Vertical):
     """One register over time: the selected servo (and with `a` every servo), each column's min to max;
     `z`/`Z` zoom the time axis in and out, `[`/`]` pan, `0` shows it all again (following the newest)."""
@@ -103,7 +131,7 @@ class PlotPane(Vertical):
 
     def compose(self) -> ComposeResult:
         yield Label(Text("plot: no servo yet"), id="plot-title")
-        yield Static(Text(""), id="plot-line")
+        yield PlotLines(id="plot-line")
         yield Label(Text(""), id="plot-range")
 
     def bounds(self, store: Store) -> tuple[float, float] | None:
@@ -140,10 +168,10 @@ class PlotPane(Vertical):
                 title.append(f"{'' if n == 0 else ' '}{sid}", COLOURS[n % len(COLOURS)] + (" bold" if n == 0 else ""))
             title.append(" " + store.plot_register, "cyan")
         self._label("#plot-title", title)
-        line = self.query_one("#plot-line", Static)
+        line = self.query_one("#plot-line", PlotLines)
         b = self.bounds(store)
         if b is None:
-            line.update(Text(""), layout=False)  # its height is the pane's (1fr), whatever it holds
+            line.show([])
             self._label("#plot-range", Text("no samples", "grey70"))
             return
         width, height = line.size.width, line.size.height
@@ -151,7 +179,7 @@ class PlotPane(Vertical):
             return  # not laid out (hidden): drawn at its first resize
         t0, t1 = self.window.bounds(*b)
         rows, vmin, vmax = render(list(store.plot_series.values()), width, height, t0, t1)
-        line.update(Text("\n").join(rows), layout=False)
+        line.show(rows)
         shown = "all" if self.window.span is None else f"{t1 - t0:.3g} s"
         self._label("#plot-range", Text(range_label(t0, t1, shown, vmin, vmax, width), "grey70"))
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from rich.cells import cell_len
 from rich.segment import Segment
 from rich.style import Style
 from textual.binding import Binding
@@ -227,23 +228,45 @@ class Timeline(ScrollView, can_focus=True):
             prev = store.get(seq - 1)
             text = row_text(rec, prev.event.t_start if prev is not None else None, compact, self.times)
             style = cursor_style if cursor else base
-            strip = Strip(text.render(self.app.console), text.cell_len)
-            strip = strip.extend_cell_length(ROW_WIDTH).apply_style(style)
-            cached = _marked(strip, text.cell_len, scroll_x, shown, style).extend_cell_length(width, base)
-            self._cache[key] = cached
+            segments = list(Segment.apply_style(text.render(self.app.console), style))
+            view = _marked(segments, text.cell_len, scroll_x, shown, style)
+            if shown < width:
+                view.append(Segment(" " * (width - shown), base))
+            cached = self._cache[key] = Strip(view, max(width, shown))
         return cached
 
 
-def _marked(strip: Strip, length: int, x: int, width: int, style: Style) -> Strip:
-    """Cells ``x`` to ``x + width`` of a row ``length`` cells long, with an ellipsis at an edge the row
-    runs past: a value cut at the edge of the view (``present_position=-2`` of -24.9) is never
-    shown as if it were whole."""
-    view = strip.crop_extend(x, x + width, style)
+def _crop(segments: list[Segment], start: int, end: int) -> list[Segment]:
+    """The segments' cells ``start`` to ``end`` (fewer where they end sooner)."""
+    out = []
+    pos = 0
+    for seg in segments:
+        if pos >= end:
+            break
+        after = pos + cell_len(seg.text)
+        if after > start:
+            if pos < start:
+                seg = seg.split_cells(start - pos)[1]
+            if after > end:
+                seg = seg.split_cells(end - max(pos, start))[0]
+            out.append(seg)
+        pos = after
+    return out
+
+
+def _marked(segments: list[Segment], length: int, x: int, width: int, style: Style) -> list[Segment]:
+    """Cells ``x`` to ``x + width`` of a row ``length`` cells long (blank past its end), with an ellipsis
+    at an edge the row runs past: a value cut at the edge of the view (``present_position=-2`` of -24.9)
+    is never shown as if it were whole. Segment by segment, one Strip made at the end: a Strip is costly
+    to make (each has caches of its own)."""
+    view = _crop(segments, x, x + width)
+    shown = min(width, max(0, length - x))
+    if shown < width:
+        view.append(Segment(" " * (width - shown), style))
     if width < 2:
         return view
-    more = Strip([Segment("…", style)], 1)
     if length > x + width:
-        view = Strip.join([view.crop(0, width - 1), more])
+        view = _crop(view, 0, width - 1) + [Segment("…", style)]
     if x > 0 and length > x:
-        view = Strip.join([more, view.crop(1, width)])
+        view = [Segment("…", style)] + _crop(view, 1, width)
     return view
