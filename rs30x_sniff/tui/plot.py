@@ -87,8 +87,15 @@ def render(series: Sequence[tuple[Sequence[float], Sequence[float]]], width: int
                 grid[y][x] = ("█" if bottom > top else "▬", colour)
     lines = []
     for row in grid:
+        # A run of like cells is one piece of text (a Text.append per cell was most of a redraw's cost).
         text = Text()
+        run_ch, run_style, n = row[0][0], row[0][1], 0
         for ch, style in row:
-            text.append(ch, style)
+            if ch == run_ch and style == run_style:
+                n += 1
+                continue
+            text.append(run_ch * n, run_style)
+            run_ch, run_style, n = ch, style, 1
+        text.append(run_ch * n, run_style)
         lines.append(text)
     return lines, vmin, vmax
