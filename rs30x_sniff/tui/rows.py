@@ -92,37 +92,47 @@ def short_summary(rec: Record) -> str:
 def row_text(rec: Record, prev_t: float | None, compact: bool = False, times: TimeForm | None = None) -> Text:
     """One timeline row: severity mark, time, delta, direction, ID, kind, latency, summary (``compact``:
     without delta and latency, for narrow terminals; ``times``: how the time is shown, --time-format)."""
-    ev = rec.event
     text = Text(no_wrap=True, overflow="ellipsis")
+    for piece, style in row_pieces(rec, prev_t, compact, times):
+        text.append(piece, style)
+    return text
+
+
+def row_pieces(rec: Record, prev_t: float | None, compact: bool = False,
+               times: TimeForm | None = None) -> list[tuple[str, str]]:
+    """row_text's pieces as (text, style) pairs: the timeline draws them as segments without a Text."""
+    ev = rec.event
+    out = []
+    add = out.append
     sev = worst_severity(rec)
-    text.append(SEVERITY_MARKS.get(sev, " ") if sev else " ", SEVERITY_STYLES.get(sev, ""))
+    add((SEVERITY_MARKS.get(sev, " ") if sev else " ", SEVERITY_STYLES.get(sev, "")))
     t = ev.t_start
     if t is not None:
-        text.append(" " + time_cell(t, prev_t, times, compact), "grey70")
+        add((" " + time_cell(t, prev_t, times, compact), "grey70"))
         if not compact:
             # No delta where the clock went back (a restart, F010): no duration is known there.
             delta = f"{(t - prev_t) * 1e3:+10.3f}" if prev_t is not None and t >= prev_t else " " * 10
-            text.append(f" {delta}", "grey50")
+            add((f" {delta}", "grey50"))
     else:
         width = time_column(times, compact)[1]
-        text.append(f" {'@' + str(ev.offset):>{width}}" + ("" if compact else f" {'':10}"), "grey50")
+        add((f" {'@' + str(ev.offset):>{width}}" + ("" if compact else f" {'':10}"), "grey50"))
     who = direction(rec)
-    text.append(f" {ARROWS[who]:^3}", "bold" if who == "host" else "")
+    add((f" {ARROWS[who]:^3}", "bold" if who == "host" else ""))
     sid = rec.id
-    text.append(f" {sid if sid is not None else '-':>3}", "bold")
+    add((f" {sid if sid is not None else '-':>3}", "bold"))
     word = kind_word(rec)
     bad = bad_sum(rec)
     if bad:
         word += "!SUM"
-    text.append(f" {word:<12}", "bold red" if bad else kind_style(word))
+    add((f" {word:<12}", "bold red" if bad else kind_style(word)))
     if compact:
         if rec.status == "missing":
-            text.append(" no reply", "red")
+            add((" no reply", "red"))
     elif rec.latency is not None:
-        text.append(f" {rec.latency * 1e3:7.3f}ms", "grey70")
+        add((f" {rec.latency * 1e3:7.3f}ms", "grey70"))
     elif rec.status == "missing":
-        text.append(" no reply ", "red")
+        add((" no reply ", "red"))
     else:
-        text.append(" " * 10)
-    text.append(" " + short_summary(rec), "red" if sev == "error" else "")
-    return text
+        add((" " * 10, ""))
+    add((" " + short_summary(rec), "red" if sev == "error" else ""))
+    return out

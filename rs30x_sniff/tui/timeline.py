@@ -14,7 +14,7 @@ from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
 from ..render.times import TimeForm
-from .rows import COMPACT_BELOW, columns, row_text
+from .rows import COMPACT_BELOW, columns, row_pieces
 from .store import Store
 
 ROW_WIDTH = 400  # virtual width: summaries of long packets run far to the right (scroll with shift+wheel)
@@ -226,14 +226,42 @@ class Timeline(ScrollView, can_focus=True):
         cached = self._cache.get(key)
         if cached is None:
             prev = store.get(seq - 1)
-            text = row_text(rec, prev.event.t_start if prev is not None else None, compact, self.times)
+            pieces = row_pieces(rec, prev.event.t_start if prev is not None else None, compact, self.times)
             style = cursor_style if cursor else base
-            segments = list(Segment.apply_style(text.render(self.app.console), style))
-            view = _marked(segments, text.cell_len, scroll_x, shown, style)
+            segments, length = _segments(pieces, style)
+            view = _marked(segments, length, scroll_x, shown, style)
             if shown < width:
                 view.append(Segment(" " * (width - shown), base))
             cached = self._cache[key] = Strip(view, max(width, shown))
         return cached
+
+
+_STYLES: dict[str, Style] = {}
+
+
+def _segments(pieces: list[tuple[str, str]], style: Style) -> tuple[list[Segment], int]:
+    """A row's pieces as segments over ``style``, as Text.render would give them (a run of unstyled pieces
+    is one segment, each styled piece its own), and the row's length in cells."""
+    out: list[Segment] = []
+    plain = ""
+    length = 0
+    for text, name in pieces:
+        if not text:
+            continue
+        length += cell_len(text)
+        if not name:
+            plain += text
+            continue
+        if plain:
+            out.append(Segment(plain, style))
+            plain = ""
+        parsed = _STYLES.get(name)
+        if parsed is None:
+            parsed = _STYLES[name] = Style.parse(name)
+        out.append(Segment(text, style + parsed))
+    if plain:
+        out.append(Segment(plain, style))
+    return out, length
 
 
 def _crop(segments: list[Segment], start: int, end: int) -> list[Segment]:
