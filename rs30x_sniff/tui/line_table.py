@@ -88,7 +88,7 @@ class LineTable(ScrollView, can_focus=True):
             return self.table
 
     class Chosen(Message):
-        """Enter was pressed (or a row clicked twice) on the row ``key``."""
+        """Enter was pressed on the row ``key`` (or the cursor's row was clicked)."""
 
         def __init__(self, table: LineTable, key: Hashable) -> None:
             super().__init__()
@@ -217,7 +217,7 @@ class LineTable(ScrollView, can_focus=True):
         line = int(self.scroll_y) + event.y - 1
         row = bisect_right(self._tops, line) - 1
         if 0 <= row < len(self._keys):
-            chosen = self._keys[row] == self._cursor and event.chain > 1
+            chosen = self._keys[row] == self._cursor  # a click on the cursor's row chooses it, as in a DataTable
             self._go(row)
             if chosen:
                 self.action_choose()
