@@ -92,7 +92,7 @@ class Timeline(ScrollView, can_focus=True):
         self._rows = n
         self._syncing = True
         try:
-            self.virtual_size = Size(ROW_WIDTH, n + 1)  # + the column header row
+            self._resize(Size(ROW_WIDTH, n + 1))  # + the column header row
             if self.follow:
                 self._move_cursor(store.view_seq(n - 1) if n else None)
                 self.scroll_to(y=max(0, n + 1 - self.scrollable_content_region.height), animate=False,
@@ -107,6 +107,21 @@ class Timeline(ScrollView, can_focus=True):
         if len(self._cache) > _CACHE_ROWS:
             self._cache.clear()
         self.refresh()
+
+    def _resize(self, size: Size) -> None:
+        """A new virtual size. While the rows overflow the view before and after (the vertical scrollbar
+        shown, and staying so), nothing on the screen moves but the scrollbar's thumb: the size is set
+        without a layout of the screen (which, every batch, cost a layout and a second redraw of the
+        scrollbars), and the scrollbar is told its new extent."""
+        old = self.virtual_size
+        if size == old:
+            return
+        view = self.scrollable_content_region.height
+        if self.show_vertical_scrollbar and size.width == old.width and old.height > view and size.height > view:
+            self.set_reactive(Timeline.virtual_size, size)
+            self.vertical_scrollbar.window_virtual_size = size.height
+        else:
+            self.virtual_size = size
 
     def invalidate(self) -> None:
         """Redraw every row (findings or a filter changed what rows show)."""

@@ -518,3 +518,25 @@ async def test_rows_are_frozen_out_of_the_collector_every_freeze_rows_not_every_
         await wait_done(pilot, app)
     assert app.store.end_seq == 60 and app.batches > len(frozen) >= 3
     assert all(b - a >= 15 for a, b in zip([0, *frozen], frozen))
+
+
+async def test_the_timeline_grows_without_a_layout_and_its_scrollbar_and_scroll_keep_up():
+    chunks = [(encode_short(1, 0, 30, bytes((i % 256, 0))), i * 0.01) for i in range(200)]
+    gate = threading.Event()
+    app = make_app(GatedSource(chunks, gate, (100,)), DecodeOptions(), clock=FrozenClock(), post_interval=0)
+    async with app.run_test(size=SIZE) as pilot:
+        for _ in range(100):
+            await pilot.pause(0.02)
+            if len(app.store) >= 100:
+                break
+        await pilot.pause(0.1)
+        tl = timeline(app)
+        assert tl.show_vertical_scrollbar  # the rows overflow the view: what follows moves only the thumb
+        gate.set()
+        await wait_done(pilot, app)
+        await pilot.pause(0.1)
+        assert tl.virtual_size.height == 201 == tl.vertical_scrollbar.window_virtual_size
+        assert tl.scroll_y == tl.max_scroll_y > 0  # following: the newest row is in sight
+        assert tl.cursor_seq == 199
+        rows = ["".join(seg.text for seg in tl.render_line(y)) for y in range(1, tl.scrollable_content_region.height)]
+        assert "1.990000" in rows[-1]  # the last line in sight is the newest packet's
