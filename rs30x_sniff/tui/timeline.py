@@ -223,8 +223,8 @@ class Timeline(ScrollView, can_focus=True):
                 base + self.get_component_rich_style("timeline--cursor"), shown, self.has_focus)
 
     def render_line(self, y: int) -> Strip:
-        frame = self._frame or self._frame_now()
-        width, scroll_x, scroll_y, compact, base, cursor_style, shown, focus = frame
+        look = self._frame or self._frame_now()  # the drawing's settings
+        width, scroll_x, scroll_y, compact, base, cursor_style, shown, focus = look
         if y == 0:
             header = Strip([Segment(columns(self.times, compact), self.get_component_rich_style("timeline--header"))])
             return header.crop_extend(scroll_x, scroll_x + width, base)
@@ -236,8 +236,8 @@ class Timeline(ScrollView, can_focus=True):
             return Strip.blank(width, base)
         cursor = seq == self.cursor_seq
         # A row is drawn again only when what it shows changes (a finding, its reply's latency or
-        # status, the cursor) or the frame does (size, horizontal scroll, focus, styles).
-        key = (seq, len(rec.findings), cursor, rec.latency, rec.status, frame[:2], frame[3:])
+        # status, the cursor) or the drawing's settings do (size, horizontal scroll, focus, styles).
+        key = (seq, len(rec.findings), cursor, rec.latency, rec.status, look[:2], look[3:])
         cached = self._cache.get(key)
         if cached is None:
             prev = store.get(seq - 1)
