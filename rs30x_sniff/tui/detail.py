@@ -172,7 +172,6 @@ class DetailPane(Vertical):
             return
         self.rec = rec
         tree = self.field_tree
-        hexw = self.hex_view
         if rec is None:
             tree.clear()
             tree.root.set_label(Text("no packet selected"))

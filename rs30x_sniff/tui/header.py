@@ -6,11 +6,10 @@ from dataclasses import dataclass
 
 from rich.cells import cell_len
 from rich.text import Text
-from textual.strip import Strip
-from textual.widget import Widget
 
 from .rows import SEVERITY_MARKS, SEVERITY_STYLES, clean
 from .store import Store
+from .text_lines import TextLines
 
 
 @dataclass
@@ -169,9 +168,8 @@ def status_text(store: Store, info: SessionInfo, width: int | None = None) -> Te
     return Text("\n", no_wrap=True).join([_line(first, width), _line(second, width)])
 
 
-class StatusHeader(Widget):
-    """Two lines of status at the top of the screen, drawn with the Line API: rendered once when set (a
-    Static took its Text through the content pipeline at every redraw)."""
+class StatusHeader(TextLines):
+    """Two lines of status at the top of the screen, drawn with the Line API (TextLines)."""
 
     DEFAULT_CSS = """
     StatusHeader { height: 2; background: $panel; color: $text; padding: 0 1; }
@@ -182,7 +180,6 @@ class StatusHeader(Widget):
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
         self._text = Text()
-        self._strips: list[Strip] = []
 
     def show(self, store: Store, info: SessionInfo) -> None:
         # Two lines of fixed height: new text needs no layout of the screen (a tick would cost a full one).
@@ -192,19 +189,10 @@ class StatusHeader(Widget):
         if text.plain == self._text.plain and text.spans == self._text.spans:
             return  # the same two lines: nothing to draw
         self._text = text
-        console = self.app.console
-        self._strips = [Strip(list(line.render(console)), line.cell_len) for line in text.split("\n")]
-        self.refresh()
+        self.set_lines(text.split("\n"))
 
     def render(self) -> Text:
         return self._text
-
-    def render_line(self, y: int) -> Strip:
-        width = self.size.width
-        base = self.rich_style
-        if y >= len(self._strips):
-            return Strip.blank(width, base)
-        return self._strips[y].crop_extend(0, width, base).apply_style(base)
 
     def on_resize(self) -> None:
         if self._last is not None:

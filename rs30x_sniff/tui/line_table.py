@@ -28,17 +28,35 @@ def _width(text: str) -> int:
     return len(text) if text.isascii() else cell_len(text)
 
 
+# The keys that move a cursor over rows, here and in the timeline (each says what its end key does).
+CURSOR_BINDINGS = (
+    Binding("up", "cursor(-1)", "Up", show=False),
+    Binding("down", "cursor(1)", "Down", show=False),
+    Binding("pageup", "page(-1)", "Page up", show=False),
+    Binding("pagedown", "page(1)", "Page down", show=False),
+    Binding("home", "first", "First", show=False),
+)
+
+
+class _RowMessage(Message):
+    """A message about the row ``key`` of ``table``."""
+
+    def __init__(self, table: LineTable, key: Hashable) -> None:
+        super().__init__()
+        self.table, self.key = table, key
+
+    @property
+    def control(self) -> LineTable:
+        return self.table
+
+
 class LineTable(ScrollView, can_focus=True):
     """Rows of cells (strings; a cell may hold several lines, its row is as tall as its tallest cell) under a
     heading row that stays in place. The cursor is a row's key, so it stays on its row when rows come and
     go; ``Highlighted`` says it moved, ``Chosen`` that enter was pressed on it."""
 
     BINDINGS = [
-        Binding("up", "cursor(-1)", "Up", show=False),
-        Binding("down", "cursor(1)", "Down", show=False),
-        Binding("pageup", "page(-1)", "Page up", show=False),
-        Binding("pagedown", "page(1)", "Page down", show=False),
-        Binding("home", "first", "First", show=False),
+        *CURSOR_BINDINGS,
         Binding("end", "last", "Last", show=False),
         Binding("enter", "choose", "Go", show=False),
     ]
@@ -76,27 +94,11 @@ class LineTable(ScrollView, can_focus=True):
     }
     """
 
-    class Highlighted(Message):
+    class Highlighted(_RowMessage):
         """The cursor moved to the row ``key``."""
 
-        def __init__(self, table: LineTable, key: Hashable) -> None:
-            super().__init__()
-            self.table, self.key = table, key
-
-        @property
-        def control(self) -> LineTable:
-            return self.table
-
-    class Chosen(Message):
+    class Chosen(_RowMessage):
         """Enter was pressed on the row ``key`` (or the cursor's row was clicked)."""
-
-        def __init__(self, table: LineTable, key: Hashable) -> None:
-            super().__init__()
-            self.table, self.key = table, key
-
-        @property
-        def control(self) -> LineTable:
-            return self.table
 
     def __init__(self, headings: Sequence[str], **kwargs) -> None:
         super().__init__(**kwargs)

@@ -12,14 +12,13 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.message import Message
-from textual.strip import Strip
-from textual.widget import Widget
 from textual.widgets import Label
 
 from .line_table import LineTable
 from .rows import SEVERITY_MARKS, SEVERITY_STYLES, clean
 from .plot import COLOURS, Window, render
 from .store import Store
+from .text_lines import TextLines
 
 FINDINGS_SHOWN = 1000  # the pane lists the newest ones; the header counts them all
 _SEVERITY_STYLES = {name: Style.parse(style) for name, style in SEVERITY_STYLES.items()}
@@ -93,30 +92,19 @@ def range_label(t0: float, t1: float, shown: str, vmin: float | None, vmax: floa
     return values[:max(width - 1, 0)] + "…"
 
 
-class PlotLines(Widget):
-    """The plot's rows, drawn with the Line API: each row rendered once when set (a Static would take
-    the Text through its content pipeline again at every redraw)."""
+class PlotLines(TextLines):
+    """The plot's rows, drawn with the Line API (TextLines)."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
         self.rows: list[Text] = []
-        self._strips: list[Strip] = []
 
     def show(self, rows: list[Text]) -> None:
-        console = self.app.console
         self.rows = rows
-        self._strips = [Strip(list(row.render(console)), row.cell_len) for row in rows]
-        self.refresh()
+        self.set_lines(rows)
 
     def render(self) -> Text:
         return Text("\n").join(self.rows)
-
-    def render_line(self, y: int) -> Strip:
-        width = self.size.width
-        base = self.rich_style
-        if y >= len(self._strips):
-            return Strip.blank(width, base)
-        return self._strips[y].crop_extend(0, width, base).apply_style(base)
 
 
 class PlotPane(Vertical):

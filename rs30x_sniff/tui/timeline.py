@@ -14,6 +14,7 @@ from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
 from ..render.times import TimeForm
+from .line_table import CURSOR_BINDINGS
 from .rows import COMPACT_BELOW, columns, row_pieces
 from .store import Store
 
@@ -25,14 +26,7 @@ class Timeline(ScrollView, can_focus=True):
     """Rows come from the store's view (filtered or not); the cursor is kept as a record seq, so it
     stays on its record while old records are dropped or a filter changes."""
 
-    BINDINGS = [
-        Binding("up", "cursor(-1)", "Up", show=False),
-        Binding("down", "cursor(1)", "Down", show=False),
-        Binding("pageup", "page(-1)", "Page up", show=False),
-        Binding("pagedown", "page(1)", "Page down", show=False),
-        Binding("home", "first", "First", show=False),
-        Binding("end", "app.follow", "Follow", show=False),
-    ]
+    BINDINGS = [*CURSOR_BINDINGS, Binding("end", "app.follow", "Follow", show=False)]
     COMPONENT_CLASSES = {"timeline--cursor", "timeline--header"}
     DEFAULT_CSS = """
     Timeline { background: $surface; }

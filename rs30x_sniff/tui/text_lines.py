@@ -1,0 +1,31 @@
+"""A widget that shows lines of Rich Text with the Line API, each line rendered once when it is set."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from rich.text import Text
+from textual.strip import Strip
+from textual.widget import Widget
+
+
+class TextLines(Widget):
+    """Lines of Text drawn with the Line API: each rendered to a Strip once, when set (a Static would take the
+    Text through its content pipeline again at every redraw)."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self._strips: list[Strip] = []
+
+    def set_lines(self, lines: Iterable[Text]) -> None:
+        """Render ``lines`` and draw them."""
+        console = self.app.console
+        self._strips = [Strip(list(line.render(console)), line.cell_len) for line in lines]
+        self.refresh()
+
+    def render_line(self, y: int) -> Strip:
+        width = self.size.width
+        base = self.rich_style
+        if y >= len(self._strips):
+            return Strip.blank(width, base)
+        return self._strips[y].crop_extend(0, width, base).apply_style(base)
