@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from ..protocol.events import OFFSET, RAW, LongPacket, ReturnPacket, ShortPacket
-from ..protocol.wire import AT_DATA, AT_ID, AT_LENGTH, HEADER_SIZE, SUM_SIZE
+from ..protocol.wire import AT_DATA, AT_ID, AT_LENGTH, FRAME_OVERHEAD, HEADER_SIZE, SUM_SIZE
 from ..decode.frame_runs import LONG
-from .layout_json import fields_json, fields_plan, mixed_fields_json, record_fields_json
+from .layout_json import fields_json, long_plan, mixed_fields_json, record_fields_json
 from .records import COMPACT, NO_FIELDS, SPACED, record_json, record_json_text
 
 # What varies between rows of one shape (besides the fields). The templates are kept by the model
@@ -155,8 +155,12 @@ def _template(blk: Any, k: int, model: Any, key: tuple, only: set[int] | None, c
     kept by ``model``, the row's."""
     rec = blk.record(k)
     text, slots = _line_template(rec, only, compact)
-    # One Layout (or None); for a long packet to servos of mixed models, its MixedParts.
-    return model.keep(key, (text, slots, fields_plan(rec)))
+    # One Layout (or None); for a long packet to servos that may differ in model, long_plan's.
+    ev = rec.event
+    raw = ev[RAW]
+    if type(ev) is LongPacket and blk.vid_models is not None and raw[AT_LENGTH] and len(raw) > FRAME_OVERHEAD:
+        return model.keep(key, (text, slots, long_plan(raw, blk.vid_models)))
+    return model.keep(key, (text, slots, rec.data_layout()[0]))
 
 
 def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = False) -> str:

@@ -16,8 +16,9 @@ from typing import Any
 from ..decode.pairing import Record
 from ..protocol.codegen import SERVO, percent_function
 from ..protocol.memmap import ByRaw, Layout, Register
+from ..protocol.wire import AT_ADDRESS, AT_COUNT, AT_DATA, AT_LENGTH, FRAME_OVERHEAD, SUM_SIZE
 
-__all__ = ["MixedParts", "fields_json", "fields_plan", "json_scalar", "mixed_fields_json", "record_fields_json",
+__all__ = ["MixedParts", "fields_json", "long_plan", "json_scalar", "mixed_fields_json", "record_fields_json",
            "value_text"]
 
 _TEMPLATES = "json fields"  # Layout.cache key: ((per-part templates, whole fill) spaced, (...) compact)
@@ -125,14 +126,25 @@ def fields_json(layout: Layout, data: bytes, values: tuple, servo_id: int | None
 MixedParts = tuple[tuple[Layout, int, int, int], ...]
 
 
-def fields_plan(rec: Record) -> Layout | MixedParts | None:
-    """What a template of ``rec``'s shape needs to write the fields of any packet of that shape (the same
-    header, length and VIDs): its Layout, or for a long packet to servos of mixed models the MixedParts."""
-    lay, _ = rec.data_layout()
-    if not isinstance(lay, list):
-        return lay
-    step = rec.event.length  # record k starts at k * Length with its VID (events.frame_event)
-    return tuple((sub, k * step + 1, k * step + 1 + len(d), vid) for k, (sub, d, vid) in enumerate(lay))
+def long_plan(raw: bytes, vid_models: dict[int, Any]) -> Layout | MixedParts:
+    """The fields of a long packet's data (``raw``: the whole frame, Length and data there) when its servos may
+    differ in model (``vid_models``: servo -> model): the long layout of their one model, or each record's
+    (MixedParts), as Record.data_layout gives them. Kept in the first VID's model: a shape's, not a packet's."""
+    length, count, address = raw[AT_LENGTH], raw[AT_COUNT], raw[AT_ADDRESS]
+    vids = raw[AT_DATA:-SUM_SIZE:length]
+    models = tuple([vid_models[v] for v in vids])
+    first = models[0]
+    key = ("long plan", address, length, len(raw), vids, tuple([m.name for m in models]))
+    got = first.cache.get(key)
+    if got is None:
+        n = len(raw) - FRAME_OVERHEAD
+        if n == length * count and all(m is first for m in models):
+            got = first.long_layout(address, length, count)
+        else:  # records ``length`` apart, each its VID and then its data (events.frame_event)
+            spans = [(m, k * length + 1, min(k * length + length, n), vids[k]) for k, m in enumerate(models)]
+            got = tuple((m.layout(address, b - a), a, b, vid) for m, a, b, vid in spans)
+        got = first.keep(key, got)
+    return got
 
 
 def mixed_fields_json(parts: MixedParts, data: bytes, only: set[int] | None = None, compact: bool = False) -> str:

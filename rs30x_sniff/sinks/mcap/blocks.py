@@ -13,7 +13,7 @@ from ...protocol.mcap_names import PACKETS_TOPIC, TRANSACTIONS_TOPIC, log_time_n
 from ...protocol.memmap import Layout
 from ...protocol.wire import (
     AT_ADDRESS, AT_COUNT, AT_DATA, AT_ID, AT_LENGTH, BROADCAST_ID, FRAME_OVERHEAD, HEADER_SIZE, SUM_SIZE)
-from ...render.layout_json import MixedParts, value_text
+from ...render.layout_json import MixedParts, long_plan, value_text
 from .transactions import transaction_json
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
@@ -53,26 +53,6 @@ def _named_parts(layout: Layout | MixedParts, raw: bytes) -> Iterator[tuple[int,
     for vid_at, parts in _named_plan(layout):
         if parts:
             yield (raw[AT_ID] if vid_at is None else values[vid_at]), parts, values
-
-
-def _mixed_layout(raw: bytes, vid_models: dict[int, Any]) -> Layout | MixedParts:
-    """The layout of a long packet's data when its servos may differ in model: the long layout of their one
-    model, or each record's (MixedParts), as Record.data_layout gives them; kept in the first VID's model."""
-    length, count = raw[AT_LENGTH], raw[AT_COUNT]
-    vids = raw[AT_DATA:-SUM_SIZE:length]
-    models = tuple([vid_models[v] for v in vids])
-    first = models[0]
-    key = ("mcap long", raw[AT_ADDRESS], length, len(raw), vids, tuple([m.name for m in models]))
-    got = first.cache.get(key)
-    if got is None:
-        address, n = raw[AT_ADDRESS], len(raw) - FRAME_OVERHEAD
-        if n == length * count and all(m is first for m in models):
-            got = first.long_layout(address, length, count)
-        else:  # records k * length apart, each its VID and then its data (events.frame_event)
-            got = tuple((m, k * length + 1, min(k * length + length, n), vids[k]) for k, m in enumerate(models))
-            got = tuple((m.layout(address, b - a), a, b, vid) for m, a, b, vid in got)
-        got = first.keep(key, got)
-    return got
 
 
 def _tx_template(blk: Any, k: int, model: Any, key: tuple) -> tuple[str | None, tuple[str, ...]]:
@@ -122,7 +102,7 @@ def block_messages(ch: Any, blk: Any, emit: Any) -> None:
                 if vid_models is None:
                     layout = model.long_layout(raw[AT_ADDRESS], raw[AT_LENGTH], raw[AT_COUNT])
                 else:
-                    layout = _mixed_layout(raw, vid_models)
+                    layout = long_plan(raw, vid_models)
         else:
             sid = raw[AT_ID]
             model = blk_models[sid]
