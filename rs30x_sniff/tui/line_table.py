@@ -50,7 +50,28 @@ class _RowMessage(Message):
         return self.table
 
 
-class LineTable(ScrollView, can_focus=True):
+class SettingsPerRender:
+    """A Line-API widget's settings that every line of one render shares (sizes, scroll, styles), worked out once
+    per render, as a widget's rich_style walks its ancestors' styles on every call: ``render_settings()`` makes
+    them, ``settings()`` gives them to each line."""
+
+    _shared: tuple | None = None
+
+    def render_lines(self, crop: Region) -> list[Strip]:
+        self._shared = self.render_settings()
+        try:
+            return super().render_lines(crop)  # type: ignore[misc]
+        finally:
+            self._shared = None
+
+    def settings(self) -> tuple:
+        return self._shared or self.render_settings()
+
+    def render_settings(self) -> tuple:
+        raise NotImplementedError
+
+
+class LineTable(SettingsPerRender, ScrollView, can_focus=True):
     """Rows of cells (strings; a cell may hold several lines, its row is as tall as its tallest cell) under a
     heading row that stays in place. The cursor is a row's key, so it stays on its row when rows come and
     go; ``Highlighted`` says it moved, ``Chosen`` that enter was pressed on it."""
@@ -110,7 +131,6 @@ class LineTable(ScrollView, can_focus=True):
         self._widths = [_width(h) for h in self.headings]
         self._cursor: Hashable | None = None
         self._cache: dict[tuple, Strip] = {}
-        self._frame: tuple | None = None
 
     # ---- rows -----------------------------------------------------------------------------------------
     @property
@@ -231,22 +251,13 @@ class LineTable(ScrollView, can_focus=True):
         self.refresh()
 
     # ---- rendering ------------------------------------------------------------------------------------
-    def render_lines(self, crop: Region) -> list[Strip]:
-        # What the lines of one render share is worked out once: a widget's rich_style walks its
-        # ancestors' styles on every call.
-        self._frame = self._frame_now()
-        try:
-            return super().render_lines(crop)
-        finally:
-            self._frame = None
-
-    def _frame_now(self) -> tuple:
+    def render_settings(self) -> tuple:
         base = self.rich_style
         return (self.size.width, int(self.scroll_x), base, self.get_component_rich_style("table--cursor"),
                 self.get_component_styles("table--header").rich_style, tuple(self._widths))
 
     def render_line(self, y: int) -> Strip:
-        frame = self._frame or self._frame_now()
+        frame = self.settings()
         width, scroll_x, base = frame[:3]
         if y == 0:
             line, key = 0, None

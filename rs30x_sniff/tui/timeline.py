@@ -7,14 +7,14 @@ from rich.segment import Segment
 from rich.style import Style
 from textual.binding import Binding
 from textual.events import Click, MouseScrollUp
-from textual.geometry import Region, Size
+from textual.geometry import Size
 from textual.message import Message
 from textual.reactive import reactive
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
 from ..render.times import TimeForm
-from .line_table import CURSOR_BINDINGS
+from .line_table import CURSOR_BINDINGS, SettingsPerRender
 from .rows import COMPACT_BELOW, columns, row_pieces
 from .store import Store
 
@@ -22,7 +22,7 @@ ROW_WIDTH = 400  # virtual width: summaries of long packets run far to the right
 _CACHE_ROWS = 512
 
 
-class Timeline(ScrollView, can_focus=True):
+class Timeline(SettingsPerRender, ScrollView, can_focus=True):
     """Rows come from the store's view (filtered or not); the cursor is kept as a record seq, so it
     stays on its record while old records are dropped or a filter changes."""
 
@@ -60,7 +60,6 @@ class Timeline(ScrollView, can_focus=True):
         self._generation = store.generation
         self._cache: dict[tuple, Strip] = {}
         self._syncing = False
-        self._frame: tuple | None = None  # what the lines of the render under way share (render_lines)
 
     # ---- model -> view ------------------------------------------------------------------------------
     @property
@@ -199,16 +198,7 @@ class Timeline(ScrollView, can_focus=True):
             self._move_cursor(self.store.view_seq(row))
 
     # ---- rendering ------------------------------------------------------------------------------------
-    def render_lines(self, crop: Region) -> list[Strip]:
-        # What every line of one render shares (styles, sizes, the scroll) is worked out once for them all:
-        # a widget's rich_style walks its ancestors' styles on every call.
-        self._frame = self._frame_now()
-        try:
-            return super().render_lines(crop)
-        finally:
-            self._frame = None
-
-    def _frame_now(self) -> tuple:
+    def render_settings(self) -> tuple:
         width = self.size.width
         base: Style = self.rich_style
         # The mark goes at the last cell in sight: the scrollbar covers the line's last cells.
@@ -217,7 +207,7 @@ class Timeline(ScrollView, can_focus=True):
                 base + self.get_component_rich_style("timeline--cursor"), shown, self.has_focus)
 
     def render_line(self, y: int) -> Strip:
-        look = self._frame or self._frame_now()  # the drawing's settings
+        look = self.settings()
         width, scroll_x, scroll_y, compact, base, cursor_style, shown, focus = look
         if y == 0:
             header = Strip([Segment(columns(self.times, compact), self.get_component_rich_style("timeline--header"))])
