@@ -163,7 +163,9 @@ def test_a_port_that_comes_back_under_its_link_is_recorded_on_with_one_gap(tmp_p
     first = Pty()
     link.symlink_to(first.path)
     out = tmp_path / "rig.mcap"
-    proc = cli("record", str(link), "-o", str(out), "--duration", "6")
+    # B006 (a reply's latency against the servo's return delay) is left out: on a CI machine whose cores run other
+    # tests, the port's reader can wake milliseconds late and stamp a reply so; the gap is what is checked here.
+    proc = cli("record", str(link), "-o", str(out), "--duration", "6", "--ignore", "B006")
     second = None
     try:
         wait_for(out, proc)
