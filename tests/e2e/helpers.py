@@ -68,6 +68,44 @@ def wait_for(path, proc: subprocess.Popen, timeout: float = 15.0) -> None:
     time.sleep(0.1)
 
 
+def _holders(path: str) -> set[int]:
+    """The processes (other than this one) with ``path`` open, read from /proc."""
+    target = os.path.realpath(path)
+    found = set()
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            fds = os.listdir(f"/proc/{pid}/fd")
+        except OSError:
+            continue
+        for fd in fds:
+            try:
+                if os.readlink(f"/proc/{pid}/fd/{fd}") == target:
+                    found.add(int(pid))
+                    break
+            except OSError:
+                continue
+    return found
+
+
+def wait_opened(path, proc: subprocess.Popen, timeout: float = 30.0) -> None:
+    """Wait until some process but this one holds the port ``path`` open (the sniffer or its reader process),
+    instead of a fixed sleep: on a loaded machine a reader process can take seconds to start, and pyserial
+    flushes the input when it opens, so bytes written before would be lost to the test, not to the sniffer."""
+    if not os.path.isdir("/proc/self/fd"):
+        time.sleep(1.5)
+        return
+    end = time.monotonic() + timeout
+    while not _holders(str(path)):
+        if proc.poll() is not None:
+            raise AssertionError(f"exited early: {proc.returncode} {proc.stderr.read().decode()}")
+        if time.monotonic() > end:
+            raise AssertionError(f"{path} was never opened")
+        time.sleep(0.02)
+    time.sleep(0.2)  # opened; its input flushed just after
+
+
 def recorded_bytes(path) -> bytes:
     return b"".join(d for d, _ in read_mcap_raw(str(path)))
 

@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from .helpers import Pty, cli, recorded_bytes
+from .helpers import Pty, cli, recorded_bytes, wait_opened
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 
@@ -24,14 +24,14 @@ def _finish(proc, sig, timeout: float = 30.0) -> tuple[int, str, str]:
     return proc.returncode, out.decode(), err.decode()
 
 
-def _replug(link, old: Pty) -> Pty:
+def _replug(link, old: Pty, proc) -> Pty:
     """The adapter unplugged (its node first, then the line) and plugged in again under the same link."""
     link.unlink()
     old.close()
     time.sleep(0.6)
     new = Pty()
     link.symlink_to(new.path)
-    time.sleep(1.0)  # found within the wait step, opened, and its input flushed before the first read
+    wait_opened(new.path, proc)  # found within the wait step, opened, and its input flushed before the first read
     return new
 
 
@@ -51,11 +51,11 @@ def test_record_stops_cleanly_after_reconnects(tmp_path, mode, losses, sig):
     proc = cli("record", str(link), *args[mode])
     ptys = [pty]
     try:
-        time.sleep(1.5)
+        wait_opened(pty.path, proc)
         sent = pty.write_sim("hexapod", duration=0.5)
         for k in range(losses):
             time.sleep(0.3)
-            pty = _replug(link, pty)
+            pty = _replug(link, pty, proc)
             ptys.append(pty)
             sent += pty.write_sim("hexapod", duration=0.5, seed=k + 1)
         time.sleep(0.5)
@@ -81,7 +81,7 @@ def test_reading_commands_on_a_port_stop_cleanly(command, sig):
     pty = Pty()
     proc = cli(command, pty.path)
     try:
-        time.sleep(1.5)
+        wait_opened(pty.path, proc)
         pty.write_sim("hexapod", duration=0.5)
         time.sleep(0.5)
         rc, out, err = _finish(proc, sig)
@@ -98,7 +98,7 @@ def test_serve_on_a_port_stops_cleanly():
     pty = Pty()
     proc = cli("serve", pty.path, "--foxglove", "127.0.0.1:0")
     try:
-        time.sleep(1.5)
+        wait_opened(pty.path, proc)
         pty.write_sim("hexapod", duration=0.5)
         time.sleep(0.5)
         rc, _, err = _finish(proc, signal.SIGTERM)

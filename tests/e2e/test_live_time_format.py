@@ -10,7 +10,7 @@ from datetime import datetime
 import pytest
 
 from rs30x_sniff.sources.mcap_reader import read_mcap_raw
-from tests.e2e.helpers import Pty, cli, wait_for
+from tests.e2e.helpers import Pty, cli, wait_for, wait_opened
 
 
 @pytest.fixture
@@ -28,7 +28,7 @@ def _decode(pty: Pty, *args: str) -> tuple[list[str], float, float]:
     """decode PORT's times for the setup scenario played once, and the wall clock around its run."""
     proc = cli("decode", pty.path, "--duration", "5", "--no-lint", *args,
                env=dict(os.environ, TZ="UTC"))
-    time.sleep(1.5)  # the port is open (its input flushed) before the bus starts
+    wait_opened(pty.path, proc)  # the port is open (its input flushed) before the bus starts
     before = time.time()
     pty.write_sim("setup", duration=None)
     after = time.time()
@@ -63,7 +63,7 @@ def test_record_print_shows_the_form_and_the_file_keeps_the_stamps(pty, tmp_path
     proc = cli("record", pty.path, "-o", str(out), "--print", "--duration", "5", "--no-lint",
                "--time-format", "relative")
     wait_for(out, proc)
-    time.sleep(1.0)
+    wait_opened(pty.path, proc)
     before = time.time()
     pty.write_sim("setup", duration=None)
     after = time.time()

@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from tests.e2e.helpers import Pty, assert_finalized_mcap, cli, events, recorded_bytes, wait_for
+from tests.e2e.helpers import Pty, assert_finalized_mcap, cli, events, recorded_bytes, wait_for, wait_opened
 
 
 @pytest.fixture
@@ -82,7 +82,7 @@ def test_duration_and_split_size_rotate_complete_files(pty, tmp_path):
 def test_decode_streams_lines_from_a_port_while_it_runs(pty):
     # --time-format epoch: the lines show the stamps themselves (by default, seconds since the first byte).
     proc = cli("decode", pty.path, "--duration", "6", "--no-lint", "--time-format", "epoch")
-    time.sleep(2.0)  # the port is open (and its input flushed) well before this, even on a loaded machine
+    wait_opened(pty.path, proc)
     pty.write_sim("setup", duration=None)
     readable, _, _ = select.select([proc.stdout], [], [], 5.0)
     assert readable and proc.poll() is None  # a line while decode is still running
@@ -107,7 +107,7 @@ def test_record_on_a_missing_port_is_one_line_and_no_file(tmp_path):
 
 def test_decode_on_a_port_that_goes_away_exits_1_with_one_line(pty):
     proc = cli("decode", pty.path, "--no-lint")
-    time.sleep(1.0)
+    wait_opened(pty.path, proc)
     pty.write_sim("setup", duration=None)
     time.sleep(0.3)
     pty.close_master()
@@ -176,7 +176,7 @@ def test_a_port_that_comes_back_under_its_link_is_recorded_on_with_one_gap(tmp_p
         time.sleep(1.0)
         second = Pty()
         link.symlink_to(second.path)
-        time.sleep(1.0)  # found within WAIT_STEP and opened; its input is flushed before the first read
+        wait_opened(second.path, proc)  # found within WAIT_STEP and opened; its input is flushed before the first read
         after = second.write_sim("hexapod", duration=1.0, seed=1)
         rc, _, stderr = _finish(proc)
     finally:
