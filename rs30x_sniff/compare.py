@@ -27,7 +27,8 @@ import math
 import re
 from difflib import get_close_matches
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 from .sinks.health import PRESENT, WRITTEN
 

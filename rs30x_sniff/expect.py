@@ -22,7 +22,8 @@ import math
 import re
 from dataclasses import dataclass, field, replace
 from difflib import get_close_matches
-from typing import Any, Callable, Collection, Iterable, Mapping
+from typing import Any
+from collections.abc import Callable, Collection, Iterable, Mapping
 
 from .lint.config import ConfigError
 from .lint.params import MASK, Message
@@ -394,7 +395,7 @@ def load_checks(entries: Any, where: str) -> list[Check]:
                 raise ExpectError(f"{label}: unknown key {raw!r}{_hint(raw, KEYS)} (known: {', '.join(KEYS)})")
         get = {k.replace("-", "_"): v for k, v in entry.items()}
 
-        def text(key: str, required: bool) -> str:
+        def text(key: str, required: bool, get: dict = get, label: str = label) -> str:
             v = get.get(key)
             if v is None:
                 if required:

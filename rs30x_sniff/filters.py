@@ -6,7 +6,8 @@ import math
 import operator
 import re
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import numpy as np
 
@@ -468,7 +469,7 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
             return reg.address, reg.size, reg.signed, test
         # Every raw value of a 1- or 2-byte register judged once (the same register in another model
         # shares the table): a scan of a million records then looks bytes up instead of converting them.
-        for r, table in tables:
+        for r, table in tables:  # noqa: B007 - the table found is used after the loop
             if r == reg:
                 break
         else:

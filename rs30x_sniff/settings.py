@@ -7,7 +7,8 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
+from collections.abc import Callable, Mapping
 
 from .decode.pairing import DEFAULT_REPLY_TIMEOUT
 from .decode.framing import DEFAULT_GAP_BYTES

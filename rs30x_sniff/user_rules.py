@@ -28,7 +28,8 @@ from __future__ import annotations
 
 import re
 import string
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 from .filters import FilterError, parse_filter
 from .lint.config import ConfigError

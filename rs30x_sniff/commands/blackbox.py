@@ -9,7 +9,8 @@ import signal
 import threading
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 from ..decode.decoder import Decoder
 from ..lint import Linter

@@ -7,7 +7,8 @@ import dataclasses
 import itertools
 import os
 import sys
-from typing import Any, Iterator
+from typing import Any
+from collections.abc import Iterator
 
 from ..sources import foreign
 from ..sources.captures import (

@@ -7,7 +7,8 @@ import itertools
 from datetime import datetime
 import os
 import sys
-from typing import IO, Any, Iterator
+from typing import IO, Any
+from collections.abc import Iterator
 
 from ..sources.captures import Chunk, detect_format
 from ..decode.decoder import Decoder

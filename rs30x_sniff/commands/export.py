@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Iterator
+from collections.abc import Iterator
 
 from ..sources.captures import BINARY, HEX, MCAP, TIMESTAMPED, Chunk, detect_format, format_for_output, write_capture
 from ..sinks.tables import KINDS, TABLE_FORMATS, table_format

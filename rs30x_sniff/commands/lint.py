@@ -8,7 +8,8 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 from ..sources.captures import CaptureError
 from ..lint.baseline import BASELINE_VERSION, Baseline, BaselineError, BaselineReport

@@ -11,7 +11,8 @@ import stat
 import sys
 import tempfile
 from contextlib import contextmanager
-from typing import IO, Iterable, Iterator
+from typing import IO
+from collections.abc import Iterable, Iterator
 
 from ..sources.captures import BINARY, TIMESTAMPED
 from .common import CliError

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Iterator
+from typing import Any
+from collections.abc import Iterable
 
 from .blocks import Block, feed_run
 from .pairing import DEFAULT_REPLY_TIMEOUT, BusTracker, Record
-from ..protocol.chunks import Marked, SenderMap
+from ..protocol.chunks import SenderMap
 from ..protocol.events import OFFSET
 from .frame_runs import FrameRun
 from .framing import DEFAULT_GAP_BYTES, FrameDecoder

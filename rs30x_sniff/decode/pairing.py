@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from collections import deque
-from typing import Any, Callable, Collection, Iterable, Mapping
+from typing import Any
+from collections.abc import Callable, Collection, Iterable, Mapping
 from weakref import ref
 
 import numpy as np

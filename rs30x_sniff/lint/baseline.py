@@ -24,7 +24,8 @@ from __future__ import annotations
 import json
 import re
 from dataclasses import dataclass, field
-from typing import IO, Iterable
+from typing import IO
+from collections.abc import Iterable
 
 from .params import key_of
 from .registry import Finding
@@ -119,7 +120,7 @@ class Baseline:
     version: int = BASELINE_VERSION  # how its fingerprints were made (a version 1 file: by the text)
 
     @classmethod
-    def of(cls, findings: Iterable[Finding]) -> "Baseline":
+    def of(cls, findings: Iterable[Finding]) -> Baseline:
         """A baseline holding ``findings``: one entry per fingerprint, the first message as its example."""
         entries: dict[str, Entry] = {}
         for f in findings:
@@ -144,7 +145,7 @@ class Baseline:
         out.write("\n")
 
     @classmethod
-    def load(cls, path: str) -> "Baseline":
+    def load(cls, path: str) -> Baseline:
         """Read a baseline file; a missing, unreadable or malformed one raises :class:`BaselineError`."""
         try:
             with open(path, encoding="utf-8") as fh:
@@ -161,7 +162,7 @@ class Baseline:
         return cls.from_json(data, path)
 
     @classmethod
-    def from_json(cls, data: object, path: str) -> "Baseline":
+    def from_json(cls, data: object, path: str) -> Baseline:
         if not isinstance(data, dict) or data.get("kind") != BASELINE_KIND:
             raise BaselineError(f"{path}: not a baseline (no \"kind\": \"{BASELINE_KIND}\"; write one with "
                                 f"lint --write-baseline)")

@@ -20,7 +20,8 @@ Which rule has which form is said by the rules alone (``Rule.column``); this mod
 from __future__ import annotations
 
 from functools import partial
-from typing import Any, Callable, NamedTuple
+from typing import Any, NamedTuple
+from collections.abc import Callable
 
 import numpy as np
 
@@ -123,7 +124,7 @@ class BlockLinter:
         if len(lint.ids) > max_servos:
             return False  # Q008 speaks on every packet now
         view = BlockView(lint, blk)
-        sid, flag, address, dlen = view.ids, view.flag, view.address, view.data_len
+        sid, flag = view.ids, view.flag
         is_short, is_long, is_return = view.is_short, view.is_long, view.is_return
         if (is_short & ((flag & COMMAND_BITS) != 0)).any():
             return False  # flash / reboot / initialize: command rules and their state (P008, P009, Q001-Q004)

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from types import MethodType
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 from ..decode.pairing import MISSING, Record
 from ..protocol.events import OFFSET, RAW, T_START

@@ -14,7 +14,8 @@ import functools
 import math
 import string
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 # Units a measured value may carry besides a register's own (deg, degC, mA, ...):
 DURATION = "s"      # a span of time in seconds, written in ms as every report writes latencies (0.080 ms)
@@ -92,7 +93,7 @@ class Message(str):
     key: str
     params: Mapping[str, Any]
 
-    def __new__(cls, text: str, key: str | None = None, params: Mapping[str, Any] | None = None) -> "Message":
+    def __new__(cls, text: str, key: str | None = None, params: Mapping[str, Any] | None = None) -> Message:
         self = super().__new__(cls, text)
         self.key = text if key is None else key
         self.params = dict(params or {})
@@ -101,7 +102,7 @@ class Message(str):
     def __reduce__(self) -> tuple:  # lint -j sends findings between processes
         return (Message, (str(self), self.key, self.params))
 
-    def prefixed(self, words: str) -> "Message":
+    def prefixed(self, words: str) -> Message:
         """The same message after ``words`` (words of no measurement)."""
         return Message(words + self, words + self.key, self.params)
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import re
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any
+from collections.abc import Callable, Iterable, Iterator
 
 from ..decode.pairing import ANSWERED, PAIRED
 from ..protocol.events import FLAG, OFFSET, REASON, TRUNCATED

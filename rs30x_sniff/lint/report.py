@@ -11,7 +11,8 @@ import xml.etree.ElementTree as ET
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Callable, Iterable, Mapping
+from typing import IO, TYPE_CHECKING
+from collections.abc import Callable, Iterable, Mapping
 from urllib.parse import quote
 
 from ..version import __version__

@@ -52,7 +52,8 @@ from __future__ import annotations
 import keyword
 import math
 import re
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any
+from collections.abc import Callable, Iterable, Sequence
 
 __all__ = ["FORMAT_SPEC", "LINE_ARGS", "SERVO", "attribute_setter", "compile_function", "conversion", "identifier",
            "index", "line_function", "literal", "percent_function", "run_definitions", "values_function"]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from functools import lru_cache
+from functools import cache
 from importlib.resources import files
 
 # Schema name (as registered in MCAP files) -> file in this package.
@@ -16,7 +16,7 @@ SCHEMA_FILES = {
 }
 
 
-@lru_cache(maxsize=None)
+@cache
 def schema_bytes(name: str) -> bytes:
     """The schema's JSON text, as stored in an MCAP Schema record."""
     return files(__package__).joinpath(SCHEMA_FILES[name]).read_bytes()

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable
+from collections.abc import Iterable
 
 from ..protocol.events import LongPacket, ShortPacket
 from ..decode.framing import FrameDecoder

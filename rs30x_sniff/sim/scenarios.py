@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import random
 from dataclasses import dataclass, field
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 from ..protocol.wire import (
     BAUD_RATES, FLAG_REBOOT, FLAG_WRITE_FLASH, RETURN_ACK, RETURN_MODE_RANGES, encode_command, encode_long,

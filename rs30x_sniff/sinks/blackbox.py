@@ -5,8 +5,9 @@ from __future__ import annotations
 import re
 from collections import deque
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
-from typing import Any, Callable, Iterable
+from datetime import datetime, UTC
+from typing import Any
+from collections.abc import Callable, Iterable
 
 from ..decode.blocks import Block
 from ..decode.decoder import Sink, Step
@@ -78,13 +79,13 @@ def slug(text: str) -> str:
 
 def wall_name(t: float) -> str:
     """Epoch seconds as a file-name time, UTC, to the millisecond: ``2026-11-26T01-42-05.123Z``."""
-    d = datetime.fromtimestamp(t, tz=timezone.utc)
+    d = datetime.fromtimestamp(t, tz=UTC)
     return d.strftime("%Y-%m-%dT%H-%M-%S.") + f"{d.microsecond // 1000:03d}Z"
 
 
 def wall_time(t: float) -> str:
     """Epoch seconds as a person reads them, UTC, to the millisecond (ISO 8601): ``2026-11-26T01:42:05.123Z``."""
-    return datetime.fromtimestamp(t, tz=timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    return datetime.fromtimestamp(t, tz=UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 @dataclass

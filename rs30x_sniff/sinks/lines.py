@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import json
-from typing import IO, Any, Callable
+from typing import IO, Any
+from collections.abc import Callable
 
 from ..render.block_json import block_json_lines, record_json_line
 from ..render.block_text import block_text, record_line

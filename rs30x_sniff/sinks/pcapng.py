@@ -5,7 +5,8 @@ from __future__ import annotations
 import struct
 from array import array
 from bisect import bisect_right
-from typing import IO, Any, Iterable
+from typing import IO, Any
+from collections.abc import Iterable
 
 from ..decode.decoder import Step
 from ..protocol.wire import byte_time
@@ -184,7 +185,7 @@ class PcapngSink(Sink):
         """The end: an Interface Statistics Block (packets, first and last times, late findings)."""
         first = self.first_ns or 0
         opts = [(OPT_COMMENT, f"frame {self.frame_of(f.offset)} (offset {f.offset}): {finding_comment(f)}"
-                 .encode("utf-8")) for f in self.late + self.loose]
+                 .encode()) for f in self.late + self.loose]
         opts += [(ISB_STARTTIME, struct.pack("<II", first >> 32, first & 0xFFFFFFFF)),
                  (ISB_ENDTIME, struct.pack("<II", self.last_ns >> 32, self.last_ns & 0xFFFFFFFF)),
                  (ISB_IFRECV, struct.pack("<Q", self.packets))]

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any, Iterable, Iterator
+from collections.abc import Iterable, Iterator
 
-from ..decode.blocks import Block
 from ..decode.decoder import DecodeOptions, Decoder, Sink, Step
+from ..decode.pairing import Record
 from ..protocol.chunks import Marked, SourceGap
 
 # Sink (what a Step goes to) is declared beside the Step, in rs30x_sniff.decode.decoder, so that the decode

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from typing import Any
 
 from ..protocol.chunks import EPOCH_MIN
@@ -53,7 +53,7 @@ def timer(first_t: float | None, timed: bool, byte_s: float, anchor: float | Non
             wall = None
             if epoch is not None:
                 try:
-                    wall = (datetime.fromtimestamp(epoch + t, tz=timezone.utc).isoformat(timespec="milliseconds")
+                    wall = (datetime.fromtimestamp(epoch + t, tz=UTC).isoformat(timespec="milliseconds")
                             .replace("+00:00", "Z"))
                 except (OverflowError, OSError, ValueError):
                     wall = None  # no calendar date: the capture time alone

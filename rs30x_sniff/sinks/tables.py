@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import csv
-from datetime import datetime, timezone
-from typing import IO, Any, Callable, Iterable
+from datetime import datetime, UTC
+from typing import IO, Any
+from collections.abc import Callable, Iterable
 
 from ..protocol.chunks import EPOCH_MIN
 from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
@@ -58,7 +59,7 @@ def table_format(path: str, fmt: str | None = None) -> str | None:
 
 
 def _iso(t: float) -> str:
-    return datetime.fromtimestamp(t, timezone.utc).isoformat(timespec="microseconds")
+    return datetime.fromtimestamp(t, UTC).isoformat(timespec="microseconds")
 
 
 # ---- writers ---------------------------------------------------------------------------------------

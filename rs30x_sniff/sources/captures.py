@@ -17,7 +17,8 @@ from bisect import bisect_right
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO, Callable, Iterable, Iterator
+from typing import BinaryIO
+from collections.abc import Callable, Iterable, Iterator
 
 from . import timeunit
 from ..protocol.chunks import Marked, SourceGap

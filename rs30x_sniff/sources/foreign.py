@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field
-from typing import Any, BinaryIO, Callable, Iterator
+from typing import Any, BinaryIO
+from collections.abc import Callable, Iterator
 
 # The modules that register formats, imported on first use (each reader is a module of its own).
 _MODULES = ("saleae", "sigrok", "serial_logs")

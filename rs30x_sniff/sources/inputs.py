@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 from .timebase import FIRST, SAMPLE_CHUNKS, TimedSource, TimeRef, judge
 from . import foreign

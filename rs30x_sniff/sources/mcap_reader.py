@@ -10,7 +10,8 @@ import os
 import stat
 import struct
 import zlib
-from typing import BinaryIO, Callable, Iterator
+from typing import BinaryIO
+from collections.abc import Callable, Iterator
 
 import zstandard
 from mcap.opcode import Opcode

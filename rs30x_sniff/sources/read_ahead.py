@@ -15,7 +15,8 @@ import pickle
 import subprocess
 import sys
 from array import array
-from typing import Any, BinaryIO, Callable, Iterator
+from typing import Any, BinaryIO
+from collections.abc import Callable, Iterator
 
 from ..protocol.chunks import Chunk
 from .captures import CaptureError

@@ -7,7 +7,7 @@ import os
 import signal
 import threading
 import time
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 from ..protocol.chunks import SourceGap
 from .serial_tap import DURATION, GATHER_SECONDS, LOST, STOP_SIGNALS, STOPPED, LiveSource, SerialTap, is_port

@@ -48,8 +48,9 @@ import itertools
 import math
 import os
 import re
-from datetime import datetime, timedelta, timezone
-from typing import Any, BinaryIO, Iterable, Iterator
+from datetime import datetime, timedelta, timezone, UTC
+from typing import Any, BinaryIO
+from collections.abc import Iterable, Iterator
 
 from ..protocol.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO, Marked
 from .timebase import FIRST
@@ -240,7 +241,7 @@ def _zone(zone: str | None) -> timezone | None:
     if zone is None:
         return None
     if zone in ("Z", "z"):
-        return timezone.utc
+        return UTC
     sign = -1 if zone[0] == "-" else 1
     digits = zone[1:].replace(":", "")
     minutes = int(digits[:2]) * 60 + (int(digits[2:4]) if len(digits) > 2 else 0)

@@ -57,7 +57,8 @@ from __future__ import annotations
 import calendar
 import re
 from datetime import datetime
-from typing import BinaryIO, Callable, Iterator
+from typing import BinaryIO
+from collections.abc import Callable, Iterator
 
 from ..protocol.chunks import HOST, SERVO, Marked
 from .timebase import ARRIVAL

@@ -12,7 +12,7 @@ import threading
 import time
 from collections import deque
 from dataclasses import dataclass
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 from ..protocol.wire import BAUD_RATES, byte_time
 from .captures import CaptureError
@@ -450,7 +450,7 @@ class LiveSource:
                     return out
                 continue
             # Everything already queued, without waiting again.
-            for item in (item, *q.take_all()):
+            for item in (item, *q.take_all()):  # noqa: B020 - the first item, then the rest
                 if type(item) is TapEnd:
                     self._close(item)
                     return out

@@ -30,7 +30,8 @@ import re
 import zipfile
 import zlib
 from dataclasses import dataclass
-from typing import Any, BinaryIO, Iterator
+from typing import Any, BinaryIO
+from collections.abc import Iterator
 
 from ..protocol.chunks import FRAMING_ERROR, PARITY_ERROR, Marked
 from .timebase import FIRST

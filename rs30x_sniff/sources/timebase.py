@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import timedelta
-from typing import Iterable, Iterator
+from collections.abc import Iterable, Iterator
 
 from ..protocol.chunks import remark
 from ..protocol.wire import byte_time

@@ -6,7 +6,8 @@ import threading
 import time
 from dataclasses import dataclass, field
 from queue import Empty, SimpleQueue
-from typing import Any, Callable, Iterator
+from typing import Any
+from collections.abc import Callable, Iterator
 
 from ..decode.blocks import MIN_BLOCK, Block
 from ..decode.pairing import Record

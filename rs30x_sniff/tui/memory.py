@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sys
-from typing import Iterable
+from collections.abc import Iterable
 
 from ..decode.blocks import Block
 from ..decode.frame_runs import FrameRun

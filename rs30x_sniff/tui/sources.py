@@ -6,7 +6,8 @@ import os
 import stat
 import threading
 import time
-from typing import Callable, Iterable, Iterator, Protocol
+from typing import Protocol
+from collections.abc import Callable, Iterable, Iterator
 
 from ..protocol.chunks import remark
 from ..sources.captures import CaptureError

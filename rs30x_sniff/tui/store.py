@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from array import array
 from collections import Counter, deque
-from typing import Any, Iterable
+from typing import Any
+from collections.abc import Iterable
 
 from ..decode.blocks import Block
 from ..decode.pairing import Record

@@ -5,7 +5,7 @@ Every ``import`` and ``from ... import`` of every module under rs30x_sniff/ is r
 inside functions too (a lazy import is still a dependency), and each is placed by the folder (or
 top-level module) it names. The stages, lowest first:
 
-    version.py, protocol, schemas -> sources -> decode -> lint -> render, plugins -> filters.py -> sinks -> settings.py
+    version.py, language.py, protocol, schemas -> sources -> decode -> lint -> render, plugins -> filters.py -> sinks -> settings.py
         -> the top: cli.py, commands/, tui/, sim/, the package itself (__init__.py, __main__.py)
 
 ``plugins/`` (the sigrok, Logic 2 and Wireshark plug-ins made from the maps) is an output form of the maps, as
@@ -13,7 +13,7 @@ render's are, and sits beside it. ``filters.py`` (the filter language) reads Rec
 and the monitor filter with it: it sits between render and sinks. ``settings.py`` builds every stage's
 options (DecodeOptions, LintConfig, a source's time base) and only the commands read it: it sits just
 below the top, so that no stage depends on the command line's settings. ``schemas/`` (the MCAP
-channels' JSON Schemas) imports nothing of the package. The top imports anything; within one stage, or
+channels' JSON Schemas) and ``language.py`` (durations, ID ranges, operators) import nothing of the package. The top imports anything; within one stage, or
 among the top's folders, any order goes.
 """
 
@@ -25,7 +25,7 @@ from pathlib import Path
 from .imports import PACKAGE, imported_from, module_name
 
 TOP = len(("protocol", "sources", "decode", "lint", "render", "filters", "sinks", "settings"))
-RANK = {"version": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "plugins": 4,
+RANK = {"version": 0, "language": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "plugins": 4,
         "filters": 5,
         "sinks": 6, "settings": 7, "user_rules": 7, "compare": 7, "expect": 7,
         "cli": TOP, "commands": TOP, "tui": TOP, "sim": TOP, "__main__": TOP, "": TOP}

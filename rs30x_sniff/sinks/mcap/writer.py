@@ -8,7 +8,8 @@ import heapq
 import json
 import struct
 from operator import itemgetter
-from typing import IO, Any, Iterable
+from typing import IO, Any
+from collections.abc import Iterable
 
 import foxglove
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
