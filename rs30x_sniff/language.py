@@ -71,7 +71,8 @@ def parse_duration(text: str, *, what: str = "", allow_zero: bool = False) -> fl
 
 
 def say_duration(seconds: float) -> str:
-    """The shortest exact spelling of ``seconds`` in the grammar's units (``90`` -> ``1.5min``, ``0.05`` -> ``50ms``)."""
+    """The shortest exact spelling of ``seconds`` in the grammar's units (``90`` -> ``1.5min``, ``0.05`` ->
+    ``50ms``)."""
     for unit in ("d", "h", "min", "s", "ms", "us", "ns"):
         size = TIME_UNITS[unit]
         if seconds >= size:

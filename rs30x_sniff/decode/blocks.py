@@ -327,7 +327,8 @@ def _block(tracker: BusTracker, run: FrameRun, lo: int, hi: int, answered: np.nd
                 tracker.servo(i)  # adds it to servos: created once, at its first mention
     # Models: a short packet's record has its servo's model, a return's the model of its ServoState
     # (the same, as no model is learned here); a long packet's, the default.
-    models = {i: servos[i].model if i in servos else tracker.model_of(i) for i in set(sid[is_short | is_return].tolist())}
+    models = {i: servos[i].model if i in servos else tracker.model_of(i)
+              for i in set(sid[is_short | is_return].tolist())}
     vid_models = None
     if not tracker.uniform and is_long.any():
         # Then every long packet's record has its VIDs' models, as the tracker gives them: a tuple (empty

@@ -43,7 +43,8 @@ class LintConfig:
         out = {r.code: r.severity for r in RULES}
         for key, level in self.severity.items():
             if level not in SEVERITIES:
-                raise ConfigError(f"{self.source}: severity {key}={level}: level must be one of {', '.join(SEVERITIES)}")
+                raise ConfigError(f"{self.source}: severity {key}={level}: level must be one of "
+                                  f"{', '.join(SEVERITIES)}")
             codes = resolve([key], "severity", self.source)
             for c in codes:
                 out[c] = level

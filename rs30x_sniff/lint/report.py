@@ -85,7 +85,8 @@ def write_text(results: list[FileResult], out: IO[str], fail_on: str = "error",
             out.write(f"{counts[code]:>6}  {code}  {RULES[code].name:<{w}}  {_severity(results, code)}\n")
     by_sev = Counter(f.severity for r in results for f in r.findings)
     files = len(results)
-    parts = ", ".join(f"{by_sev[s]} {s}{'s' if by_sev[s] != 1 else ''}" for s in ("error", "warning", "info") if by_sev[s])
+    parts = ", ".join(f"{by_sev[s]} {s}{'s' if by_sev[s] != 1 else ''}"
+                      for s in ("error", "warning", "info") if by_sev[s])
     out.write(f"\n{total} finding{'s' if total != 1 else ''}{f' ({parts})' if parts else ''} in {files} "
               f"file{'s' if files != 1 else ''}.\n")
     order = RULES.codes()
@@ -290,7 +291,8 @@ def write_github(results: list[FileResult], out: IO[str], fail_on: str = "error"
             out.write(f"::error file={github_escape(r.path, True)}::{github_escape(r.error)}\n")
         for f in _sorted(r):
             title = github_escape(f"{f.code} {f.name}", True)
-            msg = github_escape(f"{f.message} (offset {f.offset}{', t=' + format(f.t, '.6f') if f.t is not None else ''})")
+            at = f", t={f.t:.6f}" if f.t is not None else ""
+            msg = github_escape(f"{f.message} (offset {f.offset}{at})")
             loc = r.locations.get(f.offset)
             at = f",line={loc[0]},col={loc[1]}" if loc else ""
             out.write(f"::{_GITHUB_LEVEL[f.severity]} file={github_escape(r.path, True)}{at},title={title}::{msg}\n")

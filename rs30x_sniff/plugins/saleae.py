@@ -221,4 +221,5 @@ def install_hint(out: Path) -> str:
     return (f"wrote the Logic 2 extension {out}/ (analyzer {EXTENSION!r})\n"
             f"install: Logic 2 > Extensions panel > the three-dots menu > Load Existing Extension... > "
             f"{out.resolve() / 'extension.json'}\n"
-            f"use: add an Async Serial analyzer on the bus (8N1, LSB first, the bus rate), then add {EXTENSION!r} on it")
+            "use: add an Async Serial analyzer on the bus (8N1, LSB first, the bus rate), "
+            f"then add {EXTENSION!r} on it")

@@ -140,7 +140,8 @@ class RateFit:
         return next((r for r in sorted(rates) if not self.rules_out(r)), None)
 
     def evidence(self, baud: int) -> str:
-        return f"at {baud} bit/s, {self.overlaps(baud)} of {len(self.spans)} chunks would start before the previous one ended"
+        return (f"at {baud} bit/s, {self.overlaps(baud)} of {len(self.spans)} chunks would start before the previous "
+                "one ended")
 
 
 def rate_fit(chunks: Iterable[tuple[bytes, float | None]]) -> RateFit:

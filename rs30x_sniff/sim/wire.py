@@ -175,7 +175,7 @@ class SimWire:
         return [c for c in self._buf if c[1] < t1]
 
     def read_chunks(self, baud: int, seconds: float) -> list[Chunk]:
-        """The chunks a receiver at ``baud`` reads in the next ``seconds`` (bytes whose start bit falls in the window)."""
+        """The chunks a receiver at ``baud`` reads in the next ``seconds`` (bytes whose start bit falls in it)."""
         t0, t1 = self.t, self.t + seconds
         self.t = t1
         line = self._window(t0, t1)

@@ -102,10 +102,10 @@ class Window:
 class BlackBox(Sink):
     """Keeps the chunks of the last ``pre`` seconds; when a trigger fires at t, holds on until t + ``post``
     and hands ``save`` the chunks of [t - pre, end] with what fired, to be written as a capture of its own.
-    A later fire whose window would overlap this one extends it instead (so a window is saved only once the
-    bus has gone ``pre`` past its end), and no byte is saved in two windows. Fires beyond ``max_per_hour`` saves in the last hour are counted, not
-    saved. Never reads a clock: ``now`` (capture seconds) is asked only when the bus is idle, to close a
-    window no byte arrives to close.
+    A later fire whose window would overlap this one extends it instead (so a window is saved only once the bus has
+    gone ``pre`` past its end), and no byte is saved in two windows. Fires beyond ``max_per_hour`` saves in the last
+    hour are counted, not saved. Never reads a clock: ``now`` (capture seconds) is asked only when the bus is idle,
+    to close a window no byte arrives to close.
 
     ``save(chunks, window, name)`` writes the window; ``name`` is its file name (wall time of the first fire
     and the trigger). Takes Blocks: a Block is judged on its columns (Filter.may_match) and only the rows that

@@ -574,7 +574,8 @@ def _sane_times(chunks: Iterator[Chunk], path: str) -> Iterator[Chunk]:
         for chunk in chunks:
             t = chunk[1]
             if t is not None and not -timeunit.EPOCH_MAX <= t <= timeunit.EPOCH_MAX:
-                why = timeunit.problem(t) if not math.isfinite(t) or t > 0 else "is more than 130 years before its start"
+                why = (timeunit.problem(t) if not math.isfinite(t) or t > 0
+                       else "is more than 130 years before its start")
                 raise CaptureError(f"{path}: the time {t:g} s of the byte at stream offset {offset} {why}")
             offset += len(chunk[0])
             yield chunk

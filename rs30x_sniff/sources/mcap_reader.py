@@ -121,10 +121,10 @@ class McapRawReader:
     The file is known by its content, not by who wrote it: the channel with topic /rs30x/raw, schema
     rs30x.Raw and JSON bodies, whatever the header's library, the record order (chunked or not, raw
     messages put back in stream order), the summary (none needed) or the metadata (defaults, said
-    once, where it has none). A copy that starts later in the stream (trimmed by time) is read from
-    its first byte, and says so (such notes go to ``warn`` only: nothing was lost). A file with no readable rs30x data (not an MCAP, another tool's MCAP,
-    damage before the first chunk), another encoding on /rs30x/raw, or a time that is not a finite
-    number an MCAP log time can hold, is a CaptureError.
+    once, where it has none). A copy that starts later in the stream (trimmed by time) is read from its first byte,
+    and says so (such notes go to ``warn`` only: nothing was lost). A file with no readable rs30x data (not an MCAP,
+    another tool's MCAP, damage before the first chunk), another encoding on /rs30x/raw, or a time that is not a
+    finite number an MCAP log time can hold, is a CaptureError.
     ``t`` is None where the capture had no timestamps (``log_time_ns`` is then synthetic).
     ``metadata`` fills in as the file is read (it sits at the start of files we write).
     An MCAP needs a seekable file: a pipe is refused with a CaptureError.

@@ -1,4 +1,4 @@
-"""Serial loggers' logs (pyserial spy://, socat -x, interceptty, jpnevulator, slsnif) read as chunks that say who sent them.
+"""Serial loggers' logs (pyserial spy://, socat -x, interceptty, jpnevulator, slsnif) as chunks saying who sent them.
 
 These tools sit on the host's port (or on a pty in front of it) and write one entry per read or write
 call, so each entry is one chunk, marked with its sender (:class:`rs30x_sniff.protocol.chunks.Marked`):
@@ -736,7 +736,8 @@ def _register(name: str, description: str, sniff: Callable[[bytes], bool],
 
 
 # spy's millisecond stamps are too coarse to show a byte time at most rates; slsnif's have none.
-_register("spy", "pyserial spy:// log: TX (host) and RX hex dumps, seconds since the port opened", _sniff_spy, _read_spy)
+_register("spy", "pyserial spy:// log: TX (host) and RX hex dumps, seconds since the port opened",
+          _sniff_spy, _read_spy)
 _register("socat", "socat -x (-v) dump: '>'/'<' blocks with wall-clock stamps", _sniff_socat, _read_socat,
           _prober(_read_socat))
 _register("interceptty", "interceptty log: '< 0xNN' from the program, '>\\t0xNN' from the device",

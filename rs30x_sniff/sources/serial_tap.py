@@ -323,12 +323,12 @@ class SerialTap:
         behind = span - since
         fits = (self.bytes_read + n) * self.byte_time <= arrival - self.wall_start_ns / 1e9 + STALL_SLACK
         if (behind > STALL_SLACK or span > STALL_SPAN) and fits:
-            # More bytes than the line could carry since the last read, or than a reader waiting in read()
-            # lets pile up: they waited in the OS while the reader was held up. Laid back from their arrival at the line rate, they start where they
-            # came in, before the previous chunk ended (pushed past it, a 3 s backlog was once stamped
-            # within 0.36 s, at 100 % load); no earlier than the previous chunk, so no time runs
-            # backwards. Not when the whole capture holds more bytes than the line could carry since
-            # the port opened: then the baud rate is wrong, and F006 says so (below).
+            # More bytes than the line could carry since the last read, or than a reader waiting in read() lets pile
+            # up: they waited in the OS while the reader was held up. Laid back from their arrival at the line rate,
+            # they start where they came in, before the previous chunk ended (pushed past it, a 3 s backlog was once
+            # stamped within 0.36 s, at 100 % load); no earlier than the previous chunk, so no time runs backwards.
+            # Not when the whole capture holds more bytes than the line could carry since the port opened: then the
+            # baud rate is wrong, and F006 says so (below).
             t = max(t, self._last_t)
             self.stalls.append((t, arrival - t, n))
         elif t < self._next_t:

@@ -1,4 +1,4 @@
-"""What unit a capture's plain-number times count in (s, ms, us, ns; from the epoch or not), told by their spacing on the wire."""
+"""What unit a capture's plain-number times count in (s, ms, us, ns; from the epoch or not), told by their spacing."""
 
 from __future__ import annotations
 

@@ -17,7 +17,8 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from ...version import __version__
 from ...protocol.events import Garbage
 from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, GAP_METADATA_NAME, GAPS_METADATA_NAME, LOG_SCHEMA,
-                                    MCAP_MAGIC, METADATA_NAME, MODELS_METADATA_NAME, PACKET_SCHEMA, PACKETS_TOPIC, RAW_SCHEMA, RAW_TOPIC,
+                                    MCAP_MAGIC, METADATA_NAME, MODELS_METADATA_NAME, PACKET_SCHEMA, PACKETS_TOPIC,
+                                    RAW_SCHEMA, RAW_TOPIC,
                                     SERVO_STATE_SCHEMA, STATE_TOPIC, STATS_METADATA_NAME, TIME_BASES,
                                     TRANSACTION_SCHEMA, TRANSACTIONS_TOPIC, log_time_ns)
 from ...render.block_json import record_json_line
