@@ -78,8 +78,8 @@ def say_duration(seconds: float) -> str:
         if seconds >= size:
             n = seconds / size
             if math.isclose(n, round(n, 6), rel_tol=0, abs_tol=1e-9):
-                return f"{round(n, 6):g}{unit}"
-    return f"{seconds:g}s"
+                return f"{round(n, 6):.15g}{unit}"
+    return f"{seconds:.15g}s"
 
 
 def parse_id_range(text: str, *, low: int = ID_MIN, high: int = ID_MAX) -> tuple[int, ...]:
