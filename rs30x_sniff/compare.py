@@ -11,14 +11,20 @@ listed as not checked, never as crossed nor as passed. A threshold checked on no
 applies to absent, or no row) is in ``Comparison.blind``: ``diff --fail-on-regress`` fails on it as "not
 checkable", as a figure check (``[[expect]]``) that cannot be measured does.
 
-Thresholds, one per figure (``[regress]`` in rs30x-sniff.toml, ``[tool.rs30x-sniff.regress]`` in pyproject):
+Thresholds, one per figure of the figure table (sinks/figures.py: the names, scopes and units of the figure
+checks; ``[regress]`` in rs30x-sniff.toml, ``[tool.rs30x-sniff.regress]`` in pyproject):
 
 - ``"+20%"``: AFTER may be at most 20 % above BEFORE (a rise from 0 crosses any percentage);
 - ``"-20%"``: AFTER may be at most 20 % below BEFORE (``poll_hz``: the servo is polled less often);
-- ``"+0"``, ``"+2"``: AFTER may be at most that much above BEFORE, in the figure's unit (times take a unit:
-  ``"+0.2 ms"``, ``"+50 us"``; a bus load is a fraction: ``"+0.05"``);
+- ``"+0"``, ``"+2"``: AFTER may be at most that much above BEFORE, in the figure's unit (a latency in ms, a bus
+  load in percentage points), or in another unit of its kind (``"+200us"``, ``"+0.2 ms"``);
 - a number, or a value without a sign: the way the figure gets worse (up, but down for ``poll_hz`` and a
-  register's minimum). ``new_findings = 0``: no rule may have more findings after than before.
+  register's minimum; a figure with no worse way needs a sign). ``new_findings = 0``: no rule may have more
+  findings after than before.
+
+A threshold on a figure of the bus and the servos holds the bus and each servo in both captures. The names of
+the last release (``missing_replies_total``, ``servo_latency_p95``, ``present_temperature_min``, a bus load as
+a fraction) are read for one release, with a note (language.deprecation_notes).
 """
 
 from __future__ import annotations
@@ -30,58 +36,14 @@ from dataclasses import dataclass, field
 from typing import Any
 from collections.abc import Mapping
 
-from .sinks.health import PRESENT, WRITTEN
+from .language import note
+from .sinks.figures import (A_RANGE, A_RETURN, BUS, CHANGE, DOWN, FIGURES, LINTED, NEITHER, OLD_THRESHOLD_NAMES, RULE,
+                            SERVO, TIMES_LATENCY, TIMES_LOAD, TIMES_POLLS, UP, Capture, Figure, dimension, unit_of)
 
-UP, DOWN = 1, -1
-UNSOLICITED_RULE = "B003"  # unsolicited-return: the linter counts the replies no request asked for
+__all__ = ["DOWN", "FIGURES", "UP", "Figure"]
 
-# Units of the figures: how a value is written, and what an absolute threshold may say.
-SECONDS, FRACTION, HZ, COUNT, REGISTER = "s", "fraction", "Hz", "count", "register"
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
-
-
-@dataclass(frozen=True)
-class Figure:
-    """A figure that can be compared and given a threshold."""
-
-    name: str
-    scope: str      # "bus", "servo" (each servo in both captures) or "change" (a count of the difference)
-    unit: str       # SECONDS, FRACTION, HZ, COUNT, or a register's unit
-    worse: int      # UP or DOWN: the way the figure gets worse
-    doc: str
-
-
-def _figures() -> dict[str, Figure]:
-    out = [
-        Figure("latency_p50", "bus", SECONDS, UP, "median reply latency"),
-        Figure("latency_p95", "bus", SECONDS, UP, "95th percentile of the reply latency"),
-        Figure("latency_max", "bus", SECONDS, UP, "longest reply latency"),
-        Figure("bus_load", "bus", FRACTION, UP, "fraction of the capture's time the line was busy"),
-        Figure("bus_load_peak", "bus", FRACTION, UP, "load of the busiest second"),
-        Figure("missing_replies_total", "bus", COUNT, UP, "requests of every servo whose reply never came"),
-        Figure("unsolicited_replies_total", "bus", COUNT, UP, "replies no request asked for (rule B003)"),
-        Figure("bad_checksums", "bus", COUNT, UP, "packets with a bad checksum"),
-        Figure("garbage_bytes", "bus", COUNT, UP, "bytes outside any packet"),
-        Figure("errors", "bus", COUNT, UP, "findings of severity error"),
-        Figure("warnings", "bus", COUNT, UP, "findings of severity warning"),
-        Figure("poll_hz", "servo", HZ, DOWN, "requests asking this servo for a reply, per second"),
-        Figure("servo_latency_p50", "servo", SECONDS, UP, "median latency of this servo's replies"),
-        Figure("servo_latency_p95", "servo", SECONDS, UP, "95th percentile of this servo's reply latency"),
-        Figure("servo_latency_max", "servo", SECONDS, UP, "longest latency of this servo's replies"),
-        Figure("missing_replies", "servo", COUNT, UP, "this servo's requests whose reply never came"),
-        Figure("unsolicited_replies", "servo", COUNT, UP, "replies from this ID no request asked for (rule B003)"),
-        Figure("nacks", "servo", COUNT, UP, "NACKs from this servo"),
-        Figure("new_findings", "change", COUNT, UP, "findings AFTER has beyond BEFORE's count, summed over rules"),
-        Figure("new_rules", "change", COUNT, UP, "rules with findings AFTER and none BEFORE"),
-        Figure("servos_gone", "change", COUNT, UP, "servos seen BEFORE and not AFTER"),
-    ]
-    for reg in (*PRESENT, *WRITTEN):  # the register ranges info's health table holds
-        out.append(Figure(f"{reg}_max", "servo", REGISTER, UP, f"highest {reg} seen"))
-        out.append(Figure(f"{reg}_min", "servo", REGISTER, DOWN, f"lowest {reg} seen"))
-    return {f.name: f for f in out}
-
-
-FIGURES: dict[str, Figure] = _figures()
+UNSOLICITED_RULE = FIGURES["unsolicited_replies"].rules[0]  # unsolicited-return: the linter counts them
+COUNT = "count"  # the unit a count is shown with in diff's JSON
 
 
 class ThresholdError(ValueError):
@@ -90,13 +52,15 @@ class ThresholdError(ValueError):
 
 @dataclass(frozen=True)
 class Threshold:
-    """How far a figure may move the way it gets worse: ``percent`` of BEFORE, or ``amount`` in its unit."""
+    """How far a figure may move the way it gets worse: ``percent`` of BEFORE, or ``amount`` in its unit; held
+    on the rows of ``scopes`` (the figure's, or the one an old name held)."""
 
     figure: str
     direction: int                  # UP or DOWN
     percent: float | None = None
     amount: float | None = None
     text: str = ""                  # as written in the configuration
+    scopes: tuple[str, ...] = ()    # () : every scope of the figure
 
     def crossed(self, before: float, after: float) -> bool:
         if self.percent is not None:
@@ -109,18 +73,53 @@ class Threshold:
         return move > (self.amount or 0.0) + 1e-12 * max(abs(before), abs(after), 1.0)
 
 
-_VALUE = re.compile(r"^\s*([+-]?)\s*(\d+(?:\.\d*)?|\.\d+)\s*(%|s|ms|us|µs)?\s*$")
+_VALUE = re.compile(r"^\s*([+-]?)\s*(\d+(?:\.\d*)?|\.\d+)\s*(%|[A-Za-zµ/]+)?\s*$")
+
+
+def figure_named(key: str, where: str) -> tuple[Figure, tuple[str, ...]]:
+    """The figure ``key`` names and the scopes it holds (() : all of the figure's); an old name of the last
+    release is read with a note; an unknown one is a :class:`ThresholdError`."""
+    name = key.replace("-", "_") if "(" not in key else key
+    old = OLD_THRESHOLD_NAMES.get(name)
+    if old is not None:
+        new, scope = old
+        where_said = "the bus" if scope == BUS else "each servo"
+        note(f"{where}: regress.{key} is now {new!r} (which holds the bus and each servo; {key} held {where_said} "
+             f"only): the old name will be refused in the next release")
+        return FIGURES[new], (scope,)
+    fig = FIGURES.get(name)
+    if fig is None:
+        close = get_close_matches(name, [*FIGURES, *OLD_THRESHOLD_NAMES], n=1)
+        hint = f"; did you mean {close[0]}?" if close else ""
+        raise ThresholdError(f"{where}: regress.{key}: unknown figure{hint} (known: {', '.join(FIGURES)})")
+    return fig, ()
+
+
+def _amount(fig: Figure, number: float, unit: str | None, label: str, where: str, key: str) -> float:
+    """An absolute threshold's ``number`` (in ``unit``, None: the figure's own) in the figure's unit."""
+    if unit is None:
+        if fig.unit == "%" and 0 < number < 1:  # the last release's bus load was a fraction of 1
+            note(f"{where}: regress.{key}: {number:g} is read as a fraction ({number * 100:g} percentage points); a "
+                 f"bus load's threshold is in percentage points now: write {number * 100:g}")
+            return number * 100.0
+        return number
+    if fig.unit is None:
+        raise ThresholdError(f"{label}: {fig.name} is a count: give a percentage or a number without a unit")
+    if unit == fig.unit:
+        return number
+    if unit_of(unit) is None or dimension(unit) != dimension(fig.unit):
+        raise ThresholdError(f"{label}: {fig.name} is in {fig.unit}: {unit!r} does not fit (give a percentage, a "
+                             f"number in {fig.unit}, or one with a unit of its kind)")
+    a, b = unit_of(unit), unit_of(fig.unit)
+    assert a is not None and b is not None
+    return number * a[1] / b[1]
 
 
 def parse_threshold(key: str, value: Any, where: str) -> Threshold:
     """One ``[regress]`` entry, checked; ``where`` names the file (and table) in the error's one line."""
     label = f"{where}: regress.{key} = {value!r}"
-    name = key.replace("-", "_")
-    fig = FIGURES.get(name)
-    if fig is None:
-        close = get_close_matches(name, FIGURES, n=1)
-        hint = f"; did you mean {close[0]}?" if close else ""
-        raise ThresholdError(f"{where}: regress.{key}: unknown figure{hint} (known: {', '.join(FIGURES)})")
+    fig, scopes = figure_named(key, where)
+    name = fig.name
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise ThresholdError(f"{label}: expected a number or a text such as \"+20%\" or \"+0\"")
     if isinstance(value, (int, float)):
@@ -136,20 +135,18 @@ def parse_threshold(key: str, value: Any, where: str) -> Threshold:
     if not math.isfinite(number):
         raise ThresholdError(f"{label}: must be a finite number")
     direction = {"+": UP, "-": DOWN}.get(sign, fig.worse)
-    if fig.scope == "change":
+    if CHANGE in fig.scopes:
         if direction != UP or unit is not None:
             raise ThresholdError(f"{label}: {name} is a count of the change: give the most it may be (a whole "
                                  f"number, e.g. 0)")
-        return Threshold(name, UP, amount=number, text=str(value))
+        return Threshold(name, UP, amount=number, text=str(value), scopes=scopes)
+    if direction == NEITHER:
+        raise ThresholdError(f"{label}: {name} gets neither better nor worse by itself: give a sign (+ or -)")
     if unit == "%":
-        return Threshold(name, direction, percent=number, text=str(value))
-    if fig.unit == SECONDS:
-        if unit is None:
-            raise ThresholdError(f"{label}: a time needs a unit (s, ms, us), or give a percentage")
-        return Threshold(name, direction, amount=number * TIME_UNITS[unit], text=str(value))
-    if unit is not None:
-        raise ThresholdError(f"{label}: {name} is not a time: give a percentage or a number without a unit")
-    return Threshold(name, direction, amount=number, text=str(value))
+        return Threshold(name, direction, percent=number, text=str(value), scopes=scopes)
+    amount = _amount(fig, number, unit, label, where, key)
+    text = str(value) if amount == number or unit is not None else f"{sign}{amount:g}"
+    return Threshold(name, direction, amount=amount, text=text, scopes=scopes)
 
 
 def parse_thresholds(table: Any, where: str) -> dict[str, Threshold]:
@@ -195,60 +192,56 @@ def _unsolicited_counted(d: Mapping[str, Any]) -> str | None:
     return why
 
 
+def capture_of(d: Mapping[str, Any]) -> Capture:
+    """One capture's ``info`` dict (with ``linted`` and ``unsolicited_counted``) as the figure table reads it."""
+    if not d.get("linted", True):
+        return Capture(d, None)
+    return Capture(d, frozenset({UNSOLICITED_RULE} if d.get("unsolicited_counted", True) else ()))
+
+
+# Why a figure is absent, in diff's words, by what it needs (Figure.needs).
+def _absent(d: Mapping[str, Any], fig: Figure, sid: int | None) -> str:
+    needs = fig.needs
+    if needs == TIMES_LATENCY:
+        lat = (d.get("latency_s") or {}) if sid is None else (((d.get("servos") or {}).get(str(sid)) or {})
+                                                              .get("latency_s") or {})
+        return lat.get("absent") or _timing_reason(d, "no reply with a latency" if sid is None else
+                                                   "no reply of it with a latency")
+    if needs == TIMES_LOAD:
+        return _timing_reason(d, "shorter than a one-second window" if fig.name == "bus_load_peak" else
+                              "an instant: no duration")
+    if needs == TIMES_POLLS:
+        return _timing_reason(d, "fewer than two reads in one time segment")
+    if needs == RULE:
+        return _unsolicited_counted(d) or ""
+    if needs == LINTED:
+        return _findings_counted(d) or ""
+    if needs == A_RETURN:
+        return "no return: its status flags are unknown"
+    if needs == A_RANGE:
+        return "not seen"
+    return ""
+
+
+def _value(d: Mapping[str, Any], cap: Capture, fig: Figure, sid: int | None) -> Value:
+    assert fig.read is not None
+    v = fig.read(cap, sid)
+    return Value(v, None if v is not None else _absent(d, fig, sid), fig.unit or COUNT)
+
+
 def bus_values(d: Mapping[str, Any]) -> dict[str, Value]:
-    """The bus figures of one capture's ``info`` dict."""
-    out: dict[str, Value] = {}
-    lat = d.get("latency_s") or {}
-    for p in ("p50", "p95", "max"):
-        v = lat.get(p)
-        out[f"latency_{p}"] = Value(v, None if v is not None else
-                                    (lat.get("absent") or _timing_reason(d, "no reply with a latency")), SECONDS)
-    load = d.get("bus_load")
-    out["bus_load"] = Value(load, None if load is not None else _timing_reason(d, "an instant: no duration"),
-                            FRACTION)
-    peak = d.get("bus_load_peak")
-    out["bus_load_peak"] = Value(peak["load"] if peak else None,
-                                 None if peak else _timing_reason(d, "shorter than a one-second window"), FRACTION)
-    servos = d.get("servos") or {}
-    out["missing_replies_total"] = Value(sum(s.get("missing", 0) for s in servos.values()), None, COUNT)
-    why = _unsolicited_counted(d)
-    out["unsolicited_replies_total"] = Value(None if why else sum(
-        h.get("findings", {}).get(UNSOLICITED_RULE, 0) for h in (d.get("health") or {}).values()), why, COUNT)
-    out["bad_checksums"] = Value(d.get("bad_checksums", 0), None, COUNT)
-    out["garbage_bytes"] = Value(d.get("garbage_bytes", 0), None, COUNT)
-    why = _findings_counted(d)
-    sev = d.get("findings") or {}
-    out["errors"] = Value(None if why else sev.get("error", 0), why, COUNT)
-    out["warnings"] = Value(None if why else sev.get("warning", 0), why, COUNT)
-    return out
+    """The bus figures of one capture's ``info`` dict, in the figure table's order."""
+    cap = capture_of(d)
+    return {f.name: _value(d, cap, f, None) for f in FIGURES.values() if BUS in f.scopes}
 
 
 def servo_values(d: Mapping[str, Any]) -> dict[str, dict[str, Value]]:
     """Each servo's figures (by ID as text) of one capture's ``info`` dict."""
     servos, health = d.get("servos") or {}, d.get("health") or {}
-    unsolicited_why = _unsolicited_counted(d)
-    out: dict[str, dict[str, Value]] = {}
-    for sid in sorted(set(servos) | set(health), key=_id_order):
-        s, h = servos.get(sid), health.get(sid) or {}
-        row: dict[str, Value] = {}
-        if s is not None:
-            rate = s.get("poll_rate_hz")
-            row["poll_hz"] = Value(rate, None if rate is not None else
-                                   _timing_reason(d, "fewer than two reads in one time segment"), HZ)
-            lat = s.get("latency_s") or {}
-            for p in ("p50", "p95", "max"):
-                v = lat.get(p)
-                row[f"servo_latency_{p}"] = Value(v, None if v is not None else (
-                    lat.get("absent") or _timing_reason(d, "no reply of it with a latency")), SECONDS)
-            row["missing_replies"] = Value(s.get("missing", 0), None, COUNT)
-            row["nacks"] = Value(s.get("nacks", 0), None, COUNT)
-        row["unsolicited_replies"] = Value(None if unsolicited_why else
-                                           (h.get("findings") or {}).get(UNSOLICITED_RULE, 0), unsolicited_why, COUNT)
-        for reg, r in (h.get("registers") or {}).items():
-            row[f"{reg}_max"] = Value(r["max"], None, r.get("unit") or "")
-            row[f"{reg}_min"] = Value(r["min"], None, r.get("unit") or "")
-        out[sid] = row
-    return out
+    cap = capture_of(d)
+    per_servo = [f for f in FIGURES.values() if SERVO in f.scopes]
+    return {sid: {f.name: _value(d, cap, f, int(sid)) for f in per_servo}
+            for sid in sorted(set(servos) | set(health), key=_id_order)}
 
 
 def _id_order(sid: str) -> tuple[int, str]:
@@ -303,8 +296,8 @@ class Change:
         if d == 0:
             return "same"
         fig = FIGURES.get(self.figure)
-        if fig is None or fig.unit == REGISTER:
-            return None  # a register's range moved: no way of it is worse in itself
+        if fig is None or not fig.ranked or fig.worse == NEITHER:
+            return None  # a register's range moved, or a count of traffic: no way of it is worse in itself
         return "worse" if d * fig.worse > 0 else "better"
 
     def as_dict(self) -> dict[str, Any]:
@@ -439,13 +432,11 @@ def compare(before: Mapping[str, Any], after: Mapping[str, Any],
     """Two captures' ``info`` figures side by side, held to ``thresholds`` (by figure name)."""
     thresholds = dict(thresholds or {})
     vb, va = bus_values(before), bus_values(after)
-    bus = [Change(name, None, vb[name], va[name]) for name in vb]
+    bus = [Change(name, None, vb[name], va[name]) for name in vb]  # the figure table's order
     sb, sa = servo_values(before), servo_values(after)
     servos: dict[str, list[Change]] = {}
     for sid in sorted(set(sb) & set(sa), key=_id_order):
-        names = [n for n in FIGURES if n in sb[sid] or n in sa[sid]]
-        servos[sid] = [Change(n, sid, sb[sid].get(n, Value(None, "not seen", "")),
-                              sa[sid].get(n, Value(None, "not seen", ""))) for n in names]
+        servos[sid] = [Change(n, sid, sb[sid][n], sa[sid][n]) for n in sb[sid]]
     only_before = [s for s in sb if s not in sa]
     only_after = [s for s in sa if s not in sb]
     findings = diff_findings(before, after)
@@ -459,13 +450,14 @@ def compare(before: Mapping[str, Any], after: Mapping[str, Any],
             changes.append(Change(name, None, zero, Value(None, findings.absent, COUNT)))
     crossings: list[Crossing] = []
     unchecked: list[Unchecked] = []
-    rows = [*bus, *changes, *(c for cs in servos.values() for c in cs)]
+    rows = [*((BUS, c) for c in bus), *((CHANGE, c) for c in changes),
+            *((SERVO, c) for cs in servos.values() for c in cs)]
     blind: list[str] = []
     for name, t in thresholds.items():
-        matched = [r for r in rows if r.figure == name]
+        held = t.scopes or FIGURES[t.figure].scopes
+        matched = [r for scope, r in rows if r.figure == t.figure and scope in held]
         if not matched:  # never a silent pass: say that there was nothing to hold to it
-            scope = FIGURES[name].scope if name in FIGURES else "bus"
-            why = "no servo in both captures has it" if scope == "servo" else "neither capture gives it"
+            why = "no servo in both captures has it" if held == (SERVO,) else "neither capture gives it"
             unchecked.append(Unchecked(name, None, t.text, why))
         checked = False
         for c in matched:
@@ -483,15 +475,13 @@ def compare(before: Mapping[str, Any], after: Mapping[str, Any],
 
 # ---- words ------------------------------------------------------------------------------------------
 def show(v: float | None, unit: str) -> str:
-    """A figure's value in words: ms for times, percent for loads."""
+    """A figure's value in words, in its unit (a count without one)."""
     if v is None:
         return "-"
-    if unit == SECONDS:
-        return f"{v * 1e3:.3f} ms"
-    if unit == FRACTION:
-        return f"{v * 100:.1f} %"
-    if unit == HZ:
-        return f"{v:.1f} Hz"
+    if unit in ("ms", "s"):
+        return f"{v:.3f} {unit}"
+    if unit in ("%", "Hz"):
+        return f"{v:.1f} {unit}"
     if unit == COUNT:
         return f"{v:g}"
     return f"{v:g} {unit}".rstrip()
@@ -505,11 +495,11 @@ def change_text(c: Change) -> str:
     if d == 0:
         return "same"
     unit = c.unit
-    if unit == SECONDS:
-        amount = f"{d * 1e3:+.3f} ms"
-    elif unit == FRACTION:
-        amount = f"{d * 100:+.1f} points"
-    elif unit == HZ:
+    if unit in ("ms", "s"):
+        amount = f"{d:+.3f} {unit}"
+    elif unit == "%":
+        amount = f"{d:+.1f} points"
+    elif unit == "Hz":
         amount = f"{d:+.1f} Hz"
     else:
         amount = f"{d:+g} {unit if unit != COUNT else ''}".rstrip()

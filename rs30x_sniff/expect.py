@@ -10,7 +10,8 @@ computes, checked at the end of input and reported as lint findings (docs/checks
 
 Three pure steps: :func:`load_checks` reads the configuration's entries (one line naming the file, the
 check, the key and the column on a mistake: :class:`ExpectError`); :func:`evaluate` measures them against
-the figures (``CaptureStats.as_dict()``, ``info --format json``'s keys) and gives a :class:`Result` per
+the figures (``CaptureStats.as_dict()``, ``info --format json``'s keys, read as the figure table
+sinks/figures.py says) and gives a :class:`Result` per
 check and servo: pass, fail (with the measured value) or not checkable (with the reason); :func:`findings`
 turns the results that are not passes into lint Findings at the end of input. A hand-written tokenizer and
 parser: nothing is ever evaluated as Python.
@@ -20,18 +21,21 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from difflib import get_close_matches
 from typing import Any
 from collections.abc import Callable, Collection, Iterable, Mapping
 
+from .language import OPERATOR_SPELLING, OPERATORS, LanguageError, parse_id_range
 from .lint.config import ConfigError
 from .lint.params import MASK, Message
 from .lint.params import Measured as Quantity
 from .lint.registry import RULES, SEVERITIES, Finding, Rule
-from .protocol.memmap import ModelError, default_registry
-from .protocol.wire import RETURN_FLAG_BITS
-from .sinks.health import PRESENT, WRITTEN
+from .sinks import figures as table
+from .sinks.figures import (A_RANGE, A_RETURN, BUS, FUNCTIONS, LINTED, REGISTERS, RULE, SERVO, TIMES_LATENCY,
+                            TIMES_LOAD, TIMES_POLLS, Capture, Figure, convert, dimension, range_name, range_seen,
+                            register_unit, unit_of, units_said)
+from .sinks.health import WRITTEN
 
 CODE = re.compile(r"U\d{3}")
 NAME = re.compile(r"[a-z][a-z0-9]*(?:-[a-z0-9]+)*")
@@ -44,82 +48,13 @@ class ExpectError(ConfigError):
     A ConfigError: the commands report it as any bad configuration value (one line, exit 2)."""
 
 
-# ---- units -------------------------------------------------------------------------------------------------
-# unit -> (dimension, its size in the dimension's base unit). A figure is measured in one of these (its
-# ``unit``); a number in a check may carry any unit of the same dimension, and is converted.
-UNITS: dict[str, tuple[str, float]] = {
-    "s": ("time", 1.0), "ms": ("time", 1e-3), "us": ("time", 1e-6), "µs": ("time", 1e-6),
-    "Hz": ("rate", 1.0), "kHz": ("rate", 1e3),
-    "%": ("fraction", 1.0),
-    "deg": ("angle", 1.0),
-    "deg/s": ("angular speed", 1.0),
-    "mA": ("current", 1.0), "A": ("current", 1e3),
-    "degC": ("temperature", 1.0),
-    "V": ("voltage", 1.0), "mV": ("voltage", 1e-3),
-}
-
-
-def _units_of(dimension: str) -> str:
-    return ", ".join(u for u, (d, _) in UNITS.items() if d == dimension and u != "µs")
-
-
 # ---- the figures -------------------------------------------------------------------------------------------
-# A measured figure: its value in the figure's unit, or None with the reason it cannot be given.
+# The names of the language: the figure table's (sinks/figures.py) that one capture gives; a register's range is
+# written min(register) / max(register). A measured figure: its value in the figure's unit, or None and why not.
 Measured = tuple[float | None, str]
-BUS, SERVO = "bus", "servo"
-
-
-@dataclass(frozen=True)
-class Figure:
-    """A name of the language: where it applies (the bus, a servo, both), its unit (None: a count) and
-    what it is; how it is measured is :func:`_measure`'s."""
-
-    name: str
-    scopes: tuple[str, ...]
-    unit: str | None
-    doc: str
-
-
-_FIGURES = [
-    Figure("poll_hz", (SERVO,), "Hz",
-           "requests asking the servo for a reply, per second, within time segments (info's poll rate)"),
-    Figure("requests", (SERVO, BUS), None, "short packets addressed to the servo (bus: to any servo)"),
-    Figure("reads", (SERVO, BUS), None, "requests that asked for a reply"),
-    Figure("long_writes", (SERVO, BUS), None, "records for the servo in long packets"),
-    Figure("returns", (SERVO, BUS), None, "return packets heard from the servo"),
-    Figure("acks", (SERVO, BUS), None, "ACKs heard"),
-    Figure("nacks", (SERVO, BUS), None, "NACKs heard"),
-    Figure("missing_replies", (SERVO, BUS), None, "requests that asked for a reply and got none"),
-    Figure("unsolicited_replies", (SERVO, BUS), None,
-           "replies no request asked for (lint's B003 findings: needs the linter with B003 on)"),
-    Figure("findings", (SERVO, BUS), None, "lint findings (a servo's: those naming it); needs the linter"),
-    *(Figure(flag, (SERVO, BUS), None, f"returns carrying the {flag} status flag (needs a return)")
-      for flag in RETURN_FLAG_BITS.values()),
-    Figure("duration", (BUS,), "s", "seconds from the first to the last byte, over the time segments"),
-    Figure("bytes", (BUS,), None, "bytes of the capture"),
-    Figure("packets", (BUS,), None, "packets (records that are not garbage)"),
-    Figure("bad_checksums", (BUS,), None, "packets whose checksum is wrong"),
-    Figure("garbage_bytes", (BUS,), None, "bytes that are no packet"),
-    Figure("servos", (BUS,), None, "servo IDs the traffic names"),
-    Figure("segments", (BUS,), None, "time segments (the capture's clock restarts or resumes between them)"),
-    Figure("bus_load", (BUS,), "%", "share of the capture's time the line was busy"),
-    Figure("bus_load_peak", (BUS,), "%", "the busiest one-second window's load"),
-    Figure("latency_p50", (SERVO, BUS), "ms", "median reply latency (a servo's: over its replies)"),
-    Figure("latency_p95", (SERVO, BUS), "ms", "95th percentile of the reply latency"),
-    Figure("latency_max", (SERVO, BUS), "ms", "longest reply latency"),
-]
-FIGURES: dict[str, Figure] = {f.name: f for f in _FIGURES}
-# min(register) / max(register): the range a servo's returns (goal_position: the host's writes) showed.
-REGISTERS = (*PRESENT, *WRITTEN)
-FUNCTIONS = ("min", "max")
-
-
-def register_unit(name: str) -> str | None:
-    """The unit the bundled default model gives ``name`` (None: none, or no such register)."""
-    try:
-        return default_registry().default.register(name).unit or None
-    except (KeyError, ModelError):
-        return None
+FIGURES: dict[str, Figure] = {f.name: f for f in table.TABLE if f.checkable and f.needs != A_RANGE}
+RANGES: dict[str, Figure] = {f.name: f for f in table.TABLE if f.needs == A_RANGE}
+__all__ = ["BUS", "SERVO", "FIGURES", "REGISTERS", "FUNCTIONS", "register_unit"]
 
 
 # ---- the expression: tokens --------------------------------------------------------------------------------
@@ -134,16 +69,13 @@ class Token:
 _TOKEN = re.compile(r"""
     (?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)
   | (?P<word>[A-Za-zµ_][A-Za-z0-9µ_]*(?:/[A-Za-z]+)?)
-  | (?P<op><=|>=|==|!=|<|>)
+  | (?P<op><=|>=|==|!=|<|>|=)
   | (?P<paren>[()])
   | (?P<percent>%)
 """, re.VERBOSE)
-COMPARISONS = ("<", "<=", ">", ">=", "==", "!=")
+COMPARISONS = ("<", "<=", ">", ">=", "==", "!=")  # and "=", read as "==" (language.OPERATORS)
 _NEGATED = {"<": ">=", "<=": ">", ">": "<=", ">=": "<", "==": "!=", "!=": "=="}
 _FLIPPED = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
-_TEST: dict[str, Callable[[float, float], bool]] = {
-    "<": lambda a, b: a < b, "<=": lambda a, b: a <= b, ">": lambda a, b: a > b, ">=": lambda a, b: a >= b,
-    "==": lambda a, b: a == b, "!=": lambda a, b: a != b}
 
 
 class _ParseError(Exception):
@@ -162,8 +94,6 @@ def tokenize(text: str) -> list[Token]:
             break
         m = _TOKEN.match(text, j)
         if m is None:
-            if text[j] == "=":
-                raise _ParseError(j + 1, "'=' is no comparison: write '=='")
             raise _ParseError(j + 1, f"unexpected {text[j]!r}")
         kind = m.lastgroup or ""
         kind = {"paren": m.group(), "percent": "%"}.get(kind, kind)
@@ -188,6 +118,11 @@ class Operand:
     def is_figure(self) -> bool:
         return self.name is not None
 
+    @property
+    def figure(self) -> Figure:
+        """The figure table's row this operand names (a figure operand only)."""
+        return RANGES[range_name(self.func, self.name or "")] if self.func else FIGURES[self.name or ""]
+
 
 @dataclass(frozen=True)
 class Comparison:
@@ -197,18 +132,19 @@ class Comparison:
     col: int
 
 
-def _dimension(unit: str | None) -> str | None:
-    return None if unit is None else UNITS.get(unit, (f"in {unit}", 1.0))[0]
+def _known(unit: str | None) -> bool:
+    return unit_of(unit) is not None
 
 
 def _what(unit: str | None) -> str:
-    """How a message names a dimension: 'a time (s, ms, us)', 'a count'."""
+    """How a message names a dimension: 'a time (ns, us, ms, s, min, h, d)', 'a count'."""
     if unit is None:
         return "a count (no unit)"
-    dim = _dimension(unit) or ""
-    units = _units_of(dim) if unit in UNITS else unit
+    if not _known(unit):
+        return f"measured in {unit}"
+    dim = dimension(unit) or ""
     article = "an" if dim[:1] in "aeiou" else "a"
-    return f"{article} {dim} ({units})" if unit in UNITS else f"measured in {unit}"
+    return f"{article} {dim} ({units_said(dim)})"
 
 
 def parse_check(text: str, scope: str) -> list[Comparison]:
@@ -236,12 +172,13 @@ def parse_check(text: str, scope: str) -> list[Comparison]:
             if not math.isfinite(float(t.text)):  # 1e999: a typo, never a limit
                 raise _ParseError(t.col, f"{t.text} is not a finite number")
             nxt = peek()
-            if nxt is not None and (nxt.kind == "%" or (nxt.kind == "word" and nxt.text in UNITS)):
+            if nxt is not None and (nxt.kind == "%" or (nxt.kind == "word" and _known(nxt.text))):
                 pos += 1
                 return Operand(t.col, f"{t.text} {nxt.text}" if nxt.spaced else t.text + nxt.text,
                                value=float(t.text), unit=nxt.text)
             if nxt is not None and nxt.kind == "word" and not nxt.spaced:
-                raise _ParseError(nxt.col, f"unknown unit {nxt.text!r} (units: {', '.join(UNITS)})")
+                raise _ParseError(nxt.col, f"unknown unit {nxt.text!r} (units: {', '.join(table.UNITS)}, "
+                                           f"{units_said(table.TIME)})")
             return Operand(t.col, t.text, value=float(t.text))
         if t.kind != "word" or t.text == "and":
             raise _ParseError(t.col, f"expected a figure or a number, found {t.text!r}")
@@ -276,11 +213,11 @@ def parse_check(text: str, scope: str) -> list[Comparison]:
             return  # a bare number is in the figure's own unit
         if fig.unit is None:
             raise _ParseError(num.col, f"{fig.text} is a count: no unit ({num.text})")
-        if num.unit not in UNITS or fig.unit not in UNITS:
+        if not _known(num.unit) or not _known(fig.unit):
             if num.unit != fig.unit:
                 raise _ParseError(num.col, f"{fig.text} is {_what(fig.unit)}; {num.unit!r} does not fit")
             return
-        if _dimension(num.unit) != _dimension(fig.unit):
+        if dimension(num.unit) != dimension(fig.unit):
             raise _ParseError(num.col, f"{fig.text} is {_what(fig.unit)}; {num.unit!r} is {_what(num.unit)}")
 
     def comparison() -> Comparison:
@@ -292,13 +229,13 @@ def parse_check(text: str, scope: str) -> list[Comparison]:
             raise _ParseError(opt.col, f"expected a comparison ({' '.join(COMPARISONS)}) after {left.text}, "
                                        f"found {opt.text!r}")
         right = operand()
-        op = opt.text
+        op = OPERATOR_SPELLING.get(opt.text, opt.text)  # `=` and `==` are one operator (language.OPERATORS)
         if not left.is_figure and not right.is_figure:
             raise _ParseError(left.col, "compares two numbers: one side must be a figure")
         if not left.is_figure:
             left, right, op = right, left, _FLIPPED[op]
         if right.is_figure:
-            if _dimension(left.unit) != _dimension(right.unit):
+            if dimension(left.unit) != dimension(right.unit):
                 raise _ParseError(right.col, f"{left.text} is {_what(left.unit)}, {right.text} is "
                                              f"{_what(right.unit)}: they cannot be compared")
         else:
@@ -359,21 +296,10 @@ def parse_ids(text: str) -> tuple[int, ...] | str:
         return EACH
     if not text.startswith("id:"):
         raise ValueError(f"expected id:1-6,9 (the filter language's IDs) or \"each\", found {text!r}")
-    wanted: set[int] = set()
-    value = text[3:]
-    for part in value.split(","):
-        lo, sep, hi = part.strip().partition("-")
-        try:
-            a = int(lo, 0)
-            b = int(hi, 0) if sep else a
-        except ValueError:
-            raise ValueError(f"{part.strip()!r} is not an ID or a range like 1-6") from None
-        if not (0 <= a <= 255 and 0 <= b <= 255):
-            raise ValueError("IDs run from 0 to 255")
-        if a > b:
-            raise ValueError(f"range {part.strip()} runs backwards")
-        wanted.update(range(a, b + 1))
-    return tuple(sorted(wanted))
+    try:
+        return parse_id_range(text[3:])  # the one ID grammar (language.py), as the filters read it
+    except LanguageError as e:
+        raise ValueError(str(e)) from None
 
 
 def load_checks(entries: Any, where: str) -> list[Check]:
@@ -513,9 +439,11 @@ class Result:
 
 @dataclass
 class _Context:
-    info: Mapping[str, Any]
-    rules: frozenset[str] | None     # the lint codes that ran (None: not linted)
-    units: dict[str, str | None] = field(default_factory=dict)  # register -> its unit in these figures
+    capture: Capture                 # the figures, and the lint codes that ran (None: not linted)
+
+    @property
+    def info(self) -> Mapping[str, Any]:
+        return self.capture.info
 
     def servo_ids(self) -> list[int]:
         return sorted({int(k) for k in self.info.get("servos", {})} | {int(k) for k in self.info.get("health", {})})
@@ -524,112 +452,76 @@ class _Context:
 NO_TIMES = "the capture has no timestamps"
 
 
-def _count_of(ctx: _Context, sid: int | None, key: str) -> Measured:
-    servos = ctx.info.get("servos", {})
-    if sid is None:
-        return float(sum(s.get(key, 0) for s in servos.values())), ""
-    return float(servos[str(sid)].get(key, 0)), ""
-
-
-def _linted(ctx: _Context, code: str | None = None) -> str:
-    """Why lint-derived figures cannot be given ("": they can)."""
-    if ctx.rules is None:
-        return "the capture was not linted"
-    if code is not None and code not in ctx.rules:
-        return f"rule {code} did not run (--select/--ignore)"
-    return ""
-
-
 def _measure(ctx: _Context, op: Operand, sid: int | None) -> Measured:
-    """The figure ``op`` of servo ``sid`` (None: the bus), in the figure's unit, or None and why not."""
+    """The figure ``op`` of servo ``sid`` (None: the bus), in the figure's unit, or None and why not: read as
+    the figure table says (sinks/figures.py), its absence told in the checks' words."""
+    fig = op.figure
+    assert fig.read is not None  # the language names only the figures one capture gives
+    value = fig.read(ctx.capture, sid)
+    if value is not None:
+        return value, ""
+    return None, _WHY_ABSENT[fig.needs](ctx, fig, op, sid)
+
+
+# Why a figure is absent, by what it needs (Figure.needs); a figure that needs nothing is never absent.
+def _why_untimed_polls(ctx: _Context, fig: Figure, op: Operand, sid: int | None) -> str:
+    if not ctx.info.get("timed"):
+        return NO_TIMES
+    reads = ctx.capture.servo(sid).get("reads", 0) if sid is not None else 0
+    return f"fewer than two polls of ID {sid} in one time segment ({reads} reads)"
+
+
+def _why_no_load(ctx: _Context, fig: Figure, op: Operand, sid: int | None) -> str:
     info = ctx.info
+    if not info.get("timed"):
+        return NO_TIMES
+    if info.get("timing_unsupported"):
+        return str(info["timing_unsupported"])
+    return "the capture is shorter than one second" if fig.name == "bus_load_peak" else "the capture lasts no time"
+
+
+def _why_no_latency(ctx: _Context, fig: Figure, op: Operand, sid: int | None) -> str:
+    lat = table.latency_of(ctx.capture, sid)
+    if not ctx.info.get("timed"):
+        return NO_TIMES
+    if lat.get("absent"):  # some or all replies have no latency: a percentile over the rest is not true
+        return str(lat["absent"])
+    return "no reply was paired with its request" if sid is None else \
+        f"no reply of ID {sid} was paired with its request"
+
+
+def _why_not_linted(ctx: _Context, fig: Figure, op: Operand, sid: int | None) -> str:
+    """Why lint-derived figures cannot be given."""
+    if ctx.capture.rules is None:
+        return "the capture was not linted"
+    missing = [code for code in fig.rules if not ctx.capture.ran(code)]
+    return f"rule {missing[0]} did not run (--select/--ignore)" if missing else ""
+
+
+def _why_no_return(ctx: _Context, fig: Figure, op: Operand, sid: int | None) -> str:
+    return (f"ID {sid} sent no return: its status flags are unknown" if sid is not None
+            else "no servo sent a return: the status flags are unknown")
+
+
+def _why_no_range(ctx: _Context, fig: Figure, op: Operand, sid: int | None) -> str:
     name = op.name or ""
-    health = info.get("health", {})
-    if op.func is not None:
-        ranges = [health[str(sid)]] if sid is not None else list(health.values()) if health else []
-        got = [h["registers"][name] for h in ranges if name in h.get("registers", {})]
-        who = f"ID {sid}" if sid is not None else "no servo"
-        if not got:
-            src = "writes" if name in WRITTEN else "returns"
-            return None, f"{who} showed no {name} in its {src}" if sid is not None else \
-                f"no servo showed {name}"
-        unit = got[0].get("unit") or None
-        if op.unit is not None and unit != op.unit and _dimension(unit) != _dimension(op.unit):
-            return None, f"the memory map gives {name} in {unit or 'no unit'}"
-        vals = [r[op.func] for r in got]
-        v = min(vals) if op.func == "min" else max(vals)
-        return float(v) * UNITS.get(unit or "", ("", 1.0))[1] / UNITS.get(op.unit or "", ("", 1.0))[1], ""
-    if name == "poll_hz":
-        s = info["servos"].get(str(sid), {})
-        v = s.get("poll_rate_hz")
-        if v is not None:
-            return float(v), ""
-        if not info.get("timed"):
-            return None, NO_TIMES
-        return None, f"fewer than two polls of ID {sid} in one time segment ({s.get('reads', 0)} reads)"
-    if name == "missing_replies":
-        return _count_of(ctx, sid, "missing")
-    if name in ("requests", "reads", "long_writes", "returns", "acks", "nacks"):
-        return _count_of(ctx, sid, name)
-    if name == "unsolicited_replies":
-        why = _linted(ctx, "B003")
-        if why:
-            return None, why
-        if sid is not None:
-            return float(health.get(str(sid), {}).get("findings", {}).get("B003", 0)), ""
-        return float(sum(n for k, n in info.get("findings_by_rule", {}).items() if k.split(" ")[0] == "B003")), ""
-    if name == "findings":
-        why = _linted(ctx)
-        if why:
-            return None, why
-        if sid is not None:
-            return float(sum(health.get(str(sid), {}).get("findings", {}).values())), ""
-        return float(sum(info.get("findings", {}).values())), ""
-    if name in RETURN_FLAG_BITS.values():
-        servos = info.get("servos", {})
-        ids = [str(sid)] if sid is not None else list(servos)
-        if not any(servos.get(i, {}).get("returns", 0) for i in ids):
-            return None, (f"ID {sid} sent no return: its status flags are unknown" if sid is not None
-                          else "no servo sent a return: the status flags are unknown")
-        return float(sum(health.get(i, {}).get("flags", {}).get(name, {}).get("count", 0) for i in ids)), ""
-    if name == "servos":
-        return float(len(info.get("servos", {}))), ""
-    if name in ("bytes", "packets", "bad_checksums", "garbage_bytes", "segments"):
-        return float(info.get(name, 0)), ""
-    if name == "duration":
-        return float(info["duration_s"]), ""
-    if name in ("bus_load", "bus_load_peak"):
-        v = info.get("bus_load") if name == "bus_load" else (info.get("bus_load_peak") or {}).get("load")
-        if v is not None:
-            return float(v) * 100.0, ""
-        if not info.get("timed"):
-            return None, NO_TIMES
-        if info.get("timing_unsupported"):
-            return None, str(info["timing_unsupported"])
-        return None, ("the capture is shorter than one second" if name == "bus_load_peak"
-                      else "the capture lasts no time")
-    if name.startswith("latency_"):
-        if sid is None:
-            lat = info.get("latency_s", {})
-        else:
-            lat = info["servos"].get(str(sid), {}).get("latency_s") or {}
-        v = lat.get(name.split("_", 1)[1])
-        if not info.get("timed"):
-            return None, NO_TIMES
-        if lat.get("absent"):  # some or all replies have no latency: a percentile over the rest is not true
-            return None, str(lat["absent"])
-        if v is None:
-            return None, ("no reply was paired with its request" if sid is None
-                          else f"no reply of ID {sid} was paired with its request")
-        return float(v) * 1e3, ""
-    raise AssertionError(f"figure {name!r} has no measure")  # every name of FIGURES is measured above
+    got = range_seen(ctx.capture, sid, name)
+    if got:  # seen, in a unit of another dimension
+        return f"the memory map gives {name} in {got[0].get('unit') or 'no unit'}"
+    if sid is None:
+        return f"no servo showed {name}"
+    return f"ID {sid} showed no {name} in its {'writes' if name in WRITTEN else 'returns'}"
+
+
+_WHY_ABSENT = {TIMES_POLLS: _why_untimed_polls, TIMES_LOAD: _why_no_load, TIMES_LATENCY: _why_no_latency,
+               LINTED: _why_not_linted, RULE: _why_not_linted, A_RETURN: _why_no_return, A_RANGE: _why_no_range}
 
 
 def _scaled(value: float, op: Operand, shown: str | None) -> float:
     """``value`` (in ``op``'s unit) in the unit ``shown``."""
     if shown is None or op.unit is None or shown == op.unit:
         return value
-    return value * UNITS[op.unit][1] / UNITS[shown][1]
+    return convert(value, op.unit, shown)
 
 
 def _fmt(v: float, keeps: Callable[[float], bool] | None = None) -> str:
@@ -648,7 +540,7 @@ def _compare(ctx: _Context, c: Comparison, sid: int | None) -> tuple[str, Messag
     left, why = _measure(ctx, c.left, sid)
     if left is None:
         return NOT_CHECKABLE, Message(f"{c.left.text} not checkable: {why}")
-    test = _TEST[c.op]
+    test = OPERATORS[c.op]
     if c.right.is_figure:
         right, why = _measure(ctx, c.right, sid)
         if right is None:
@@ -656,13 +548,13 @@ def _compare(ctx: _Context, c: Comparison, sid: int | None) -> tuple[str, Messag
         limit_text = f"{c.right.text} {_fmt(right)}" + (f" {c.right.unit}" if c.right.unit else "")
         limit_key = f"{c.right.text} {MASK}" + (f" {c.right.unit}" if c.right.unit else "")
         shown = c.left.unit
-        if c.right.unit in UNITS and shown in UNITS:
+        if _known(c.right.unit) and _known(shown):
             right = _scaled(right, c.right, shown)
     else:
         assert c.right.value is not None
         right = c.right.value
         shown = c.right.unit                # the unit the check was written in (None: the figure's own)
-        if shown in UNITS and c.left.unit in UNITS:
+        if _known(shown) and _known(c.left.unit):
             left = _scaled(left, c.left, shown)
         limit_text = limit_key = c.right.text
     ok = test(left, right)
@@ -699,7 +591,7 @@ def evaluate(checks: Iterable[Check], info: Mapping[str, Any], rules: Collection
     """Each check against ``info`` (``CaptureStats.as_dict()``: ``info --format json``'s figures), per servo
     of its ``for`` (or once for the bus): pass, fail or not checkable. ``rules``: the codes of the lint rules
     that ran (None: the capture was not linted; the figures drawn from findings are then not checkable)."""
-    ctx = _Context(info, None if rules is None else frozenset(rules))
+    ctx = _Context(Capture(info, None if rules is None else frozenset(rules)))
     seen = set(ctx.servo_ids())
     out: list[Result] = []
     for check in checks:
@@ -735,9 +627,6 @@ def findings(results: Iterable[Result], offset: int, t: float | None = None) -> 
 
 
 def figures_doc() -> list[tuple[str, str, str, str]]:
-    """(name, where it applies, unit, what it is) of every name of the language, for docs/checks.md."""
-    rows = [(f.name, " and ".join(f.scopes), f.unit or "count", f.doc) for f in _FIGURES]
-    for reg in REGISTERS:
-        rows.append((f"min({reg}), max({reg})", "servo and bus", register_unit(reg) or "-",
-                     f"the range of {reg} the {'writes' if reg in WRITTEN else 'returns'} showed"))
-    return rows
+    """(name, where it applies, unit, what it is) of every name of the language (the figure table's rows that
+    one capture gives), as docs/checks.md lists them."""
+    return [(f.name, " and ".join(f.scopes), f.unit or "count", f.doc) for f in table.TABLE if f.checkable]

@@ -37,6 +37,11 @@ def _note(text: str) -> None:
         deprecation_notes.append(text)
 
 
+def note(text: str) -> None:
+    """Keep ``text`` among the deprecation notes (once): for the modules that read an old spelling."""
+    _note(text)
+
+
 def unit_scale(unit: str) -> float | None:
     """Seconds per ``unit`` (``ms`` -> 0.001), None if it is not a time unit."""
     unit = unit.lower()

@@ -10,6 +10,7 @@ import sys
 from typing import Any
 from collections.abc import Iterator
 
+from .. import language
 from ..sources import foreign
 from ..sources.captures import (
     BINARY, HEX, MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture,
@@ -160,12 +161,27 @@ def config_layer(args: argparse.Namespace) -> dict[str, Any]:
     Its user rules (``[[rule]]``, and ``[[expect]]`` figure checks as rules) become the registry's for the rest of the command (none without a
     config), so that every rule selection, report and listing takes them as it takes the built-in rules.
     """
+    _said.clear()  # a new command: its notes are said once more
     conf = _config_file(args)
+    say_deprecations()
     try:
         RULES.set_user(own_rules(conf))
     except ValueError as e:  # two of the file's own rules under one code or name
         raise CliError(f"{conf.get('source', 'config')}: {e}") from None
     return conf
+
+
+_said: set[str] = set()
+
+
+def say_deprecations() -> None:
+    """Print each note about an old spelling read so far (language.deprecation_notes: a name, unit or form that
+    still works for one release) that this command has not said yet, one line each."""
+    for text in language.deprecation_notes:
+        if text not in _said:
+            _said.add(text)
+            print(f"rs30x-sniff: warning: {text}", file=sys.stderr)
+    language.deprecation_notes.clear()
 
 
 def _config_file(args: argparse.Namespace) -> dict[str, Any]:

@@ -14,7 +14,7 @@ from ..lint.report import append_step_summary, github_escape, md_cell, md_code
 from ..sinks.pipeline import columnar_for, drive
 from ..sinks.stats import CaptureStats
 from .common import (CliError, add_decode_options, add_lint_options, add_live_options, check_positive, config_layer,
-                     is_live, live_sinks, make_linter, open_input, settings_for)
+                     is_live, live_sinks, make_linter, open_input, say_deprecations, settings_for)
 from .outputs import STDOUT, add_output_options, check_output, output_stream
 
 REGRESS = "regress"  # the configuration's table of thresholds
@@ -97,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
         check_output(args.output, args.force, inputs)  # before the work, not after
     conf = dict(config_layer(args))
     thresholds = thresholds_from(conf, args.threshold)
+    say_deprecations()  # an old figure name of --threshold (the file's were said as it was read)
     conf.pop(REGRESS, None)
     before = figures_of(args, args.before, conf)
     after = figures_of(args, args.after, conf)
@@ -226,7 +227,8 @@ def _md(text: str) -> str:
 
 def write_markdown(out: IO[str], r: Comparison) -> None:
     w = out.write
-    verdict = (f"**{len(r.crossings)} threshold{'s' if len(r.crossings) != 1 else ''} crossed**" if r.crossings
+    crossed = len({c.threshold.figure for c in r.crossings})  # a threshold crossed on the bus and servos is one
+    verdict = (f"**{crossed} threshold{'s' if crossed != 1 else ''} crossed**" if r.crossings
                else "no thresholds set" if not r.thresholds
                else "**no threshold checkable**" if len(r.blind) == len(r.thresholds)
                else "no threshold crossed")
