@@ -427,16 +427,22 @@ class Comparison:
                 "not_checkable": list(self.blind)}
 
 
+def _seen(rows: list[Change]) -> list[Change]:
+    """``rows`` without the registers neither capture showed: a range never seen is no figure of the bus or servo."""
+    return [c for c in rows if not (FIGURES[c.figure].needs == A_RANGE and c.before.value is None
+                                    and c.after.value is None)]
+
+
 def compare(before: Mapping[str, Any], after: Mapping[str, Any],
             thresholds: Mapping[str, Threshold] | None = None) -> Comparison:
     """Two captures' ``info`` figures side by side, held to ``thresholds`` (by figure name)."""
     thresholds = dict(thresholds or {})
     vb, va = bus_values(before), bus_values(after)
-    bus = [Change(name, None, vb[name], va[name]) for name in vb]  # the figure table's order
+    bus = _seen([Change(name, None, vb[name], va[name]) for name in vb])  # the figure table's order
     sb, sa = servo_values(before), servo_values(after)
     servos: dict[str, list[Change]] = {}
     for sid in sorted(set(sb) & set(sa), key=_id_order):
-        servos[sid] = [Change(n, sid, sb[sid][n], sa[sid][n]) for n in sb[sid]]
+        servos[sid] = _seen([Change(n, sid, sb[sid][n], sa[sid][n]) for n in sb[sid]])
     only_before = [s for s in sb if s not in sa]
     only_after = [s for s in sa if s not in sb]
     findings = diff_findings(before, after)

@@ -408,3 +408,26 @@ def test_a_failed_check_keeps_its_fingerprint_when_its_value_moves():
         "U101:1:ID 1: missing_replies * != 0; poll_hz not checkable: the capture has no timestamps"
     e = finding_for(0, None)
     assert fingerprint(e) == "U101:1:not checkable: ID 1: poll_hz not checkable: the capture has no timestamps"
+
+
+# ---- one grammar (issue 33): operators, durations and IDs as the filters and options read them ---------------
+def test_equals_is_one_operator_either_way():
+    info = {"timed": True, "servos": {"4": {"requests": 9, "reads": 9, "returns": 9, "missing": 0}}, "health": {}}
+    one, two = evaluate(load_checks([
+        {"code": "U101", "name": "a", "check": "missing_replies = 0", "for": "id:4"},
+        {"code": "U102", "name": "b", "check": "missing_replies == 0", "for": "id:4"}], "t.toml"), info)
+    assert (one.status, one.message) == (two.status, two.message) == (PASS, "ID 4: missing_replies 0 == 0")
+
+
+@pytest.mark.parametrize("limit, status", [("1min", PASS), ("1 min", PASS), ("2h", PASS), ("50us", FAIL),
+                                           ("0.0001s", FAIL), ("0.2ms", PASS)])
+def test_a_check_takes_every_duration_unit(limit, status):
+    info = {"timed": True, "latency_s": {"count": 3, "p50": 1e-4, "p95": 1.5e-4, "max": 2e-4}, "servos": {},
+            "health": {}}
+    (r,) = evaluate(load_checks([{"code": "U101", "name": "a", "check": f"latency_p95 < {limit}"}], "t.toml"), info)
+    assert r.status == status, r.message
+
+
+def test_ids_are_read_by_the_one_id_grammar():
+    from rs30x_sniff.language import parse_id_range
+    assert parse_ids("id:1-3, 0x10") == parse_id_range("1-3, 0x10") == (1, 2, 3, 16)
