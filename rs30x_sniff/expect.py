@@ -85,7 +85,8 @@ class _ParseError(Exception):
 
 
 def tokenize(text: str) -> list[Token]:
-    out, i, n = [], 0, len(text)
+    out: list[Token] = []
+    i, n = 0, len(text)
     while i < n:
         j = i
         while j < n and text[j].isspace():
@@ -598,7 +599,7 @@ def evaluate(checks: Iterable[Check], info: Mapping[str, Any], rules: Collection
         if check.ids is None:
             out.append(_judge(ctx, check, None))
             continue
-        ids = sorted(seen) if check.ids == EACH else list(check.ids)
+        ids = sorted(seen) if isinstance(check.ids, str) else list(check.ids)  # a str: EACH
         if not ids:
             out.append(Result(check, None, NOT_CHECKABLE, "no servo seen"))
         for sid in ids:

@@ -194,8 +194,8 @@ def write_text(out: IO[str], r: Comparison) -> None:
         return
     w(": " + ", ".join(f"{k} {t.text}" for k, t in r.thresholds.items()) + "\n")
     if r.crossings:
-        for c in r.crossings:
-            w(f"  crossed      {c.describe()}\n")
+        for x in r.crossings:
+            w(f"  crossed      {x.describe()}\n")
     elif len(r.blind) == len(r.thresholds):
         w("  none checkable\n")
     else:
@@ -235,8 +235,8 @@ def write_markdown(out: IO[str], r: Comparison) -> None:
     w(f"### rs30x-sniff diff: {verdict}\n\n")
     w(f"- before: {md_code(_side(r.before))}\n- after: {md_code(_side(r.after))}\n\n")
     if r.crossings:
-        for c in r.crossings:
-            w(f"- :x: {_md(c.describe())}\n")
+        for x in r.crossings:
+            w(f"- :x: {_md(x.describe())}\n")
         w("\n")
     if r.unchecked:
         for u in r.unchecked:

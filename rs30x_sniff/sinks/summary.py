@@ -2,15 +2,22 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from datetime import datetime, UTC
 from typing import Any
 
 from ..protocol.chunks import EPOCH_MIN
 from ..render.times import ABSOLUTE
+from .figures import FIGURES
 from .health import FLAG_NAMES, PRESENT, WRITTEN, HealthRecorder, ServoHealth
 
-# The findings the summary tells through the figures (flags, missing replies, bad bytes), not as rule lines.
-_TOLD = frozenset({"S001", "S002", "S003", "S004", "Q009", "B002", "F001", "F002"})
+# The figures the summary tells in lines of its own (the status flags, missing replies, damaged bytes): the
+# findings of their rules (the figure table's ``rules``) are not told again as rule lines. Q009 (torque switched
+# back on after the temperature limit) is told in the limit's line.
+TOLD_FIGURES = (*FLAG_NAMES, "missing_replies", "bad_checksums", "garbage_bytes")
+SWITCHED_BACK_ON = "Q009"
+TOLD = frozenset({code for name in TOLD_FIGURES for code in FIGURES[name].rules} | {SWITCHED_BACK_ON})
 _MAX_LINES = 8
 _SEV_RANK = {"error": 0, "warning": 1, "info": 2}
 
@@ -92,69 +99,107 @@ def _plural(n: int, word: str) -> str:
     return f"{n} {word}" + ("" if n == 1 else "s")
 
 
-def what_happened(stats: Any, health: dict[str, dict], when: Any, form: Any = None) -> list[dict[str, Any]]:
+When = Callable[[float | None, int], tuple[float | None, str | None]]
+
+
+@dataclass
+class _Lines:
+    """The summary's lines as they are said, and how their texts show a time (``form``: render.times.TimeForm)."""
+
+    form: Any = None
+    items: list[dict[str, Any]] = field(default_factory=list)
+
+    def at(self, t: float | None, wall: str | None) -> str:
+        return _at(t, wall, self.form)
+
+    def say(self, sev: str, sid: int | None, text: str, tw: tuple = (None, None)) -> None:
+        self.items.append({"severity": sev, "id": sid, "text": text, "t": tw[0], "wall": tw[1]})
+
+
+def what_happened(stats: Any, health: dict[str, dict], when: When, form: Any = None) -> list[dict[str, Any]]:
     """A handful of plain-language lines, most severe first: what a capture says went wrong; ``form``
     (render.times.TimeForm, started) says how their texts show times, by default as capture seconds."""
-    items: list[dict[str, Any]] = []
+    lines = _Lines(form)
+    refused = _status_lines(lines, health)
+    _refused_line(lines, refused)
+    _missing_lines(lines, stats.servos, when)
+    _damage_lines(lines, stats, when)
+    _finding_lines(lines, stats.health, when)
+    lines.items.sort(key=lambda it: _SEV_RANK[it["severity"]])  # stable: the order above ranks within a severity
+    _trim(lines, stats)
+    _load_line(lines, stats, when)
+    return lines.items
 
-    def at(t: float | None, wall: str | None) -> str:
-        return _at(t, wall, form)
 
-    def say(sev: str, sid: int | None, text: str, tw: tuple = (None, None)) -> None:
-        items.append({"severity": sev, "id": sid, "text": text, "t": tw[0], "wall": tw[1]})
-
-    rec: HealthRecorder = stats.health
-    servos = stats.servos
+def _status_lines(lines: _Lines, health: dict[str, dict]) -> list[tuple[int, dict]]:
+    """Status flags the servos themselves reported (table 4.4): the hardware's own word on what happened. Gives
+    the received-packet-error flags, told in one line for every servo (:func:`_refused_line`)."""
     refused: list[tuple[int, dict]] = []
-    # Status flags the servos themselves reported (table 4.4): the hardware's own word on what happened.
     for sid in sorted(health, key=int):
-        hv = health[sid]
-        flags, regs, found = hv["flags"], hv["registers"], hv["findings"]
-        peak = regs.get("present_temperature")
-        peak_s = f"peak {peak['max']:g} {peak['unit'] or ''}".rstrip() if peak else ""
-        lim = flags.get("temperature_limit")
-        if lim:
-            al = flags.get("temperature_alarm")
-            alarm = f"alarm from {seconds_text(al['first_t'], form)}" if al and al["first_t"] is not None else ""
-            why = ", ".join(x for x in (alarm, peak_s) if x)
-            text = f"ID {sid} reached its temperature limit{at(lim['first_t'], lim['first_wall'])}" + \
-                (f" ({why})" if why else "")
-            q = found.get("Q009", 0)
-            text += (f" and was switched back on {_times(q)} (Q009)" if q else " and cut its torque")
-            say("error", int(sid), text, (lim["first_t"], lim["first_wall"]))
-        elif "temperature_alarm" in flags:
-            al = flags["temperature_alarm"]
-            say("warning", int(sid), f"ID {sid} came within 10 degC of its temperature limit"
-                f"{at(al['first_t'], al['first_wall'])}" + (f" ({peak_s})" if peak_s else ""),
-                (al["first_t"], al["first_wall"]))
+        flags = health[sid]["flags"]
+        _temperature_line(lines, int(sid), health[sid])
         fe = flags.get("flash_write_error")
         if fe:
-            say("error", int(sid), f"ID {sid} reported a failed flash ROM write{at(fe['first_t'], fe['first_wall'])}",
-                (fe["first_t"], fe["first_wall"]))
+            lines.say("error", int(sid), f"ID {sid} reported a failed flash ROM write"
+                      f"{lines.at(fe['first_t'], fe['first_wall'])}", (fe["first_t"], fe["first_wall"]))
         re_ = flags.get("received_packet_error")
         if re_:
             refused.append((int(sid), re_))
-    # Packets the servos could not accept: one line, however many servos said so (one bad host, usually).
-    if refused:
-        n = sum(v["count"] for _, v in refused)
-        first = min((v for _, v in refused), key=lambda v: (v["first_t"] is None, v["first_t"] or 0))
-        ids = [sid for sid, _ in refused]
-        who = f"ID {ids[0]}" if len(ids) == 1 else "IDs " + _ids(ids)
-        say("warning", ids[0] if len(ids) == 1 else None,
-            f"{who} flagged {_plural(n, 'packet')} {'it' if len(ids) == 1 else 'they'} could not accept "
-            f"(status bit 1), first"
-            f"{at(first['first_t'], first['first_wall'])}", (first["first_t"], first["first_wall"]))
-    # Replies that never came.
+    return refused
+
+
+def _temperature_line(lines: _Lines, sid: int, hv: dict) -> None:
+    """A servo at its temperature limit (torque cut, or switched back on: Q009), or at its alarm."""
+    flags, regs, found = hv["flags"], hv["registers"], hv["findings"]
+    peak = regs.get("present_temperature")
+    peak_s = f"peak {peak['max']:g} {peak['unit'] or ''}".rstrip() if peak else ""
+    lim = flags.get("temperature_limit")
+    if lim:
+        al = flags.get("temperature_alarm")
+        alarm = f"alarm from {seconds_text(al['first_t'], lines.form)}" if al and al["first_t"] is not None else ""
+        why = ", ".join(x for x in (alarm, peak_s) if x)
+        text = f"ID {sid} reached its temperature limit{lines.at(lim['first_t'], lim['first_wall'])}" + \
+            (f" ({why})" if why else "")
+        q = found.get(SWITCHED_BACK_ON, 0)
+        text += (f" and was switched back on {_times(q)} ({SWITCHED_BACK_ON})" if q else " and cut its torque")
+        lines.say("error", sid, text, (lim["first_t"], lim["first_wall"]))
+    elif "temperature_alarm" in flags:
+        al = flags["temperature_alarm"]
+        lines.say("warning", sid, f"ID {sid} came within 10 degC of its temperature limit"
+                  f"{lines.at(al['first_t'], al['first_wall'])}" + (f" ({peak_s})" if peak_s else ""),
+                  (al["first_t"], al["first_wall"]))
+
+
+def _refused_line(lines: _Lines, refused: list[tuple[int, dict]]) -> None:
+    """Packets the servos could not accept: one line, however many servos said so (one bad host, usually)."""
+    if not refused:
+        return
+    n = sum(v["count"] for _, v in refused)
+    first = min((v for _, v in refused), key=lambda v: (v["first_t"] is None, v["first_t"] or 0))
+    ids = [sid for sid, _ in refused]
+    who = f"ID {ids[0]}" if len(ids) == 1 else "IDs " + _ids(ids)
+    lines.say("warning", ids[0] if len(ids) == 1 else None,
+              f"{who} flagged {_plural(n, 'packet')} {'it' if len(ids) == 1 else 'they'} could not accept "
+              f"(status bit 1), first"
+              f"{lines.at(first['first_t'], first['first_wall'])}", (first["first_t"], first["first_wall"]))
+
+
+def _missing_lines(lines: _Lines, servos: dict, when: When) -> None:
+    """Replies that never came."""
     for sid, st in sorted(servos.items()):
         if not st.missing:
             continue
         tw = when(*st.first_missing) if st.first_missing else (None, None)
         if st.returns + st.acks + st.nacks == 0:
-            say("error", sid, f"ID {sid} never answered: {_plural(st.missing, 'request')} missing", tw)
+            lines.say("error", sid, f"ID {sid} never answered: {_plural(st.missing, 'request')} missing", tw)
         else:
             asked = st.missing + st.answered  # requests that asked for a reply, not the replies heard
-            say("error", sid, f"ID {sid} left {st.missing} of {asked} requests unanswered, first{at(*tw)}", tw)
-    # Damaged traffic.
+            lines.say("error", sid, f"ID {sid} left {st.missing} of {asked} requests unanswered, first{lines.at(*tw)}",
+                      tw)
+
+
+def _damage_lines(lines: _Lines, stats: Any, when: When) -> None:
+    """Damaged traffic: packets with a bad checksum (by kind, with the IDs they claim), bytes of no frame."""
     if stats.bad_checksums:
         by_kind: dict[str, list] = {}
         for (kind, sid), n in stats.bad_by.items():
@@ -170,46 +215,59 @@ def what_happened(stats: Any, health: dict[str, dict], when: Any, form: Any = No
                                             if prep and ids else ""))
         sole = by_kind.get("return", [0, set()])[1]
         sid = next(iter(sole)) if len(by_kind) == 1 and len(sole) == 1 else None
-        say("error", sid, "; ".join(parts) + " with a bad checksum", when(*stats.first_bad))
+        lines.say("error", sid, "; ".join(parts) + " with a bad checksum", when(*stats.first_bad))
     if stats.garbage_bytes:
-        say("warning", None, f"{_plural(stats.garbage_bytes, 'byte')} of garbage (no intact frame)",
-            when(*stats.first_garbage))
-    # What the linter found that the lines above do not already tell.
+        lines.say("warning", None, f"{_plural(stats.garbage_bytes, 'byte')} of garbage (no intact frame)",
+                  when(*stats.first_garbage))
+
+
+def _finding_lines(lines: _Lines, rec: HealthRecorder, when: When) -> None:
+    """What the linter found that the lines above do not already tell (TOLD), most severe and frequent first."""
     for code, (n, t, off, sev, name, ids) in sorted(rec.codes.items(), key=lambda kv: (_SEV_RANK.get(kv[1][3], 3),
                                                                                        -kv[1][0])):
-        if code in _TOLD or sev == "info":
+        if code in TOLD or sev == "info":
             continue
         who = ""
         if ids:
             who = (" from ID " if len(ids) == 1 else " from IDs ") + _ids(sorted(ids))
         tw = when(t, off)
         sole = next(iter(ids)) if len(ids) == 1 else None
-        say(sev, sole, f"{code} {name}: {_times(n)}{who}, first{at(*tw)}", tw)
-    items.sort(key=lambda it: _SEV_RANK[it["severity"]])  # stable: the order above ranks within a severity
+        lines.say(sev, sole, f"{code} {name}: {_times(n)}{who}, first{lines.at(*tw)}", tw)
+
+
+def _trim(lines: _Lines, stats: Any) -> None:
+    """At most _MAX_LINES lines (the last one says how many more); none at all says so, empty or clean."""
+    items = lines.items
     if len(items) > _MAX_LINES:
         rest = items[_MAX_LINES - 1:]
-        items = items[:_MAX_LINES - 1]
-        say(rest[0]["severity"], None, f"and {len(rest)} more: see the findings and the health table")
+        del items[_MAX_LINES - 1:]
+        lines.say(rest[0]["severity"], None, f"and {len(rest)} more: see the findings and the health table")
     if not items and not stats.bytes:
-        say("warning", None, "nothing to tell: the capture holds no data")  # empty is no clean bill of health
+        lines.say("warning", None, "nothing to tell: the capture holds no data")  # empty is no clean bill of health
     elif not items:
+        servos = stats.servos
         answered = sum(st.returns + st.acks + st.nacks for st in servos.values())
-        say("info", None, f"nothing wrong seen: {_plural(len(servos), 'servo')}, {answered} replies, none missing, "
-            "no status flags, no damaged packets")
-    # The bus load, last: a figure to know whether or not anything went wrong.
+        lines.say("info", None, f"nothing wrong seen: {_plural(len(servos), 'servo')}, {answered} replies, none "
+                  "missing, no status flags, no damaged packets")
+
+
+def _load_line(lines: _Lines, stats: Any, when: When) -> None:
+    """The bus load, last: a figure to know whether or not anything went wrong (a warning near a full bus)."""
     peak = stats.load_peak
-    if peak is not None:
-        load, start = peak
-        tw = when(start, 0)
-        sev = "warning" if load >= 0.95 else "info"
-        line = {"severity": sev, "id": None, "t": tw[0], "wall": tw[1],
-                "text": f"the bus load peaked at {load * 100:.0f} % in the second from "
-                        f"{seconds_text(tw[0], form)}, "
-                        f"{(stats.bus_load or 0) * 100:.0f} % on average"
-                        + ("; little room for more traffic" if sev == "warning" else "")}
-        if sev == "warning":
-            k = next((i for i, it in enumerate(items) if it["severity"] == "info"), len(items))
-            items.insert(k, line)
-        else:
-            items.append(line)
-    return items
+    if peak is None:
+        return
+    load, start = peak
+    tw = when(start, 0)
+    assert tw[0] is not None  # a peak needs times: its start has a capture time
+    sev = "warning" if load >= 0.95 else "info"
+    line = {"severity": sev, "id": None, "t": tw[0], "wall": tw[1],
+            "text": f"the bus load peaked at {load * 100:.0f} % in the second from "
+                    f"{seconds_text(tw[0], lines.form)}, "
+                    f"{(stats.bus_load or 0) * 100:.0f} % on average"
+                    + ("; little room for more traffic" if sev == "warning" else "")}
+    items = lines.items
+    if sev == "warning":
+        k = next((i for i, it in enumerate(items) if it["severity"] == "info"), len(items))
+        items.insert(k, line)
+    else:
+        items.append(line)
