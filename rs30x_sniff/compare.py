@@ -32,11 +32,11 @@ from __future__ import annotations
 import math
 import re
 from difflib import get_close_matches
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 from collections.abc import Mapping
 
-from .language import note
+from .language import LanguageError, note, parse_id_range
 from .sinks.figures import (A_RANGE, A_RETURN, BUS, CHANGE, DOWN, FIGURES, LINTED, NEITHER, OLD_THRESHOLD_NAMES, RULE,
                             SERVO, TIMES_LATENCY, TIMES_LOAD, TIMES_POLLS, UP, Capture, Figure, dimension, unit_of)
 
@@ -61,6 +61,13 @@ class Threshold:
     amount: float | None = None
     text: str = ""                  # as written in the configuration
     scopes: tuple[str, ...] = ()    # () : every scope of the figure
+    ids: tuple[int, ...] | None = None  # the servos it holds (None: every one)
+
+    def holds(self, scope: str, servo: str | None) -> bool:
+        """Whether a row of ``scope`` (and ``servo``, its ID as text) is held to this threshold."""
+        if scope not in (self.scopes or FIGURES[self.figure].scopes):
+            return False
+        return self.ids is None or servo is None or (servo.isdigit() and int(servo) in self.ids)
 
     def crossed(self, before: float, after: float) -> bool:
         if self.percent is not None:
@@ -83,9 +90,10 @@ def figure_named(key: str, where: str) -> tuple[Figure, tuple[str, ...]]:
     old = OLD_THRESHOLD_NAMES.get(name)
     if old is not None:
         new, scope = old
-        where_said = "the bus" if scope == BUS else "each servo"
-        note(f"{where}: regress.{key} is now {new!r} (which holds the bus and each servo; {key} held {where_said} "
-             f"only): the old name will be refused in the next release")
+        shown = f'"{new}"' if "(" in new else new  # a TOML key with parentheses is quoted
+        held = FOR_BUS if scope == BUS else FOR_EACH
+        note(f"{where}: regress.{key} is now {shown} = {{ limit = ..., for = \"{held}\" }} ({new} alone holds the "
+             f"bus and each servo): the old name will be refused in the next release")
         return FIGURES[new], (scope,)
     fig = FIGURES.get(name)
     if fig is None:
@@ -115,11 +123,54 @@ def _amount(fig: Figure, number: float, unit: str | None, label: str, where: str
     return number * a[1] / b[1]
 
 
+FOR_BUS, FOR_EACH = "bus", "each"
+
+
+def _scoped(fig: Figure, key: str, value: Mapping[str, Any], where: str) -> tuple[Any, tuple[str, ...], Any]:
+    """``{ limit = "+20%", for = "each" }``: the limit, and the scopes and IDs ``for`` holds (as a check's
+    ``for``: "each", "id:1-6"; and "bus", the whole bus alone)."""
+    label = f"{where}: regress.{key}"
+    unknown = [k for k in value if k not in ("limit", "for")]
+    if unknown or "limit" not in value:
+        raise ThresholdError(f"{label}: expected {{ limit = \"+20%\", for = \"each\" }} (keys: limit, for)")
+    said = value.get("for", None)
+    if said is None:
+        return value["limit"], (), None
+    if not isinstance(said, str):
+        raise ThresholdError(f"{label}.for = {said!r}: expected \"bus\", \"each\" or \"id:1-6\"")
+    said = said.strip()
+    if said == FOR_BUS:
+        scopes: tuple[str, ...] = (BUS,)
+        ids = None
+    elif said == FOR_EACH or said.startswith("id:"):
+        scopes = (SERVO,)
+        try:
+            ids = None if said == FOR_EACH else parse_id_range(said[3:])
+        except LanguageError as e:
+            raise ThresholdError(f"{label}.for = {said!r}: {e}") from None
+    else:
+        raise ThresholdError(f"{label}.for = {said!r}: expected \"bus\", \"each\" or \"id:1-6\"")
+    if scopes[0] not in fig.scopes:
+        raise ThresholdError(f"{label}.for = {said!r}: {fig.name} is no figure of "
+                             f"{'the whole bus' if scopes == (BUS,) else 'each servo'}")
+    return value["limit"], scopes, ids
+
+
 def parse_threshold(key: str, value: Any, where: str) -> Threshold:
-    """One ``[regress]`` entry, checked; ``where`` names the file (and table) in the error's one line."""
-    label = f"{where}: regress.{key} = {value!r}"
+    """One ``[regress]`` entry, checked; ``where`` names the file (and table) in the error's one line. A table
+    ``{ limit = "+20%", for = "each" }`` holds the figure where ``for`` says."""
     fig, scopes = figure_named(key, where)
+    ids = None
+    if isinstance(value, Mapping):
+        value, scopes, ids = _scoped(fig, key, value, where)
+    label = f"{where}: regress.{key} = {value!r}"
+    t = _limit(fig, key, value, where, label)
+    return replace(t, scopes=scopes or t.scopes, ids=ids)
+
+
+def _limit(fig: Figure, key: str, value: Any, where: str, label: str) -> Threshold:
     name = fig.name
+    scopes: tuple[str, ...] = ()
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise ThresholdError(f"{label}: expected a number or a text such as \"+20%\" or \"+0\"")
     if isinstance(value, (int, float)):
@@ -461,7 +512,7 @@ def compare(before: Mapping[str, Any], after: Mapping[str, Any],
     blind: list[str] = []
     for name, t in thresholds.items():
         held = t.scopes or FIGURES[t.figure].scopes
-        matched = [r for scope, r in rows if r.figure == t.figure and scope in held]
+        matched = [r for scope, r in rows if r.figure == t.figure and t.holds(scope, r.servo)]
         if not matched:  # never a silent pass: say that there was nothing to hold to it
             why = "no servo in both captures has it" if held == (SERVO,) else "neither capture gives it"
             unchecked.append(Unchecked(name, None, t.text, why))

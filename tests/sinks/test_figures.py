@@ -11,7 +11,7 @@ import pytest
 from rs30x_sniff import language
 from rs30x_sniff.cli import main
 from rs30x_sniff.commands.simulate import write_file
-from rs30x_sniff.compare import bus_values, compare, parse_threshold, parse_thresholds, servo_values
+from rs30x_sniff.compare import ThresholdError, bus_values, compare, parse_threshold, parse_thresholds, servo_values
 from rs30x_sniff.expect import FIGURES as CHECK_FIGURES
 from rs30x_sniff.expect import NOT_CHECKABLE, PASS, evaluate, load_checks
 from rs30x_sniff.sim import scenarios
@@ -106,6 +106,38 @@ def test_an_old_threshold_name_gives_the_same_result_with_one_note(old):
                     for c in want.crossings if (c.change.servo is None) == (scope == BUS)]
 
 
+@pytest.mark.parametrize("old", sorted(OLD_THRESHOLD_NAMES))
+def test_the_note_says_the_new_spelling_that_holds_the_same(old):
+    """The spelling the note gives, { limit, for }, gives the old name's crossings exactly."""
+    new, scope = OLD_THRESHOLD_NAMES[old]
+    before = _figures(latency=0.0001, missing=0, temp=40.0)
+    after = _figures(latency=0.0002, missing=3, temp=50.0)
+    crossings = [compare(before, after, parse_thresholds(table, "t.toml")).crossings
+                 for table in ({old: "+0"}, {new: {"limit": "+0", "for": "bus" if scope == BUS else "each"}})]
+    assert [(c.change.servo, c.change.after.value) for c in crossings[0]] == \
+        [(c.change.servo, c.change.after.value) for c in crossings[1]] != []
+
+
+@pytest.mark.parametrize("value, words", [
+    ({"limit": "+0", "for": "id:9-1"}, "runs backwards"), ({"limit": "+0", "for": "all"}, 'expected "bus"'),
+    ({"for": "each"}, "keys: limit, for"), ({"limit": "+0", "fore": "bus"}, "keys: limit, for"),
+])
+def test_a_bad_scoped_threshold_is_one_line(value, words):
+    with pytest.raises(ThresholdError) as e:
+        parse_threshold("missing_replies", value, "t.toml")
+    assert str(e.value).startswith("t.toml: regress.missing_replies") and words in str(e.value)
+    with pytest.raises(ThresholdError, match="poll_hz is no figure of the whole bus"):
+        parse_threshold("poll_hz", {"limit": "-10%", "for": "bus"}, "t.toml")
+
+
+def test_a_threshold_for_some_servos_holds_those_alone():
+    before, after = _figures(missing=0), _figures(missing=3)  # servo 1 misses replies
+    some = parse_thresholds({"missing_replies": {"limit": "+0", "for": "id:2"}}, "t.toml")
+    assert not compare(before, after, some).crossings
+    one = parse_thresholds({"missing_replies": {"limit": "+0", "for": "id:1-2"}}, "t.toml")
+    assert [c.change.servo for c in compare(before, after, one).crossings] == ["1"]
+
+
 def test_a_bus_load_fraction_reads_as_its_percentage_points_with_a_note():
     before, after = _figures(load=0.20), _figures(load=0.26)
     language.deprecation_notes.clear()
@@ -128,7 +160,8 @@ def test_the_command_prints_an_old_names_note_once(capsys, tmp_path):
     err = capsys.readouterr().err
     notes = [line for line in err.splitlines() if "will be refused in the next release" in line]
     assert len(notes) == 2 and all(n.startswith("rs30x-sniff: warning: ") for n in notes), err
-    assert "missing_replies_total is now 'missing_replies'" in notes[0]
+    assert 'missing_replies_total is now missing_replies = { limit = ..., for = "bus" }' in notes[0]
+    assert 'goal_position_max is now "max(goal_position)" = { limit = ..., for = "each" }' in notes[1]
     # lint reads the same file: the same notes, once each.
     main(["lint", str(cap), "--config", str(conf), "--fail-on", "never", "--format", "json"])
     err = capsys.readouterr().err
