@@ -40,8 +40,6 @@ from .language import LanguageError, note, parse_id_range
 from .sinks.figures import (A_RANGE, A_RETURN, BUS, CHANGE, DOWN, FIGURES, LINTED, NEITHER, OLD_THRESHOLD_NAMES, RULE,
                             SERVO, TIMES_LATENCY, TIMES_LOAD, TIMES_POLLS, UP, Capture, Figure, dimension, unit_of)
 
-__all__ = ["DOWN", "FIGURES", "UP", "Figure"]
-
 UNSOLICITED_RULE = FIGURES["unsolicited_replies"].rules[0]  # unsolicited-return: the linter counts them
 COUNT = "count"  # the unit a count is shown with in diff's JSON
 

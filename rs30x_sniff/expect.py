@@ -54,7 +54,6 @@ class ExpectError(ConfigError):
 Measured = tuple[float | None, str]
 FIGURES: dict[str, Figure] = {f.name: f for f in table.TABLE if f.checkable and f.needs != A_RANGE}
 RANGES: dict[str, Figure] = {f.name: f for f in table.TABLE if f.needs == A_RANGE}
-__all__ = ["BUS", "SERVO", "FIGURES", "REGISTERS", "FUNCTIONS", "register_unit"]
 
 
 # ---- the expression: tokens --------------------------------------------------------------------------------
