@@ -8,7 +8,7 @@ a second). Two events are equal when their kind and every field are equal.
 from __future__ import annotations
 
 from operator import itemgetter
-from typing import Any
+from typing import Any, Literal
 
 from .wire import (
     EXPECT_BY_MODE, FLAG_WANTS_ACK, RETURN_MODE_MASK, Expect, command_names, expects, return_flag_names,
@@ -31,8 +31,14 @@ class Event(tuple):
     """Common to every event: where it sits in the byte stream and when it was on the wire."""
 
     __slots__ = ()
-    kind = "event"
+    kind: str = "event"
     _fields: tuple[str, ...] = _COMMON
+    # The fields, declared for the type checker only (no class attribute, no cost): _with_fields makes each one
+    # a property reading the tuple's item, which the checker cannot see.
+    offset: int
+    raw: bytes
+    t_start: float | None
+    t_end: float | None
     checksum_ok = True  # overridden by packets, which carry a Sum
 
     def __new__(cls, *args: Any, **kwargs: Any):
@@ -80,7 +86,14 @@ class ShortPacket(Event):
     """An ``FA AF`` request to one servo (or to all with ID 255)."""
 
     __slots__ = ()
-    kind = "short"
+    kind: Literal["short"] = "short"
+    id: int
+    flag: int
+    address: int
+    length: int
+    count: int
+    data: bytes
+    checksum_ok: bool
 
     @property
     def return_mode(self) -> int:
@@ -142,8 +155,14 @@ class LongPacket(Event):
     """An ``FA AF`` packet with ID 0 writing the same address range to several servos."""
 
     __slots__ = ()
-    kind = "long"
+    kind: Literal["long"] = "long"
     id = 0
+    flag: int
+    address: int
+    length: int
+    count: int
+    records: tuple[LongRecord, ...]
+    checksum_ok: bool
 
     @property
     def data(self) -> bytes:
@@ -157,7 +176,14 @@ class ReturnPacket(Event):
     """An ``FD DF`` packet from a servo: memory it was asked for, and its status flags."""
 
     __slots__ = ()
-    kind = "return"
+    kind: Literal["return"] = "return"
+    id: int
+    flags: int
+    address: int
+    length: int
+    count: int
+    data: bytes
+    checksum_ok: bool
 
     @property
     def flag_names(self) -> tuple[str, ...]:
@@ -171,7 +197,7 @@ class Ack(Event):
     """The single byte 07 a servo sends when a request asked for ACK/NACK (table 4.3, mode 0001)."""
 
     __slots__ = ()
-    kind = "ack"
+    kind: Literal["ack"] = "ack"
 
 
 _with_fields(Ack, _COMMON)
@@ -181,7 +207,7 @@ class Nack(Event):
     """The single byte 08: the servo refused or did not understand the request."""
 
     __slots__ = ()
-    kind = "nack"
+    kind: Literal["nack"] = "nack"
 
 
 _with_fields(Nack, _COMMON)
@@ -191,8 +217,9 @@ class Garbage(Event):
     """A run of bytes that is no intact frame, with the reason it was skipped."""
 
     __slots__ = ()
-    kind = "garbage"
+    kind: Literal["garbage"] = "garbage"
     checksum_ok = False
+    reason: str
 
 
 _with_fields(Garbage, _COMMON + ("reason",))
