@@ -20,7 +20,7 @@ from ..sinks.mcap.writer import McapSink
 from ..sinks.pipeline import drive
 from ..sources.serial_tap import STOP_SIGNALS
 from .common import CliError
-from .parts import Keep, retire
+from ..sinks.parts import Keep, retire
 
 PRE, POST = "60s", "10s"  # --pre and --post unless given
 # The options of the black box alone, and those of recording the whole bus: each is refused in the other mode.

@@ -11,6 +11,7 @@ from typing import Any
 from collections.abc import Iterator
 
 from .. import language
+from ..errors import CliError
 from ..sources import foreign
 from ..sources.captures import (
     BINARY, HEX, MCAP, MCAP_MAGIC, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format, read_capture,
@@ -28,10 +29,6 @@ from ..settings import COMMAND_LINE, DEFAULTS, Settings, SettingsError, find_con
 
 
 TIMESTAMP_SAMPLE = 2000  # chunks of a timestamped capture read ahead to tell its baud rate
-
-
-class CliError(Exception):
-    """A usage, configuration or input error: printed as one line, exit code 2."""
 
 
 def add_decode_options(p: argparse.ArgumentParser) -> None:

@@ -17,7 +17,7 @@ from ..settings import Settings
 from ..sinks.lines import ProgressSink
 from .common import (CliError, add_decode_options, add_lint_options, capture_start_time, make_linter, open_input,
                      settings_for)
-from .outputs import STDOUT, check_output, output_binary, report_end
+from ..sinks.outputs import STDOUT, check_output, output_binary, report_end
 
 
 # A file is converted in chunks of up to 1 MiB (still cut at 1 s of log time): the summary lists every

@@ -11,7 +11,8 @@ from ..sinks.lines import JsonlSink, TextSink
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, add_time_format_option,
                      capture_start_time, check_positive, is_live, live_sinks, make_linter, no_data, open_input,
                      settings_for, time_form)
-from .outputs import add_output_options, output_stream
+from ..sinks.outputs import output_stream
+from .outputs import add_output_options
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

@@ -15,7 +15,8 @@ from ..sinks.pipeline import columnar_for, drive
 from ..sinks.stats import CaptureStats
 from .common import (CliError, add_decode_options, add_lint_options, add_live_options, check_positive, config_layer,
                      is_live, live_sinks, make_linter, open_input, say_deprecations, settings_for)
-from .outputs import STDOUT, add_output_options, check_output, output_stream
+from ..sinks.outputs import STDOUT, check_output, output_stream
+from .outputs import add_output_options
 
 REGRESS = "regress"  # the configuration's table of thresholds
 

@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from ..sources.captures import BINARY, HEX, MCAP, TIMESTAMPED, Chunk, detect_format, format_for_output, write_capture
 from ..sinks.tables import KINDS, TABLE_FORMATS, table_format
 from .common import CliError, add_decode_options, add_lint_options
-from .outputs import STDOUT, check_output, output_path, write_stream
+from ..sinks.outputs import STDOUT, check_output, output_path, write_stream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

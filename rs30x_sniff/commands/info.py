@@ -14,7 +14,8 @@ from ..sinks.summary import seconds_text, timer, what_happened
 from .common import (add_decode_options, add_lint_options, add_live_options, add_time_format_option,
                      capture_start_time, check_positive, live_sinks, make_linter, no_data, open_input, settings_for,
                      time_form)
-from .outputs import add_output_options, check_output, output_stream
+from ..sinks.outputs import check_output, output_stream
+from .outputs import add_output_options
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

@@ -26,7 +26,8 @@ from ..sinks.lines import FindingsSink, ProgressSink
 from ..sinks.stats import CaptureStats
 from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, config_layer,
                      is_live, lint_config, live_sinks, no_data, open_input, settings_for)
-from .outputs import add_output_options, check_output, output_stream
+from ..sinks.outputs import check_output, output_stream
+from .outputs import add_output_options
 
 PROGRESS_MIN_BYTES = 1 << 20  # a progress bar only for inputs worth waiting for
 

@@ -17,9 +17,9 @@ from ..sinks.lines import TextSink
 from ..sinks.stats import RecentLoad
 from .common import (CliError, add_decode_options, add_lint_selection, add_time_format_option, check_positive,
                      lint_config, live_sinks, make_linter, no_data, settings_for, time_form)
-from .outputs import STDOUT, check_output, write_error
+from ..sinks.outputs import STDOUT, check_output, write_error
 from .live import add_foxglove_option, start_foxglove
-from .parts import MIN_SPLIT_MB, MIN_SPLIT_SECONDS, Parts, parse_keep, parse_span
+from ..sinks.parts import MIN_SPLIT_MB, MIN_SPLIT_SECONDS, Parts, parse_keep, parse_span
 from .blackbox import (POST, PRE, add_trigger_options, check_mode, parse_max_saves, triggers_of, window_folder,
                        window_writer)
 from ..lint import Linter

@@ -9,7 +9,8 @@ import re
 from ..lint import RULES
 from ..lint.registry import Rule
 from .common import CliError, add_config_options, config_layer
-from .outputs import add_output_options, output_stream
+from ..sinks.outputs import output_stream
+from .outputs import add_output_options
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

@@ -9,7 +9,7 @@ from typing import IO
 from ..sources.captures import FORMATS, MCAP, format_for_output, write_capture
 from ..protocol.wire import BAUD_RATES, DEFAULT_BAUD
 from .common import CliError, check_positive
-from .outputs import STDOUT, output_binary, output_path, write_stream
+from ..sinks.outputs import STDOUT, output_binary, output_path, write_stream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

@@ -12,7 +12,7 @@ from ..protocol.memmap import default_registry
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
 from .common import CliError, add_decode_options, add_lint_options, make_linter, no_data, open_input, settings_for
-from .outputs import STDOUT, check_output, output_path, report_end
+from ..sinks.outputs import STDOUT, check_output, output_path, report_end
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

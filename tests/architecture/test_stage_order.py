@@ -2,10 +2,11 @@
 stage imports a later stage (issue 23).
 
 Every ``import`` and ``from ... import`` of every module under rs30x_sniff/ is read with ``ast``, those
-inside functions too (a lazy import is still a dependency), and each is placed by the folder (or
+inside functions too (a lazy import is still a dependency), but for those under ``if TYPE_CHECKING:``
+(never run: they name a later stage's type for the checker), and each is placed by the folder (or
 top-level module) it names. The stages, lowest first:
 
-    version.py, language.py, protocol, schemas -> sources -> decode -> lint -> render, plugins -> filters.py -> sinks -> settings.py
+    version.py, language.py, errors.py, protocol, schemas -> sources -> decode -> lint -> render, plugins -> filters.py -> sinks -> settings.py
         -> the top: cli.py, commands/, tui/, sim/, the package itself (__init__.py, __main__.py)
 
 ``plugins/`` (the sigrok, Logic 2 and Wireshark plug-ins made from the maps) is an output form of the maps, as
@@ -22,10 +23,10 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-from .imports import PACKAGE, imported_from, module_name
+from .imports import PACKAGE, imported_from, module_name, run_time_nodes
 
 TOP = len(("protocol", "sources", "decode", "lint", "render", "filters", "sinks", "settings"))
-RANK = {"version": 0, "language": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "plugins": 4,
+RANK = {"version": 0, "language": 0, "errors": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "plugins": 4,
         "filters": 5,
         "sinks": 6, "settings": 7, "user_rules": 7, "compare": 7, "expect": 7,
         "cli": TOP, "commands": TOP, "tui": TOP, "sim": TOP, "__main__": TOP, "": TOP}
@@ -50,7 +51,10 @@ def _imports(path: Path, module: str) -> set[str]:
     X.name where that is a module of its own)."""
     is_package = path.name == "__init__.py"
     found: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    # Imports under ``if TYPE_CHECKING:`` are left out: Python never runs them, so no stage depends on a later
+    # one through them; they only let the checker name a later stage's type where it is passed (the Decoder's
+    # Linter), which is how a stage is handed what comes after it.
+    for node in run_time_nodes(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             found.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):

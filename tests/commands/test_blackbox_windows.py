@@ -13,7 +13,7 @@ from mcap.reader import make_reader
 
 from rs30x_sniff.cli import main
 from rs30x_sniff.commands import blackbox
-from rs30x_sniff.commands.parts import Keep
+from rs30x_sniff.sinks.parts import Keep
 from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.lint import LintConfig
 from rs30x_sniff.sim import run

@@ -17,7 +17,7 @@ import pytest
 from mcap.reader import make_reader
 
 from rs30x_sniff import cli
-from rs30x_sniff.commands import outputs
+from rs30x_sniff.sinks import outputs
 from rs30x_sniff.sinks.mcap import writer as mcap_sink
 from rs30x_sniff.settings import KEYS
 from tests.e2e.helpers import Pty

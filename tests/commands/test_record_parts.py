@@ -8,7 +8,7 @@ import os
 import pytest
 
 from rs30x_sniff.commands.common import CliError
-from rs30x_sniff.commands.parts import Keep, Parts, parse_keep, parse_span
+from rs30x_sniff.sinks.parts import Keep, Parts, parse_keep, parse_span
 
 
 class FakeMcap:

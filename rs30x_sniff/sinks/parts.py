@@ -13,10 +13,10 @@ from typing import Any
 from collections.abc import Callable
 
 from ..decode.decoder import Step
-from ..sinks.mcap.writer import McapSink
-from ..sinks.pipeline import Sink
-from .common import CliError
+from ..errors import CliError
+from .mcap.writer import McapSink
 from .outputs import STDOUT, check_output, write_error
+from .pipeline import Sink
 
 FLUSH_INTERVAL = 1.0  # an idle bus still gets its open MCAP chunk written within about a second
 
