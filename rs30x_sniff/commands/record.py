@@ -20,8 +20,8 @@ from .common import (CliError, add_decode_options, add_lint_selection, add_time_
 from ..sinks.outputs import STDOUT, check_output, write_error
 from .live import add_foxglove_option, start_foxglove
 from ..sinks.parts import MIN_SPLIT_MB, MIN_SPLIT_SECONDS, Parts, parse_keep, parse_span
-from .blackbox import (POST, PRE, add_trigger_options, check_mode, parse_max_saves, triggers_of, window_folder,
-                       window_writer)
+from .blackbox import POST, PRE, add_trigger_options, check_mode, parse_max_saves, triggers_of
+from ..sinks.windows import window_folder, window_writer
 from ..lint import Linter
 from ..sinks.blackbox import MAX_WINDOW_S, BlackBox
 from ..sinks.pipeline import Pipeline, columnar_for

@@ -12,7 +12,7 @@ import pytest
 from mcap.reader import make_reader
 
 from rs30x_sniff.cli import main
-from rs30x_sniff.commands import blackbox
+from rs30x_sniff.sinks import windows as blackbox
 from rs30x_sniff.sinks.parts import Keep
 from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.lint import LintConfig

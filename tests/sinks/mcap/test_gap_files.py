@@ -15,7 +15,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings, strategies as st
 from mcap.reader import make_reader
 
-from rs30x_sniff.commands.blackbox import window_writer
+from rs30x_sniff.sinks.windows import window_writer
 from rs30x_sniff.sinks.parts import Parts
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder, Sink
 from rs30x_sniff.lint import LintConfig, Linter
