@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from collections.abc import Iterable
 
 from .blocks import Block, feed_run
@@ -14,6 +14,11 @@ from .frame_runs import FrameRun
 from .framing import DEFAULT_GAP_BYTES, FrameDecoder
 from ..protocol.memmap import ModelRegistry, default_registry
 from ..protocol.wire import DEFAULT_BAUD
+
+if TYPE_CHECKING:  # for the checker only: the linter is a later stage, which the decoder is handed at run time
+    from ..lint.linter import Linter
+    from ..lint.registry import Finding
+    from .framing import Seam
 
 
 @dataclass
@@ -29,7 +34,7 @@ class DecodeOptions:
 
 
 
-class Step(list):
+class Step(list["Record | Block"]):
     """The records one :meth:`Decoder.feed` (or :meth:`Decoder.close`) decided, in wire order.
 
     ``findings`` holds every lint finding new since the previous call (those on these records, and at
@@ -40,14 +45,15 @@ class Step(list):
 
     __slots__ = ("findings", "late", "blocks", "seams")
 
-    def __init__(self, records: Iterable[Record] = (), findings: list | None = None, late: list | None = None) -> None:
+    def __init__(self, records: Iterable[Record | Block] = (), findings: list[Finding] | None = None,
+                 late: list[Finding] | None = None) -> None:
         super().__init__(records)
-        self.findings = findings if findings is not None else []
-        self.late = late if late is not None else []
+        self.findings: list[Finding] = findings if findings is not None else []
+        self.late: list[Finding] = late if late is not None else []
         self.blocks = False  # True when some items are Blocks
         # Seams of the capture's clock (rs30x_sniff.decode.framing.Seam) that fall among these records: each
         # record at or past a seam's offset belongs to the new time segment.
-        self.seams: tuple = ()
+        self.seams: tuple[Seam, ...] = ()
 
     @property
     def count(self) -> int:
@@ -56,7 +62,7 @@ class Step(list):
             return len(self)
         return sum(len(x) if type(x) is Block else 1 for x in self)
 
-    def loose(self) -> list:
+    def loose(self) -> list[Finding]:
         """The findings of this step on none of its records and not late: what the decoder found between records
         (F010 at a seam of the capture: a clock restart, a lost port). An output that writes findings with their
         records places each of these before the first record at or past its offset."""
@@ -90,17 +96,29 @@ class Sink:
 
     The drive loop calls ``chunk`` with the raw bytes before they are decoded (so nothing read is lost
     to a decoding error; ``sender`` and ``error`` are what the capture said of them, rs30x_sniff.protocol.chunks),
-    ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing for a moment, and
-    ``close`` once at the end. Every method is optional.
+    ``batch`` with each :class:`Step`, ``idle`` when a live source had nothing for a moment, ``gap`` when
+    the source lost the line for a while, and ``close`` once at the end. Each does nothing unless a sink
+    overrides it; the drive loop calls neither ``chunk`` nor ``chunk_group`` of a sink that overrides
+    neither (most read no raw bytes: a call per chunk for nothing).
 
     A sink with ``takes_blocks`` True is handed a columnar decoder's steps as they are (Records and
     Blocks, rs30x_sniff.decode.blocks); any other sink gets them with every Block's rows as Records.
     """
 
-    takes_blocks = False
+    takes_blocks: bool = False
 
     def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
         pass
+
+    def chunk_group(self, chunks: list[tuple[bytes, float | None]]) -> None:
+        """A columnar decoder's group of plain chunks, before they are decoded (Pipeline.feed_many): each to
+        ``chunk`` unless the sink takes the group at once (the MCAP sink orders its messages by it)."""
+        for data, t in chunks:
+            self.chunk(data, t, None, None)
+
+    def gap(self, t: float, lost_at: float | None, note: str) -> None:
+        """The source lost the line from ``lost_at`` until ``t`` (``note`` says why): a sink that keeps gaps
+        (the MCAP's metadata, the black box) notes it."""
 
     def batch(self, step: Step) -> None:
         pass
@@ -119,7 +137,8 @@ class Decoder:
     ``findings`` already hold what the linter could tell at that point.
     """
 
-    def __init__(self, options: DecodeOptions | None = None, linter: Any = None, columnar: bool = False) -> None:
+    def __init__(self, options: DecodeOptions | None = None, linter: Linter | None = None,
+                 columnar: bool = False) -> None:
         o = self.options = options or DecodeOptions()
         # columnar: clean stretches of traffic come out as Blocks (rs30x_sniff.decode.blocks) instead of a
         # Record each; whoever reads the steps must take Blocks (Step.expanded gives Records).
@@ -133,11 +152,12 @@ class Decoder:
         if linter is not None:
             linter.senders = self.senders
         self.bytes_in = 0
-        self.late_findings: list = []  # after close(): findings only the end of input revealed
+        self.late_findings: list[Finding] = []  # after close(): findings only the end of input revealed
         self._seen = 0  # findings of linter.findings already handed out
         self._seams = 0  # seams of frames.seams already handed out
 
-    def _new_findings(self) -> list:
+    def _new_findings(self) -> list[Finding]:
+        assert self.linter is not None  # asked only of a decoder that lints
         found = self.linter.findings
         if len(found) == self._seen:
             return []
@@ -188,6 +208,7 @@ class Decoder:
         """Every item of ``out`` to the linter, in order: a Record by feed, a Block by feed_block (which may
         halve it: its parts take its place in ``out``)."""
         linter = self.linter
+        assert linter is not None  # called only when the decoder lints
         lint = linter.feed
         parted = False
         items = []

@@ -6,7 +6,9 @@ from types import MethodType
 from typing import Any
 from collections.abc import Callable
 
+from ..decode.framing import TimeFault
 from ..decode.pairing import MISSING, Record
+from ..protocol.chunks import SenderMap
 from ..protocol.events import OFFSET, RAW, T_START
 from ..protocol.wire import (
     AT_DATA, BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, SUM_SIZE, byte_time)
@@ -55,6 +57,11 @@ class Linter:
         self.missing: Record | None = None     # the latest request whose reply never came (B001)
         self.last_request: Record | None = None  # the latest request (B003 says how a reply stands to it)
         self.end_t: float | None = None        # when the input's last byte ended (set before close)
+        # Set by the Decoder (rs30x_sniff.decode.decoder) that feeds this linter: who sent which bytes, where the
+        # capture says so (D-rules check the decoder's reading against it), and before the close the faults of
+        # the capture's clock (F005, F006). A linter fed by hand has neither.
+        self.senders: SenderMap | None = None
+        self.time_faults: dict[str, TimeFault] = {}
         self.ids: set[int] = set()             # servo IDs seen on the bus (Q008)
         self._states = {r.code: r.state() for r in self.rules if r.state is not None}
         self._counting = True

@@ -7,6 +7,7 @@ from collections.abc import Iterable, Iterator
 from ..decode.decoder import DecodeOptions, Decoder, Sink, Step
 from ..decode.pairing import Record
 from ..protocol.chunks import Marked, SourceGap
+from ..sources.protocol import Pacing
 
 # Sink (what a Step goes to) is declared beside the Step, in rs30x_sniff.decode.decoder, so that the decode
 # stage's rate watches can be sinks without importing this later stage; every sink imports it from here.
@@ -42,7 +43,7 @@ class Pipeline:
         """``step`` to every sink, as Blocks to those that take them and as Records to the rest."""
         records = None
         for s in self.sinks:
-            if not step.blocks or getattr(s, "takes_blocks", False):
+            if not step.blocks or s.takes_blocks:
                 s.batch(step)
             else:
                 if records is None:
@@ -52,12 +53,9 @@ class Pipeline:
     def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> Step:
         """Several plain chunks through the decoder at once (Decoder.feed_many) into every sink."""
         for s in self.sinks:
-            group = getattr(s, "chunk_group", None)
-            if group is not None:
-                group(chunks)  # a sink that takes the group's chunks at once (McapSink orders its messages)
-            elif type(s).chunk is not Sink.chunk:  # (most sinks read no chunk: a call per chunk for nothing)
-                for data, t in chunks:
-                    s.chunk(data, t, None, None)
+            kind = type(s)  # most sinks read no chunk: a call per chunk for nothing
+            if kind.chunk_group is not Sink.chunk_group or kind.chunk is not Sink.chunk:
+                s.chunk_group(chunks)  # the group at once (McapSink orders its messages), or chunk by chunk
         step = self.decoder.feed_many(chunks)
         if step or step.findings:
             self._hand_out(step)
@@ -80,12 +78,10 @@ class Pipeline:
 
     def gap(self, gap: SourceGap) -> None:
         """The source lost the line until ``gap``'s time: the decoder starts a new time segment at the next
-        chunk, and each sink that keeps gaps (``gap(t, lost_at, note)``: the MCAP's metadata) is told."""
+        chunk, and every sink is told (``Sink.gap``: the MCAP's metadata keeps it)."""
         self.decoder.mark_gap(gap.note)
         for s in self.sinks:
-            tell = getattr(s, "gap", None)
-            if tell is not None:
-                tell(gap[1], gap.lost_at, gap.note)
+            s.gap(gap[1], gap.lost_at, gap.note)
 
     def close(self) -> Step:
         """End of input: the decoder's last records and late findings, then every sink closes (once)."""
@@ -169,7 +165,7 @@ class Pipeline:
                 feed_many(group)
 
 
-def columnar_for(source: object, *, follow: bool = False) -> bool:
+def columnar_for(source: Pacing, *, follow: bool = False) -> bool:
     """Whether a command decodes ``source`` on the columnar path: the one place that decides.
 
     A source says what it is: a port is ``live`` (rs30x_sniff.sources.serial_tap.LiveSource), a capture
@@ -183,9 +179,9 @@ def columnar_for(source: object, *, follow: bool = False) -> bool:
     lines) takes it record by record; one whose output comes at the end (a report, figures, a file) takes
     the columnar path, as for a file.
     """
-    if getattr(source, "live", False):
-        return getattr(source, "batched", False)
-    return not (follow and getattr(source, "streamed", False))
+    if source.live:
+        return source.batched
+    return not (follow and source.streamed)
 
 
 def drive(chunks: Iterable[tuple[bytes, float | None]], decoder: Decoder, *sinks: Sink) -> Decoder:

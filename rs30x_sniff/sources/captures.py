@@ -432,12 +432,13 @@ class CaptureReader:
     """
 
     live = False
+    batched = False
 
     def __init__(self, path: str, fmt: str | None, warn: Callable[[str], None] | None,
                  options: dict | None = None) -> None:
         self.path = path
         self.format = fmt
-        self.streamed = _streamed(path)
+        self.streamed: bool = _streamed(path)
         # What another tool's reader was given (--channel, --baud) and learned (a found baud rate).
         self.context = foreign.ReadContext(path, dict(options or {}), warn)
         self.warnings: list[CaptureWarning] = []

@@ -39,6 +39,7 @@ class ReconnectingSource:
     per loss and per return."""
 
     live = True
+    streamed = True  # a port's bytes are arriving as they are read
     batched = True  # LiveSource.chunks' batches, each ended by an empty chunk, passed on
 
     def __init__(self, port: str, baud: int, *, duration: float | None = None,

@@ -356,6 +356,7 @@ class LiveSource:
     """
 
     live = True
+    streamed = True  # a port's bytes are arriving as they are read
     batched = True  # chunks() ends each batch with an empty chunk (sinks.pipeline.columnar_for)
 
     def __init__(self, port: str, baud: int, *, duration: float | None = None, announce: bool = True,

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import timedelta
+from typing import Any
 from collections.abc import Iterable, Iterator
 
 from ..protocol.chunks import remark
 from ..protocol.wire import byte_time
+from .captures import CaptureReader
 
 FIRST = "first"      # t is when the chunk's first byte started (our .thex, MCAP raw, the live tap)
 ARRIVAL = "arrival"  # t is when the read returned: the end of the chunk's last byte (socat, spy://, ...)
@@ -98,7 +100,7 @@ class TimedSource:
     """A capture's chunks with their times read as first-byte times, by ``ref`` (``time_ref`` says
     which and why); other attributes (``locate``, ``warnings``, ``close``) are the source's."""
 
-    def __init__(self, source: Iterable[Chunk], baud: int, ref: str, why: TimeRef | None = None) -> None:
+    def __init__(self, source: CaptureReader, baud: int, ref: str, why: TimeRef | None = None) -> None:
         self.source = source
         self.baud = baud
         self._time_ref = why or TimeRef(ref, "given by --time-ref")
@@ -116,7 +118,20 @@ class TimedSource:
         how = "" if unit.how == "given" else f", {unit.how_known()}"
         return TimeRef(self._time_ref.ref, f"{unit.describe().removeprefix('times ')}{how}; {self._time_ref.reason}")
 
-    def __getattr__(self, name: str):  # locate(), warnings, close(), live... of the wrapped source
+    # How the wrapped capture's chunks come (sources.protocol.Pacing), declared: the drive loop reads them.
+    @property
+    def live(self) -> bool:
+        return self.source.live
+
+    @property
+    def streamed(self) -> bool:
+        return self.source.streamed
+
+    @property
+    def batched(self) -> bool:
+        return self.source.batched
+
+    def __getattr__(self, name: str) -> Any:  # locate(), warnings, close()... of the wrapped source
         return getattr(self.source, name)
 
     def __iter__(self) -> Iterator[Chunk]:

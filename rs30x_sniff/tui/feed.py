@@ -177,7 +177,7 @@ class Feeder:
         # stretches come as Blocks, which the screen keeps as columns and makes Records of only for the
         # rows it shows; the simulator and a replay go record by record as they come.
         columnar = columnar_for(source)
-        self.loading = columnar and not getattr(source, "live", False)  # a file: loaded, not followed live
+        self.loading = columnar and not source.live  # a file: loaded, not followed live
         self.decoder = Decoder(options, linter=linter, columnar=columnar)
         self._collect = _Collect(CaptureStats(options.baud), lambda: self.decoder.bytes_in,
                                  self._step if self.loading else None)

@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterable, Iterator
 from ..protocol.chunks import remark
 from ..sources.captures import CaptureError
 from ..sources.inputs import read_input
+from ..sources.protocol import Pacing
 from ..sources.read_ahead import ReadAhead
 from ..protocol.wire import DEFAULT_BAUD, byte_time
 
@@ -37,12 +38,12 @@ def _rest(src) -> Iterator[Chunk]:
     yield from src._it
 
 
-class Source(Protocol):
+class Source(Pacing, Protocol):
     name: str        # what the header shows
     kind: str        # "file", "replay", "port", "simulator"
     time_base: str   # for the MCAP sink: "capture", "synthetic" or "wall"
-    # live (a class attribute, False when absent): paced as it happens (a port, a replay, the simulator),
-    # so decoded record by record; a file loads on the columnar path (sinks.pipeline.columnar_for).
+    # live, streamed, batched (Pacing): a port, a replay and the simulator are paced as they happen, so decoded
+    # record by record or a gather at a time; a file loads on the columnar path (sinks.pipeline.columnar_for).
 
     def chunks(self, stop: threading.Event) -> Iterator[Chunk]: ...
 
@@ -91,6 +92,9 @@ class FileSource:
     """A capture file read as fast as it decodes."""
 
     kind = "file"
+    live = False
+    streamed = False
+    batched = False
     reads_ahead = True  # a big file is read by a child process (a replay is paced: no need)
 
     def __init__(self, path: str, fmt: str | None = None, *, baud: int = DEFAULT_BAUD,
@@ -167,6 +171,7 @@ class PortSource:
 
     kind = "port"
     live = True
+    streamed = True
     # chunks() ends each gather with an empty chunk: decoded a gather at a time on the columnar path
     # (sinks.pipeline.columnar_for), as `record` takes a port, at a half to two thirds of the CPU.
     batched = True
@@ -211,6 +216,8 @@ class SimulatorSource:
 
     kind = "simulator"
     live = True  # paced in real time, as a port
+    streamed = False
+    batched = False
     time_base = "capture"
 
     def __init__(self, scenario: str, baud: int, *, speed: float = 1.0, duration: float = SIMULATE_SECONDS,
@@ -244,6 +251,9 @@ class ChunkSource:
     """Chunks already in memory (a simulated capture, a test's bytes), handed out at once."""
 
     kind = "file"
+    live = False
+    streamed = False
+    batched = False
     time_base = "capture"
 
     def __init__(self, name: str, chunks: Iterable[Chunk]) -> None:

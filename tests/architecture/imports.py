@@ -29,3 +29,26 @@ def imported_from(node: ast.ImportFrom, module: str, is_package: bool) -> str | 
     else:
         name = node.module or ""
     return name if name == "rs30x_sniff" or name.startswith("rs30x_sniff.") else None
+
+
+def _checking_only(node: ast.AST) -> bool:
+    """``if TYPE_CHECKING:`` (or ``typing.TYPE_CHECKING``): a block the type checker reads and Python never runs."""
+    if not isinstance(node, ast.If):
+        return False
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def run_time_nodes(tree: ast.AST):
+    """Every node of ``tree`` as ast.walk gives them, but for the bodies of ``if TYPE_CHECKING:`` blocks (their
+    ``else`` runs, and is walked)."""
+    todo = [tree]
+    while todo:
+        node = todo.pop()
+        yield node
+        if _checking_only(node):
+            assert isinstance(node, ast.If)
+            todo.extend([node.test, *node.orelse])
+        else:
+            todo.extend(ast.iter_child_nodes(node))

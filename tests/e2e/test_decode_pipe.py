@@ -54,8 +54,10 @@ def test_the_columnar_choice(tmp_path):
     port = LiveSource.__new__(LiveSource)  # not opened: only what the class says of itself
     assert columnar_for(port) and columnar_for(port, follow=True)
 
-    class Paced:  # live, its chunks not in batches
+    class Paced:  # live, its chunks not in batches (a source declares all three: sources.protocol.Pacing)
         live = True
+        streamed = False
+        batched = False
 
     assert not columnar_for(Paced()) and not columnar_for(Paced(), follow=True)
 

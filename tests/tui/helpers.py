@@ -48,6 +48,7 @@ class GatedSource:
 
     name, kind, time_base = "gated", "port", "monotonic"
     live = True
+    streamed = batched = False  # paced, its chunks not in gathers (sources.protocol.Pacing)
 
     def __init__(self, chunks, gate, stops=(), rearm: bool = False):
         self._chunks, self.gate, self.stops, self.rearm = chunks, gate, set(stops), rearm

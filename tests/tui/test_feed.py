@@ -93,6 +93,7 @@ def test_stop_recording_finishes_the_file(tmp_path):
     class Slow:
         name, kind, time_base = "slow", "port", "monotonic"
         live = True
+        streamed = batched = False  # paced, its chunks not in gathers (sources.protocol.Pacing)
 
         def chunks(self, stop):
             for i in range(40):
@@ -195,6 +196,7 @@ def test_a_source_that_fails_to_close_still_delivers_the_last_batch():
     class Broken:
         name, kind, time_base = "broken", "port", "monotonic"
         live = True
+        streamed = batched = False  # paced, its chunks not in gathers (sources.protocol.Pacing)
 
         def chunks(self, stop):
             yield encode_short(1, 0, 30, b"\x00\x00"), 0.0

@@ -77,7 +77,7 @@ def sender_mismatch(st, lint, rec, ev):
 def decide(st, lint):
     """Whether the capture says who sent what, decided at the first packet (by then the first chunks, and
     their senders, have been fed): the SenderMap, or None."""
-    senders = st.senders = getattr(lint, "senders", None) or None
+    senders = st.senders = lint.senders or None  # the Decoder's SenderMap: None, or empty, when none was said
     if senders is None:
         _stop_calling(st, lint)
     return senders
@@ -86,9 +86,7 @@ def decide(st, lint):
 def _stop_calling(st, lint) -> None:
     # A capture that does not say who sent what (most do not) must not pay for this rule: its checks
     # leave the linter's per-kind dispatch, which is built once per run.
-    stop = getattr(lint, "stop_calling", None)
-    if stop is not None:
-        stop(st, _EXPECTED)
+    lint.stop_calling(st, _EXPECTED)
 
 
 @sender_mismatch.on("close")

@@ -35,7 +35,7 @@ Read as they stand they give negative latencies, a zero-length capture and a bus
 {example((0.2, _GOAL), (0.195, _READ), note="the second line is stamped 5 ms before the first:")}
 """, kinds=("close",), needs_time=True, column="silent")
 def time_went_backwards(lint):
-    fault = getattr(lint, "time_faults", {}).get(TIME_BACKWARDS)
+    fault = lint.time_faults.get(TIME_BACKWARDS)
     if fault is not None:
         # How often is counted in words ("once"), yet measured: the key masks it.
         lint.emit_at("F005", fault.offset, fault.placed, said_as(
@@ -63,7 +63,7 @@ before their requests end and latencies come out negative.
 {example((0.0, _GOAL), (0.0005, _READ), note="a 10-byte write at 115200 bit/s takes 0.868 ms; the next line is stamped 0.5 ms after it began:")}
 """, kinds=("close",), needs_time=True, column="silent")
 def time_too_close(lint):
-    fault = getattr(lint, "time_faults", {}).get(TIME_TOO_CLOSE)
+    fault = lint.time_faults.get(TIME_TOO_CLOSE)
     if fault is not None:
         early = fault.earliest - fault.t
         # The count with its noun's plural, and the lead in microseconds (it is below a byte time or two).

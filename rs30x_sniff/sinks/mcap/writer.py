@@ -24,6 +24,7 @@ from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, GAP_METADATA_NAME, GAPS_M
 from ...render.block_json import record_json_line
 from ...schemas import schema_bytes
 from ...decode.blocks import Block
+from ...decode.decoder import Sink, Step
 from .blocks import block_messages
 from .servo_states import ServoStates
 from .transactions import transaction_json
@@ -43,7 +44,7 @@ _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 _log_time = itemgetter(0)  # a held message's (log_time, channel, data)
 
 
-class JsonChannels:
+class JsonChannels(Sink):
     """The channels' messages, built once for every sink that publishes them (an MCAP file, a Foxglove
     WebSocket server): a subclass says how a channel is opened (``channel``) and a message written
     (``_write``), so both carry the same bodies with the same log times.
@@ -217,7 +218,7 @@ class JsonChannels:
         finally:
             self._raw_held, self._made = self._made, None
 
-    def batch(self, step: Any) -> None:
+    def batch(self, step: Step) -> None:
         held = self._raw_held
         if held is None and not step.blocks:
             self._records(step)
@@ -238,7 +239,7 @@ class JsonChannels:
         if step.findings:  # after the step's records, in the order found, as the record path writes them
             self.findings(step.findings)
 
-    def _records(self, step: Any) -> None:
+    def _records(self, step: Step) -> None:
         record = self.record
         for rec in step:
             if type(rec) is Block:
@@ -421,7 +422,7 @@ class McapSink(JsonChannels):
         for data, t in chunks:
             self.stats.chunk(data, t)
 
-    def batch(self, step: Any) -> None:
+    def batch(self, step: Step) -> None:
         super().batch(step)
         self.stats.batch(step)  # a CaptureStats: it takes Blocks as they are (takes_blocks)
 
