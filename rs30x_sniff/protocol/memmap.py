@@ -12,25 +12,19 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from ..schemas import memory_map_schema
+from ..schemas.check import first_failure
 from .codegen import values_function
 from .wire import MAX_READ_ADDRESS
 
-ACCESS = ("read", "read-write", "reserved")
-AREAS = ("invariable-rom", "variable-rom", "ram")
-MODES = ("command", "pwm", "both")
-_REGISTER_KEYS = {"name", "address", "size", "signed", "scale", "offset", "unit", "access", "area",
-                  "default", "range", "mode", "enum", "table", "format", "description"}
-_MODEL_KEYS = {"name", "model_number", "top_speed_s_per_60deg", "readable_to"}
 DEFAULT_MODEL = "RS303MR"
 # A map is data, never code: its names become filter terms, JSON keys, MCAP fields and the field names of
-# generated plug-ins (sigrok, Logic 2, Wireshark), so they are checked as the map loads. A register is a
-# snake_case word that is neither a filter key nor the label of an unnamed byte; a model, a word with - or _.
-REGISTER_NAME = re.compile(r"[a-z][a-z0-9_]{0,47}")
-MODEL_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,31}")
-UNIT = re.compile(r"[A-Za-z%/°µ][A-Za-z0-9%/°µ._^-]{0,15}")
-RESERVED_NAMES = frozenset({"id", "kind", "reg", "sev", "latency", "t"})  # the filter language's keys
-_UNNAMED_LABEL = re.compile(r"(reserved|addr)_\d+")
-TEXT_MAX = 500  # characters of a description or an enum label
+# generated plug-ins (sigrok, Logic 2, Wireshark), so they are checked as the map loads, by its schema
+# (schemas/memory_map.json): a register is a snake_case word that is neither a filter key nor the label of an
+# unnamed byte; a model, a word with - or _.
+_NAME_SCHEMA = memory_map_schema()["$defs"]["register"]["properties"]["name"]["allOf"]
+REGISTER_NAME = re.compile(_NAME_SCHEMA[0]["pattern"].strip("^$"))
+RESERVED_NAMES = frozenset(_NAME_SCHEMA[1]["not"]["anyOf"][0]["enum"])  # the filter language's keys
 # Entries a Model's cache holds before it starts afresh: its line templates go by header bytes, and a
 # stream of odd headers would otherwise pile them up (what is dropped is made again when met).
 MAX_CACHED = 4096
@@ -356,140 +350,110 @@ def _fail(source: str, where: str, msg: str) -> ModelError:
     return ModelError(f"{source}: {where}: {msg}")
 
 
-def _text(source: str, where: str, value: Any, limit: int = TEXT_MAX) -> str:
-    """A free-text value (a description, an enum label): a string of printable characters on one line.
-    Plug-ins still escape it for their language; this keeps control bytes out of every report."""
-    if not isinstance(value, str):
-        raise _fail(source, where, "must be a string")
-    if len(value) > limit:
-        raise _fail(source, where, f"longer than {limit} characters")
+def _printable(source: str, where: str, value: str) -> None:
+    """A free-text value (a description, an enum label) on one printable line: plug-ins still escape it for
+    their language; this keeps control bytes out of every report (Unicode's printable, which a schema's
+    pattern cannot say)."""
     bad = next((c for c in value if not c.isprintable()), None)
     if bad is not None:
         raise _fail(source, where, f"holds the control character {bad!r}: one printable line")
-    return value
 
 
-def _register_name(source: str, where: str, name: Any) -> str:
-    if not isinstance(name, str) or not REGISTER_NAME.fullmatch(name):
-        raise _fail(source, where, f"{name!r} is no register name: lower-case letters, digits and _, "
-                                   f"starting with a letter, at most 48 (present_temperature)")
-    if name in RESERVED_NAMES or _UNNAMED_LABEL.fullmatch(name):
-        raise _fail(source, where, f"{name!r} is taken (a filter key, or the label of an unnamed byte)")
-    return name
-
-
-def _int_keys(source: str, where: str, table: dict) -> dict[int, Any]:
-    if not isinstance(table, dict):
-        raise _fail(source, where, "must be a table of raw value = ...")
+def _int_keys(source: str, where: str, table: dict[str, Any]) -> dict[int, Any]:
     try:
         return {int(k, 0): v for k, v in table.items()}
     except ValueError:
         raise _fail(source, where, "keys must be integers") from None
 
 
+def _label(r: dict[str, Any]) -> str:
+    """How a register is named in a message: its name, else its address; a bad name as a literal, cut short
+    (never printed as it is)."""
+    label = r.get("name") or (f"address {r['address']}" if "address" in r else "?")
+    if "name" in r and not (isinstance(label, str) and REGISTER_NAME.fullmatch(label)):
+        label = repr(label)[:60]
+    return label
+
+
+def _where(doc: dict[str, Any], path: tuple[str | int, ...]) -> str:
+    """A schema failure's place as the messages say it: model.name, register[3] (baud_rate).range, enum.0."""
+    if len(path) >= 2 and path[0] == "register" and isinstance(path[1], int):
+        reg = doc["register"][path[1]]
+        head = f"register[{path[1]}]" + (f" ({_label(reg)})" if isinstance(reg, dict) else "")
+        return ".".join((head, *map(str, path[2:])))
+    return ".".join(map(str, path))
+
+
 def parse_model(doc: dict[str, Any], source: str = "<memory map>") -> Model:
-    """Build a Model from a parsed TOML document, checking every key."""
-    unknown = set(doc) - {"model", "register"}
-    if unknown:
-        raise _fail(source, sorted(unknown)[0], "unknown key")
-    head = doc.get("model")
-    if not isinstance(head, dict):
-        raise _fail(source, "model", "missing [model] table")
-    for k in head:
-        if k not in _MODEL_KEYS:
-            raise _fail(source, f"model.{k}", "unknown key")
-    for k in ("name", "model_number", "top_speed_s_per_60deg"):
-        if k not in head:
-            raise _fail(source, f"model.{k}", "missing")
-    if not isinstance(head["name"], str) or not MODEL_NAME.fullmatch(head["name"]):
-        raise _fail(source, "model.name", f"{head['name']!r} is no model name: letters, digits, - and _, "
-                                          f"at most 32 (RS303MR)")
-    number = head["model_number"]
-    if not isinstance(number, int) or isinstance(number, bool) or not 0 <= number <= 0xFFFF:
-        raise _fail(source, "model.model_number", "must be an integer 0-0xFFFF (address 0-1, table 4.5)")
-    speed = head["top_speed_s_per_60deg"]
-    if not isinstance(speed, (int, float)) or isinstance(speed, bool) or not 0 < speed < 100:
-        raise _fail(source, "model.top_speed_s_per_60deg", "must be a positive number of seconds")
-    readable = head.get("readable_to", MAX_READ_ADDRESS)
-    if not isinstance(readable, int) or isinstance(readable, bool) or not 0 <= readable <= 255:
-        raise _fail(source, "model.readable_to", "must be an integer 0-255")
+    """Build a Model from a parsed TOML document: its shape checked by the schema (schemas/memory_map.json),
+    then what the schema cannot say (a name given once, unnamed registers reserved, ranges and defaults
+    within a register's size, no two registers on one address)."""
+    failure = first_failure(doc, memory_map_schema())
+    if failure is not None:
+        path = failure.path
+        if len(path) == 3 and path[0] == "register" and path[2] in _WITHIN_SIZE:
+            # A range or default is said with the bounds its register's size gives (its size and signed,
+            # before it in the schema, passed).
+            raise _fail(source, _where(doc, path), _within_size(doc["register"][path[1]], str(path[2])))
+        raise _fail(source, _where(doc, path), failure.message)
+    head = doc["model"]
     names: dict[str, str] = {}
-    regs: list[Register] = []
     owner: dict[int, str] = {}
-    for n, r in enumerate(doc.get("register", [])):
-        if not isinstance(r, dict):
-            raise _fail(source, f"register[{n}]", "must be a table")
-        label = r.get("name") or (f"address {r['address']}" if "address" in r else "?")
-        if "name" in r and not (isinstance(label, str) and REGISTER_NAME.fullmatch(label)):
-            label = repr(label)[:60]  # a bad name is said as a literal, never printed as it is
-        where = f"register[{n}] ({label})"
-        for k in r:
-            if k not in _REGISTER_KEYS:
-                raise _fail(source, f"{where}.{k}", "unknown key")
-        if "address" not in r:
-            raise _fail(source, f"{where}.address", "missing")
-        address, size = r["address"], r.get("size", 1)
-        if not isinstance(address, int) or not 0 <= address <= 255:
-            raise _fail(source, f"{where}.address", "must be an integer 0-255")
-        if size not in (1, 2):
-            raise _fail(source, f"{where}.size", "must be 1 or 2")
-        access = r.get("access", "read")
-        if access not in ACCESS:
-            raise _fail(source, f"{where}.access", f"must be one of {', '.join(ACCESS)}")
-        if access != "reserved" and not r.get("name"):
-            raise _fail(source, f"{where}.name", "missing (only reserved registers may be unnamed)")
-        if r.get("name"):
-            name = _register_name(source, f"{where}.name", r["name"])
-            if name in names:
-                raise _fail(source, f"{where}.name", f"{name!r} names {names[name]} already")
-            names[name] = f"register[{n}]"
-        unit = r.get("unit")
-        if unit is not None and (not isinstance(unit, str) or not UNIT.fullmatch(unit)):
-            raise _fail(source, f"{where}.unit", f"{unit!r} is no unit: a word such as deg, degC, mA, deg/s, %")
-        if r.get("format") not in (None, "hex"):
-            raise _fail(source, f"{where}.format", "must be \"hex\" (or left out)")
-        if "description" in r:
-            _text(source, f"{where}.description", r["description"])
-        if not isinstance(r.get("offset", 0), (int, float)) or isinstance(r.get("offset", 0), bool):
-            raise _fail(source, f"{where}.offset", "must be a number")
-        if r.get("area", "ram") not in AREAS:
-            raise _fail(source, f"{where}.area", f"must be one of {', '.join(AREAS)}")
-        if r.get("mode", "both") not in MODES:
-            raise _fail(source, f"{where}.mode", f"must be one of {', '.join(MODES)}")
-        signed = bool(r.get("signed", False))
-        lo_ok = -(1 << (8 * size - 1)) if signed else 0
-        hi_ok = (1 << (8 * size - 1)) - 1 if signed else (1 << 8 * size) - 1
-        rng = r.get("range")
-        if rng is not None:
-            if (not isinstance(rng, list) or len(rng) != 2 or not all(isinstance(x, int) for x in rng)
-                    or rng[0] > rng[1] or rng[0] < lo_ok or rng[1] > hi_ok):
-                raise _fail(source, f"{where}.range", f"must be [min, max] with {lo_ok} <= min <= max <= {hi_ok}")
-            rng = (rng[0], rng[1])
-        default = r.get("default")
-        if default is not None and not (isinstance(default, int) and lo_ok <= default <= hi_ok):
-            raise _fail(source, f"{where}.default", f"must be an integer {lo_ok}-{hi_ok}")
-        scale = r.get("scale", 1)
-        if not isinstance(scale, (int, float)) or scale <= 0:
-            raise _fail(source, f"{where}.scale", "must be a positive number")
-        for a in range(address, address + size):
-            if a in owner:
-                raise _fail(source, f"{where}.address", f"overlaps {owner[a]} at address {a}")
-            owner[a] = label
-        enum = _int_keys(source, f"{where}.enum", r["enum"]) if "enum" in r else None
-        table = _int_keys(source, f"{where}.table", r["table"]) if "table" in r else None
-        for raw, text in (enum or {}).items():
-            _text(source, f"{where}.enum.{raw}", text, 64)
-        for raw, number in (table or {}).items():
-            if not isinstance(number, (int, float)) or isinstance(number, bool):
-                raise _fail(source, f"{where}.table.{raw}", "must be a number")
-        regs.append(Register(
-            r.get("name"), address, size, signed, scale, r.get("offset", 0), r.get("unit"), access,
-            r.get("area", "ram"), default, rng, r.get("mode", "both"), enum, table, r.get("format"),
-            r.get("description", ""),
-        ))
+    regs = [_register(source, n, r, names, owner) for n, r in enumerate(doc.get("register", []))]
     regs.sort(key=lambda reg: reg.address)
     return Model(head["name"], head["model_number"], float(head["top_speed_s_per_60deg"]),
                  head.get("readable_to", MAX_READ_ADDRESS), tuple(regs), source)
+
+
+_WITHIN_SIZE = {"range": "must be [min, max] with {lo} <= min <= max <= {hi}",
+                "default": "must be an integer {lo}-{hi}"}
+
+
+def _raw_bounds(r: dict[str, Any]) -> tuple[int, int]:
+    """The raw values a register's size and sign can hold."""
+    bits = 8 * r.get("size", 1)
+    return (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if r.get("signed", False) else (0, (1 << bits) - 1)
+
+
+def _within_size(r: dict[str, Any], key: str) -> str:
+    lo, hi = _raw_bounds(r)
+    return _WITHIN_SIZE[key].format(lo=lo, hi=hi)
+
+
+def _register(source: str, n: int, r: dict[str, Any], names: dict[str, str], owner: dict[int, str]) -> Register:
+    """One [[register]] the schema passed, checked against itself and the registers before it."""
+    label = _label(r)
+    where = f"register[{n}] ({label})"
+    address, size, signed, access = r["address"], r.get("size", 1), r.get("signed", False), r.get("access", "read")
+    name = r.get("name")
+    if name:
+        if name in names:
+            raise _fail(source, f"{where}.name", f"{name!r} names {names[name]} already")
+        names[name] = f"register[{n}]"
+    elif access != "reserved":
+        raise _fail(source, f"{where}.name", "missing (only reserved registers may be unnamed)")
+    if "description" in r:
+        _printable(source, f"{where}.description", r["description"])
+    lo_ok, hi_ok = _raw_bounds(r)
+    rng = r.get("range")
+    if rng is not None:
+        if not lo_ok <= rng[0] <= rng[1] <= hi_ok:
+            raise _fail(source, f"{where}.range", _within_size(r, "range"))
+        rng = (rng[0], rng[1])
+    default = r.get("default")
+    if default is not None and not lo_ok <= default <= hi_ok:
+        raise _fail(source, f"{where}.default", _within_size(r, "default"))
+    for a in range(address, address + size):
+        if a in owner:
+            raise _fail(source, f"{where}.address", f"overlaps {owner[a]} at address {a}")
+        owner[a] = label
+    enum = _int_keys(source, f"{where}.enum", r["enum"]) if "enum" in r else None
+    table = _int_keys(source, f"{where}.table", r["table"]) if "table" in r else None
+    for raw, text in (enum or {}).items():
+        _printable(source, f"{where}.enum.{raw}", text)
+    return Register(name, address, size, signed, r.get("scale", 1), r.get("offset", 0), r.get("unit"), access,
+                    r.get("area", "ram"), default, rng, r.get("mode", "both"), enum, table, r.get("format"),
+                    r.get("description", ""))
 
 
 def load_model(path: str | Path) -> Model:

@@ -25,3 +25,9 @@ def schema_bytes(name: str) -> bytes:
 def schema(name: str) -> dict:
     """The schema as a dict (for validators)."""
     return json.loads(schema_bytes(name))
+
+
+@cache
+def memory_map_schema() -> dict:
+    """The JSON Schema of a memory-map file (decoders/*.toml), checked as each map loads."""
+    return json.loads(files(__package__).joinpath("memory_map.json").read_bytes())
