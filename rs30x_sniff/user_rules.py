@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import re
 import string
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from collections.abc import Mapping
 
 from .filters import FilterError, parse_filter
@@ -36,6 +36,10 @@ from .lint.config import ConfigError
 from .lint.params import DURATION, OFFSET, TIME, Measured, Message, said
 from .lint.registry import FAMILIES, KEBAB, RULES, SEVERITIES, USER_CODE, Rule
 from .protocol.memmap import ModelRegistry, default_registry
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from .lint.linter import Linter
+    from .decode.pairing import Record
 
 KEYS = ("code", "name", "severity", "when", "message", "doc")
 DEFAULT_SEVERITY = "warning"
@@ -165,11 +169,11 @@ def _check(code: str, when: str, flt: Any, message: str | None, registers: froze
     named = [w for w in _words(when) if w in registers]
     template = message if message is not None else None
 
-    def check(lint: Any, rec: Any, ev: Any) -> None:
+    def check(lint: Linter, rec: Record, ev: Any) -> None:
         if matches(rec):
             lint.emit(code, rec, render(rec, lint))
 
-    def render(rec: Any, lint: Any) -> Message:
+    def render(rec: Record, lint: Linter) -> Message:
         values = measured_values(rec)
         if template is None:
             shown = [n for n in named if n in values]
@@ -197,7 +201,7 @@ def fill(message: str, values: Mapping[str, Any]) -> str:
     return str(said(message, values, UNKNOWN))
 
 
-def measured_values(rec: Any) -> dict[str, Measured]:
+def measured_values(rec: Record) -> dict[str, Measured]:
     """The registers a record carries (:func:`_register_values`), each a measurement in its register's unit:
     written with that unit in a message, and never part of a baseline's fingerprint."""
     model = rec.model
@@ -213,7 +217,7 @@ def measured_values(rec: Any) -> dict[str, Measured]:
     return out
 
 
-def _register_values(rec: Any) -> dict[str, Any]:
+def _register_values(rec: Record) -> dict[str, Any]:
     """The first value of each named register the record carries (a long packet: its first servo's)."""
     out: dict[str, Any] = {}
     try:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from collections.abc import Callable, Iterable
 
 from .decoder import Sink, Step
@@ -15,6 +15,10 @@ from .framing import FrameDecoder
 from ..protocol.baud import NO_ESTIMATE, BaudEstimate, estimate_from_spacings
 from ..protocol.events import RAW, T_END, T_START
 from ..protocol.wire import BAUD_RATES
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ..protocol.events import AnyEvent
+    from .pairing import Record
 
 # Table 4.7's rates, most likely first: the factory default 115200 (chapter 4, No. 6), then the
 # rates hosts commonly pick, then the rest. A scan stops at the first rate that decodes cleanly.
@@ -24,7 +28,7 @@ SCAN_DWELL = 0.3  # seconds read at each rate: several frames even at 9600 on a 
 _VALID_KINDS = frozenset(("short", "long", "return", "ack", "nack"))
 
 
-def is_valid(rec: Any) -> bool:
+def is_valid(rec: Record | AnyEvent) -> bool:
     """Whether a record (or event) is a checksum-valid frame, or an ACK/NACK byte (which only follows one)."""
     ev = getattr(rec, "event", rec)
     return ev.kind in _VALID_KINDS and ev.checksum_ok

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from types import MethodType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from collections.abc import Callable
 
 from ..decode.framing import TimeFault
@@ -16,6 +16,9 @@ from .batch import BlockLinter
 from .config import LintConfig
 from .registry import KINDS, RULES, WHEN, Finding, Rule
 from .state import Plan, Shadow
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ..decode.blocks import Block
 
 _AUTO = object()
 
@@ -186,7 +189,7 @@ class Linter:
         self.prev = rec
         return new
 
-    def feed_block(self, blk: Any) -> list[Any]:
+    def feed_block(self, blk: Block) -> list[Any]:
         """Check a Block's rows (rs30x_sniff.decode.blocks), in wire order, as if fed one by one: on the columns
         when no rule has anything to say of them (rs30x_sniff.lint.batch), else record by record. A large Block
         a rule speaks of is halved, and each half checked in turn, so that a finding here and there (a late
@@ -201,7 +204,7 @@ class Linter:
             self._halving_off = SPLIT_PAUSE  # three quarters of it went row by row all the same
         return out
 
-    def _check_parts(self, blk: Any, out: list[Any], tries: list[int]) -> None:
+    def _check_parts(self, blk: Block, out: list[Any], tries: list[int]) -> None:
         if self._columns.quiet(blk):
             out.append(blk)
             return

@@ -11,7 +11,7 @@ which of those are there at all (its pairing, its times), which in a Block's row
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +20,10 @@ from ..protocol.wire import AT_DATA, AT_ID, AT_LENGTH, FRAME_OVERHEAD, HEADER_SI
 from ..decode.frame_runs import LONG
 from .layout_json import fields_json, long_plan, mixed_fields_json, record_fields_json
 from .records import COMPACT, NO_FIELDS, SPACED, record_json, record_json_text
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ..decode.blocks import Block
+    from ..decode.pairing import Record
 
 # What varies between rows of one shape (besides the fields). The templates are kept by the model
 # they are for (Model.keep): (format, slots, layout) of a Block's rows, (format, slots) of a Record's.
@@ -38,12 +42,12 @@ def _not_finite(offset: int, what: str, value: float) -> NonFiniteError:
     return NonFiniteError(f"the packet at byte {offset}: {what} {value!r} is not a finite number (JSON has none)")
 
 
-def block_json_lines(blk: Any, only: set[int] | None = None, compact: bool = False, rows: Any = None) -> str:
+def block_json_lines(blk: Block, only: set[int] | None = None, compact: bool = False, rows: Any = None) -> str:
     """The JSON line of each row (or of ``rows``, ascending indexes) of ``blk``, newline-terminated."""
     return "".join(block_json_rows(blk, only, compact, rows, "\n"))
 
 
-def block_json_rows(blk: Any, only: set[int] | None = None, compact: bool = False, rows: Any = None,
+def block_json_rows(blk: Block, only: set[int] | None = None, compact: bool = False, rows: Any = None,
                     end: str = "") -> list[str]:
     """The JSON text of each row (or of ``rows``), each followed by ``end``."""
     if blk.linted_by_rows:
@@ -54,7 +58,7 @@ def block_json_rows(blk: Any, only: set[int] | None = None, compact: bool = Fals
     return _lines(blk, only, compact, rows, end)
 
 
-def _lines(blk: Any, only: set[int] | None, compact: bool, rows: Any, end: str) -> list[str]:
+def _lines(blk: Block, only: set[int] | None, compact: bool, rows: Any, end: str) -> list[str]:
     run = blk.run
     blob, lo = run.blob, blk.lo
     starts = run.starts[lo:blk.hi].tolist()
@@ -143,14 +147,14 @@ def json_template(obj: dict[str, Any], slots: tuple[str, ...], encode: Any, stri
     return text, tuple(name for _, name, _, _ in found)
 
 
-def _line_template(rec: Any, only: set[int] | None, compact: bool) -> tuple[str, tuple[str, ...]]:
+def _line_template(rec: Record, only: set[int] | None, compact: bool) -> tuple[str, tuple[str, ...]]:
     """record_json_text of ``rec`` as a ``%`` format: a %s for each of _SLOTS it has, and for the fields."""
     empty = NO_FIELDS[compact]
     return json_template(record_json(rec, only, fields=False), _SLOTS, COMPACT if compact else SPACED,
                          strings=("raw",), literals=(("fields", empty, empty[:-1] + "%s]"),))
 
 
-def _template(blk: Any, k: int, model: Any, key: tuple, only: set[int] | None, compact: bool) -> tuple:
+def _template(blk: Block, k: int, model: Any, key: tuple, only: set[int] | None, compact: bool) -> tuple:
     """The line of row ``k``'s shape with a %s for each part that varies, and the layout of its fields;
     kept by ``model``, the row's."""
     rec = blk.record(k)
@@ -163,7 +167,7 @@ def _template(blk: Any, k: int, model: Any, key: tuple, only: set[int] | None, c
     return model.keep(key, (text, slots, rec.data_layout()[0]))
 
 
-def record_json_line(rec: Any, only: set[int] | None = None, compact: bool = False) -> str:
+def record_json_line(rec: Record, only: set[int] | None = None, compact: bool = False) -> str:
     """``record_json_text(rec, only, compact)``, from its shape's template where it has one: the record
     path's JSON (a live port's MCAP packets, jsonl from a pipe) without a dict per record.
 

@@ -80,16 +80,16 @@ def packet_notes(rec: Record) -> list[str]:
     """What a line says of a packet beside its fields: the registers a request reads, a command packet's odd
     header, a return's status flags (table 4.4)."""
     ev = rec.event
-    t = type(ev)
     notes = []
-    if t is ShortPacket:
+    if type(ev) is ShortPacket:
         names = rec.read_names
-        if names and ev.read_range:
-            a, n = ev.read_range
+        read = ev.read_range
+        if names and read:
+            a, n = read
             notes.append(f"read[{a}+{n}]" if len(names) > 3 else f"read[{','.join(names)}]")
         if ev.commands and not ev.data and (ev.address, ev.length, ev.count) != (COMMAND_ADDRESS, 0, 0):
             notes.append(f"addr={ev.address} len={ev.length} count={ev.count}")
-    elif t is ReturnPacket and ev.flags:
+    elif type(ev) is ReturnPacket and ev.flags:
         notes.append("flags=" + ",".join(ev.flag_names or (f"0x{ev.flags:02X}",)))
     return notes
 
@@ -107,17 +107,17 @@ def summary(rec: Record, *, bare: bool = False, keep: bool = True, only: set[int
     parts = []
     if not bare:
         parts.append(kind_word(rec) + ("(BAD-SUM)" if bad_sum(rec) else ""))
-    if t is Garbage:
+    if type(ev) is Garbage:
         shown = ev.raw[:16].hex(" ").upper() + (" ..." if len(ev.raw) > 16 else "")
         return " ".join(parts + [f"{len(ev.raw)}B {ev.reason}: {shown}"])
     if bare:
         pass
-    elif t is ShortPacket or t is ReturnPacket:
+    elif type(ev) is ShortPacket or type(ev) is ReturnPacket:
         parts.append(f"id={ev.id}")
     elif rec.is_reply and rec.id is not None:  # ACK/NACK: the ID of the request they answer
         parts.append(f"id={rec.id}")
     if t is LongPacket:
-        by_id: dict[int, list[str]] = {}
+        by_id: dict[int | None, list[str]] = {}  # a long packet's fields: each of one servo
         for f in fields:
             if not is_shown(f) or (only is not None and f.id not in only):
                 continue
@@ -235,20 +235,25 @@ def record_json(rec: Record, only: set[int] | None = None, *, fields: bool = Tru
         "status": rec.status,
         "diagnostics": [d.as_json() for d in rec.findings],
     }
-    if t is ShortPacket or t is LongPacket or t is ReturnPacket:
+    if type(ev) is ReturnPacket:
         obj.update(id=ev.id, address=ev.address, length=ev.length, count=ev.count)
-        obj["flag"] = ev.flags if t is ReturnPacket else ev.flag
-        obj["flags"] = list(ev.flag_names) if t is ReturnPacket else request_flag_names(ev)
+        obj["flag"] = ev.flags
+        obj["flags"] = list(ev.flag_names)
+    elif type(ev) is ShortPacket or type(ev) is LongPacket:
+        obj.update(id=ev.id, address=ev.address, length=ev.length, count=ev.count)
+        obj["flag"] = ev.flag
+        obj["flags"] = request_flag_names(ev)
     elif rec.is_reply:
         obj["id"] = rec.id
-    if t is ShortPacket:
+    if type(ev) is ShortPacket:
         obj["op"] = ev.op
-        if ev.read_range is not None:
-            a, n = ev.read_range
+        read = ev.read_range
+        if read is not None:
+            a, n = read
             obj["read"] = {"address": a, "length": n, "names": rec.read_names}
-    elif t is LongPacket:
+    elif type(ev) is LongPacket:
         obj["op"] = "write"
         obj["vids"] = [r.vid for r in ev.records]
-    elif t is Garbage:
+    elif type(ev) is Garbage:
         obj["reason"] = ev.reason
     return obj

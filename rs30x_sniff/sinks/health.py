@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import sys
 from collections import Counter
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from collections.abc import Iterable
 
 import numpy as np
 
 from ..protocol.events import ADDRESS, DATA, FLAG, LONG_ADDRESS, LONG_LENGTH, LONG_RECORDS, OFFSET, RAW, T_START
 from ..protocol.wire import AT_DATA, FRAME_OVERHEAD, RETURN_FLAG_BITS
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ..decode.blocks import Block
+    from ..decode.pairing import Record
 
 # Registers whose range a servo's returns show, and the ones the host's writes set (table 4.6).
 PRESENT = ("present_position", "present_speed", "present_current", "present_temperature", "present_voltage")
@@ -178,7 +182,7 @@ class HealthRecorder:
         return h
 
     # ---- the record form (per record: keep it cheap) -----------------------------------------
-    def returned(self, rec: Any, ev: Any, sid: int) -> None:
+    def returned(self, rec: Record, ev: Any, sid: int) -> None:
         """An intact return packet from ``sid``."""
         data = ev[DATA]
         if data and self.ranges:
@@ -194,7 +198,7 @@ class HealthRecorder:
         if flags:
             self._flags(sid, flags, ev)
 
-    def written(self, rec: Any, ev: Any, sid: int) -> None:
+    def written(self, rec: Record, ev: Any, sid: int) -> None:
         """An intact short packet to ``sid`` carrying data."""
         if not self.ranges:
             return
@@ -206,7 +210,7 @@ class HealthRecorder:
         if len(b[1]) >= FLUSH_ROWS:
             self.flush_short(key, b, False)
 
-    def long_written(self, rec: Any, ev: Any) -> None:
+    def long_written(self, rec: Record, ev: Any) -> None:
         """An intact long packet."""
         if not self.ranges:
             return
@@ -227,7 +231,7 @@ class HealthRecorder:
             self.flush_long(key, b)
 
     # ---- the column form (a Block's rows: rs30x_sniff.decode.blocks) --------------------------
-    def returned_rows(self, blk: Any, rows: np.ndarray) -> None:
+    def returned_rows(self, blk: Block, rows: np.ndarray) -> None:
         """Returns of the Block (``rows``): :meth:`returned` of each."""
         cols = blk.cols
         with_data = rows[cols["data_len"][rows] > 0] if self.ranges else rows[:0]
@@ -237,12 +241,12 @@ class HealthRecorder:
         if flagged.size:
             self._flag_rows(blk, flagged)
 
-    def written_rows(self, blk: Any, rows: np.ndarray) -> None:
+    def written_rows(self, blk: Block, rows: np.ndarray) -> None:
         """Short packets of the Block to one servo carrying data (``rows``): :meth:`written` of each."""
         if self.ranges:
             self._buffer_rows(blk, rows, self.writes, False)
 
-    def long_written_rows(self, blk: Any, rows: np.ndarray) -> None:
+    def long_written_rows(self, blk: Block, rows: np.ndarray) -> None:
         """Long packets of the Block (``rows``): :meth:`long_written` of each."""
         if not self.ranges:
             return
@@ -254,7 +258,7 @@ class HealthRecorder:
             rec = made.get(k) or blk.fresh_record(k)
             self.long_written(rec, rec.event)
 
-    def _buffer_rows(self, blk: Any, rows: np.ndarray, bufs: dict, present: bool | None) -> None:
+    def _buffer_rows(self, blk: Block, rows: np.ndarray, bufs: dict, present: bool | None) -> None:
         """Rows of the Block into ``bufs``, as returned() / written() / long_written() put them
         (``present`` True, False, None): by shape, each shape in the order its first row came, flushed
         every FLUSH_ROWS rows of a shape as they are."""
@@ -297,7 +301,7 @@ class HealthRecorder:
                 if i == g1:
                     break
 
-    def _flag_rows(self, blk: Any, rows: np.ndarray) -> None:
+    def _flag_rows(self, blk: Block, rows: np.ndarray) -> None:
         """Status flags of a Block's returns (rows), counted per servo and flag with the first seen."""
         cols = blk.cols
         flags, ids = cols["flag"][rows], cols["id"][rows]

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..protocol.wire import AT_DATA
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ..decode.blocks import Block
 
 
 @dataclass
@@ -107,7 +110,7 @@ class ServoTraffic:
         (self.by_id.get(sid) or self.servo(sid)).nacks += 1
 
     # ---- the column form -------------------------------------------------------------------------
-    def add_block(self, blk: Any, to_servo: np.ndarray, reads: np.ndarray, is_return: np.ndarray,
+    def add_block(self, blk: Block, to_servo: np.ndarray, reads: np.ndarray, is_return: np.ndarray,
                   long_rows: np.ndarray | None) -> list[int]:
         """A Block's rows (rs30x_sniff.decode.blocks): ``to_servo`` the short packets to one servo,
         ``reads`` those asking for a return, ``is_return`` the returns, ``long_rows`` the long packets
@@ -142,7 +145,7 @@ class ServoTraffic:
                 by_id[i].returns += int(rc[i])
         return first
 
-    def _reads(self, blk: Any, read_rows: np.ndarray) -> None:
+    def _reads(self, blk: Block, read_rows: np.ndarray) -> None:
         """Reads (the rows of requests asking for a return) counted, with each servo's first and last time."""
         if not read_rows.size:
             return
@@ -167,7 +170,7 @@ class ServoTraffic:
                 st.first_read_t = f
             st.last_read_t = la
 
-    def _new_servos(self, blk: Any, named: np.ndarray, longs: list) -> None:
+    def _new_servos(self, blk: Block, named: np.ndarray, longs: list) -> None:
         """Create the ServoStats of the IDs the Block names first, in the order the record form would."""
         sid = blk.cols["id"]
         first: dict[int, tuple[int, int]] = {}  # ID -> (row, place in the row) of its first mention
@@ -193,7 +196,7 @@ class ServoTraffic:
         return {str(sid): s.as_dict() for sid, s in sorted(self.by_id.items())}
 
 
-def long_vids(blk: Any, rows: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+def long_vids(blk: Block, rows: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     """The long packets among ``rows`` of a Block, by shape: (their rows, the VID of each of their
     records, one row of VIDs per packet); packets that carry no record are left out."""
     cols = blk.cols

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections import Counter
 from operator import itemgetter
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from collections.abc import Iterable
 
 import numpy as np
@@ -28,6 +28,9 @@ from .latency import LatencyHistogram, ServoLatencies
 from .pipeline import Sink
 from .segments import TimeSegments
 from .servos import ServoStats, ServoTraffic
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ..decode.pairing import Record
 
 # Importers' names (RecentLoad: the live displays; FLUSH_ROWS: tests set it here and in health.py).
 __all__ = ["CaptureStats", "FLUSH_ROWS", "LatencyHistogram", "RecentLoad", "ServoStats"]
@@ -106,7 +109,7 @@ class CaptureStats(Sink):
         return self.per_servo.servo(sid)
 
     # ---- the record form ---------------------------------------------------------------------------
-    def add(self, rec: Any) -> None:
+    def add(self, rec: Record) -> None:
         # Per record on captures of millions of frames: events are read by index, not by property.
         ev = rec.event
         segments = self.segments

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import csv
 from datetime import datetime, UTC
-from typing import IO, Any
+from typing import TYPE_CHECKING, IO, Any
 from collections.abc import Callable, Iterable
 
 from ..protocol.chunks import EPOCH_MIN
@@ -16,6 +16,9 @@ from ..render.records import direction, summary
 from ..protocol.wire import byte_time
 from .mcap.transactions import transaction_json
 from .mcap.servo_states import ServoStates
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ..decode.pairing import Record
 
 KINDS = ("states", "transactions", "findings", "packets")
 CSV, PARQUET = "csv", "parquet"
@@ -257,7 +260,7 @@ class StatesTable(TableSink):
             if changed:
                 self._update(rec, changed)
 
-    def _update(self, rec: Any, changed: dict[int, list[tuple[str, Any]]]) -> None:
+    def _update(self, rec: Record, changed: dict[int, list[tuple[str, Any]]]) -> None:
         states = self._states
         index = self._index
         width = len(self.registers)

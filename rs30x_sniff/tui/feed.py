@@ -6,7 +6,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from queue import Empty, SimpleQueue
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from collections.abc import Callable, Iterator
 
 from ..decode.blocks import MIN_BLOCK, Block
@@ -17,6 +17,9 @@ from ..decode.decoder import DecodeOptions, Decoder, Step
 from ..sinks.stats import CaptureStats
 from .sources import Source
 from .servos import ServoRow, servo_snapshot
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ..lint.linter import Linter
 
 # Seconds between batches: two screen updates a second. Each redraws most of the screen (the timeline
 # scrolls, the newest packet's detail, the servos' values, the plot), some 20-40 ms of CPU in Textual: four a
@@ -166,7 +169,7 @@ class Feeder:
     """
 
     def __init__(self, source: Source, options: DecodeOptions, post: Callable[[Batch], None], *,
-                 linter: Any = None, interval: float = POST_INTERVAL, max_batch: int = MAX_BATCH,
+                 linter: Linter | None = None, interval: float = POST_INTERVAL, max_batch: int = MAX_BATCH,
                  clock: Callable[[], float] = time.monotonic,
                  sink_factory: Callable[..., Any] | None = None) -> None:
         self.source = source

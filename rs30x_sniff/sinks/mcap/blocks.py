@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ...render.block_json import block_json_rows, json_template
 from ...decode.frame_runs import LONG
@@ -15,6 +15,9 @@ from ...protocol.wire import (
     AT_ADDRESS, AT_COUNT, AT_DATA, AT_ID, AT_LENGTH, BROADCAST_ID, FRAME_OVERHEAD, HEADER_SIZE, SUM_SIZE)
 from ...render.layout_json import MixedParts, long_plan, value_text
 from .transactions import transaction_json
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ...decode.blocks import Block
 
 _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 _TX_SLOTS = ("request_offset", "t_request", "request_raw", "reply_offset", "t_reply", "reply_raw", "latency_s")
@@ -55,7 +58,7 @@ def _named_parts(layout: Layout | MixedParts, raw: bytes) -> Iterator[tuple[int,
             yield (raw[AT_ID] if vid_at is None else values[vid_at]), parts, values
 
 
-def _tx_template(blk: Any, k: int, model: Any, key: tuple) -> tuple[str | None, tuple[str, ...]]:
+def _tx_template(blk: Block, k: int, model: Any, key: tuple) -> tuple[str | None, tuple[str, ...]]:
     """The /rs30x/transactions body of row ``k``'s shape with a %s where each row differs (None when
     the row's request expects no reply: no message) and the slots; kept by ``model``, the row's."""
     rec = blk.record(k)
@@ -65,7 +68,7 @@ def _tx_template(blk: Any, k: int, model: Any, key: tuple) -> tuple[str | None, 
     return model.keep(key, tpl)
 
 
-def block_messages(ch: Any, blk: Any, emit: Any) -> None:
+def block_messages(ch: Any, blk: Block, emit: Any) -> None:
     """Emit (channel, log_time, body) for each row of ``blk`` as ``ch.record`` would, in the same order:
     the packet, the state of each servo it sets, the transaction of a request that expects a reply."""
     if blk.linted_by_rows:

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ...protocol.events import Garbage
 from ...protocol.wire import BROADCAST_ID, LONG_PACKET_ID
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ...decode.pairing import Record
 
 
 class ServoStates:
@@ -19,7 +22,7 @@ class ServoStates:
         self.models: dict[int, str] = dict(models or {})  # servo -> the model name its records used
         self.known: dict[int, None] = {}                  # servos with a state, in the order first seen
 
-    def changes(self, rec: Any) -> dict[int, list[tuple[str, Any]]]:
+    def changes(self, rec: Record) -> dict[int, list[tuple[str, Any]]]:
         """``{servo: [(register name, value), ...]}`` for every servo whose registers ``rec`` sets."""
         ev = rec.event
         if type(ev) is Garbage:

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ...protocol.events import ShortPacket
 
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ...decode.pairing import Record
 
-def transaction_json(rec: Any) -> dict[str, Any]:
+
+def transaction_json(rec: Record) -> dict[str, Any]:
     """A request that expects a reply, with its reply and latency (the /rs30x/transactions object)."""
     ev = rec.event
     reply = rec.reply

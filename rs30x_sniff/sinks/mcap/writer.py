@@ -8,7 +8,7 @@ import heapq
 import json
 import struct
 from operator import itemgetter
-from typing import IO, Any
+from typing import TYPE_CHECKING, IO, Any
 from collections.abc import Iterable
 
 import foxglove
@@ -30,6 +30,9 @@ from .servo_states import ServoStates
 from .transactions import transaction_json
 from ..stats import CaptureStats
 from ...protocol.wire import byte_time
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ...decode.pairing import Record
 
 # foxglove.LogLevel values (Foxglove's published schema).
 _LOG_LEVEL = {"info": 2, "warning": 3, "error": 4}
@@ -127,7 +130,7 @@ class JsonChannels(Sink):
                 f'{base64.b64encode(data).decode("ascii")}"{marks}}}').encode()
         self._emit(cid, log_time_ns(self.time_of(t, offset)), body)
 
-    def record(self, rec: Any) -> None:
+    def record(self, rec: Record) -> None:
         """A decoded record: its /rs30x/packets message, the state of every servo it changes, and
         its /rs30x/transactions message if it is a request that asked for a reply."""
         ev = rec.event
@@ -156,7 +159,7 @@ class JsonChannels(Sink):
             st = self._states[tid] = {}
         return cid, st
 
-    def _update_state(self, rec: Any, changed: dict[int, list[tuple[str, Any]]], log_time: int) -> None:
+    def _update_state(self, rec: Record, changed: dict[int, list[tuple[str, Any]]], log_time: int) -> None:
         # Each servo's state is kept as its JSON fragments ('"name":value'), so a packet that changes
         # two registers re-encodes two values, not the whole object (a long packet changes 18 servos).
         # A servo whose channel nobody watches keeps its new values as they are (``_held``), encoded
