@@ -31,7 +31,7 @@ from rs30x_sniff.lint import Linter  # noqa: E402
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder  # noqa: E402
 from rs30x_sniff.sinks.pipeline import drive
 from rs30x_sniff.tui.app import make_app  # noqa: E402
-from rs30x_sniff.tui.sources import FileSource  # noqa: E402
+from rs30x_sniff.sources.feeds import FileSource  # noqa: E402
 
 
 def decode_and_lint(path: str) -> int:

@@ -351,8 +351,8 @@ def open_input(path: str, fmt: str | None, settings: Settings, *, duration: floa
         check_positive("--duration", duration)
         return LiveSource(path, settings.baud, duration=duration).start()
     # A unit the settings do not give is told by the reader itself (a pipe has no capture layer): it says so.
-    return read_input(path, fmt, baud=settings.baud, time_ref=settings.time_ref,
-                      options={**input_options(settings), "locate": locate, "say_time_unit": settings.time_unit is None})
+    options = {**input_options(settings), "locate": locate, "say_time_unit": settings.time_unit is None}
+    return read_input(path, fmt, baud=settings.baud, time_ref=settings.time_ref, options=options)
 
 
 def input_options(settings: Settings) -> dict[str, Any]:

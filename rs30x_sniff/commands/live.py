@@ -78,7 +78,8 @@ def start_foxglove(address: tuple[str, int] | None, *, source: str, baud: int,
 
 def make_source(args: argparse.Namespace, settings: Settings):
     """The source the command line asks for, opened now so a bad one fails before the screen starts."""
-    from ..tui.sources import FileSource, PortSource, ReplaySource, SimulatorSource
+    from ..sim.source import SimulatorSource
+    from ..sources.feeds import FileSource, PortSource, ReplaySource
 
     if args.simulate:
         if args.input:

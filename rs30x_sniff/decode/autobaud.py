@@ -16,9 +16,10 @@ from ..protocol.baud import NO_ESTIMATE, BaudEstimate, estimate_from_spacings
 from ..protocol.events import RAW, T_END, T_START
 from ..protocol.wire import BAUD_RATES
 
+from .pairing import Record
+
 if TYPE_CHECKING:  # names for the checker; no import at run time
     from ..protocol.events import AnyEvent
-    from .pairing import Record
 
 # Table 4.7's rates, most likely first: the factory default 115200 (chapter 4, No. 6), then the
 # rates hosts commonly pick, then the rest. A scan stops at the first rate that decodes cleanly.
@@ -30,7 +31,7 @@ _VALID_KINDS = frozenset(("short", "long", "return", "ack", "nack"))
 
 def is_valid(rec: Record | AnyEvent) -> bool:
     """Whether a record (or event) is a checksum-valid frame, or an ACK/NACK byte (which only follows one)."""
-    ev = getattr(rec, "event", rec)
+    ev = rec.event if type(rec) is Record else rec
     return ev.kind in _VALID_KINDS and ev.checksum_ok
 
 

@@ -13,7 +13,7 @@ exactly as the tracker would have.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from typing import Any
+from typing import Any, final
 
 import numpy as np
 
@@ -27,6 +27,7 @@ _WANTS_REPLY = np.array(FLAG_WANTS_REPLY, dtype=bool)
 MIN_BLOCK = 32
 
 
+@final  # the checker narrows by `type(x) is Block` both ways (a Step holds Records and Blocks)
 class Block:
     """Rows ``lo``..``hi`` of a FrameRun, paired and annotated: each request asking for a reply is
     directly followed by its return. ``index0`` is the first row's record index."""

@@ -55,8 +55,8 @@ class Step(list["Record | Block"]):
         # record at or past a seam's offset belongs to the new time segment.
         self.seams: tuple[Seam, ...] = ()
 
-    @property
-    def count(self) -> int:
+    @property  # shadows list.count (a method) on purpose: a step's size, Blocks' rows counted, is what callers ask
+    def count(self) -> int:  # type: ignore[override]
         """How many records the step holds (a Block counts its rows)."""
         if not self.blocks:
             return len(self)

@@ -8,7 +8,7 @@ a second). Two events are equal when their kind and every field are equal.
 from __future__ import annotations
 
 from operator import itemgetter
-from typing import Any, Literal
+from typing import Any, Literal, final
 
 from .wire import (
     EXPECT_BY_MODE, FLAG_WANTS_ACK, RETURN_MODE_MASK, Expect, command_names, expects, return_flag_names,
@@ -82,6 +82,7 @@ def _with_fields(cls: type, names: tuple[str, ...]) -> type:
     return cls
 
 
+@final  # every kind of event is final: the checker narrows by `type(ev) is ShortPacket` both ways
 class ShortPacket(Event):
     """An ``FA AF`` request to one servo (or to all with ID 255)."""
 
@@ -151,6 +152,7 @@ class LongRecord(tuple):
         return f"LongRecord(vid={self[0]}, data={self[1]!r})"
 
 
+@final
 class LongPacket(Event):
     """An ``FA AF`` packet with ID 0 writing the same address range to several servos."""
 
@@ -172,6 +174,7 @@ class LongPacket(Event):
 _with_fields(LongPacket, _COMMON + ("flag", "address", "length", "count", "records", "checksum_ok"))
 
 
+@final
 class ReturnPacket(Event):
     """An ``FD DF`` packet from a servo: memory it was asked for, and its status flags."""
 
@@ -193,6 +196,7 @@ class ReturnPacket(Event):
 _with_fields(ReturnPacket, _COMMON + ("id", "flags", "address", "length", "count", "data", "checksum_ok"))
 
 
+@final
 class Ack(Event):
     """The single byte 07 a servo sends when a request asked for ACK/NACK (table 4.3, mode 0001)."""
 
@@ -203,6 +207,7 @@ class Ack(Event):
 _with_fields(Ack, _COMMON)
 
 
+@final
 class Nack(Event):
     """The single byte 08: the servo refused or did not understand the request."""
 
@@ -213,6 +218,7 @@ class Nack(Event):
 _with_fields(Nack, _COMMON)
 
 
+@final
 class Garbage(Event):
     """A run of bytes that is no intact frame, with the reason it was skipped."""
 

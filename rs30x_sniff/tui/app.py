@@ -28,7 +28,7 @@ from ..filters import FilterError, parse_filter
 from ..render.times import ABSOLUTE, DEFAULT_TIME_FORMAT, DELTA, EPOCH, TimeForm
 from .detail import DetailPane
 from .feed import POST_INTERVAL, Batch, Feeder, default_linter
-from .sources import Source
+from ..sources.feeds import Feed
 from .header import SessionInfo, StatusHeader
 from .help import HelpScreen
 from .panes import FindingsPane, PlotPane
@@ -112,7 +112,7 @@ class MonitorApp(App):
         Binding("question_mark", "help", "Help", key_display="?"),
     ]
 
-    def __init__(self, source: Source, config: MonitorConfig) -> None:
+    def __init__(self, source: Feed, config: MonitorConfig) -> None:
         super().__init__()
         self.source = source
         self.config = config
@@ -539,6 +539,6 @@ class MonitorApp(App):
         self.plot.update_from(self.store)
 
 
-def make_app(source: Source, options: DecodeOptions | None = None, **config: Any) -> MonitorApp:
+def make_app(source: Feed, options: DecodeOptions | None = None, **config: Any) -> MonitorApp:
     """The monitor for ``source``: what ``rs30x-sniff monitor`` runs and what the tests drive."""
     return MonitorApp(source, MonitorConfig(options or DecodeOptions(), **config))

@@ -15,7 +15,7 @@ from ..sources.captures import CaptureError
 from ..sinks.pipeline import GROUP_BYTES, Pipeline, Sink, columnar_for
 from ..decode.decoder import DecodeOptions, Decoder, Step
 from ..sinks.stats import CaptureStats
-from .sources import Source
+from ..sources.feeds import Feed
 from .servos import ServoRow, servo_snapshot
 
 if TYPE_CHECKING:  # names for the checker; no import at run time
@@ -168,7 +168,7 @@ class Feeder:
     batches go up through ``post``, at most every ``interval`` seconds (or ``max_batch`` records).
     """
 
-    def __init__(self, source: Source, options: DecodeOptions, post: Callable[[Batch], None], *,
+    def __init__(self, source: Feed, options: DecodeOptions, post: Callable[[Batch], None], *,
                  linter: Linter | None = None, interval: float = POST_INTERVAL, max_batch: int = MAX_BATCH,
                  clock: Callable[[], float] = time.monotonic,
                  sink_factory: Callable[..., Any] | None = None) -> None:
@@ -248,7 +248,7 @@ class Feeder:
     def _step(self) -> None:
         """After each step of a file (the decoder takes a file ~256 KiB at a time, so between chunks
         there is nothing new to do): the screen's commands, the reader's warnings, a post when due.
-        The source itself stops when told (Source.chunks)."""
+        The source itself stops when told (Feed.chunks)."""
         if self._commands_waiting:
             self._apply_commands()
         self._take_warnings()

@@ -7,7 +7,7 @@ import sys
 
 from ..decode.decoder import DecodeOptions
 from .app import make_app
-from .sources import ChunkSource
+from ..sources.feeds import ChunkSource
 
 SIZE = (160, 48)
 

@@ -29,9 +29,6 @@ ALLOWED = {
     # _Recording (tui/feed.py) stops the recording of its Feeder, a class of the same module.
     ("tui/feed.py", "self.feeder._note"): "own class",
     ("tui/feed.py", "self.feeder._close_sink"): "own class",
-    # _rest: the read-ahead chunk of FileSource / SimulatorSource, classes of the same module.
-    ("tui/sources.py", "src._first"): "own class",
-    ("tui/sources.py", "src._it"): "own class",
 }
 
 

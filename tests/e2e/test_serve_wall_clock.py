@@ -12,7 +12,7 @@ pytest.importorskip("foxglove", reason="foxglove-sdk is not installed")
 pytest.importorskip("websockets", reason="websockets is not installed (the test extra)")
 
 from rs30x_sniff.commands.live import live_start_time  # noqa: E402
-from rs30x_sniff.tui.sources import SimulatorSource  # noqa: E402
+from rs30x_sniff.sim.source import SimulatorSource  # noqa: E402
 from tests.e2e.test_foxglove import Client, start_serve, stop  # noqa: E402
 
 

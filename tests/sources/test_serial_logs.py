@@ -382,7 +382,7 @@ def test_cli_commands(tmp_path, capsys, name, forced):
 def test_monitor_replay_keeps_bytes_and_senders(name):
     import threading
 
-    from rs30x_sniff.tui.sources import ReplaySource
+    from rs30x_sniff.sources.feeds import ReplaySource
 
     src = ReplaySource(str(SAMPLES[name]), speed=1000.0)
     try:

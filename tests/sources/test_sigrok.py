@@ -190,7 +190,7 @@ def test_lint_and_convert_read_the_sample(capsys, tmp_path):
 def test_the_monitor_reads_a_logic_capture_with_its_options():
     import threading
 
-    from rs30x_sniff.tui.sources import FileSource, ReplaySource
+    from rs30x_sniff.sources.feeds import FileSource, ReplaySource
 
     src = FileSource(str(SAMPLE), options={"channel": "D0", "baud": 115200})
     assert payload(src.chunks(threading.Event())) == payload(sim(115200, 1.05))

@@ -14,7 +14,7 @@ from rs30x_sniff.tui.header import StatusHeader
 from rs30x_sniff.tui.help import HelpScreen
 from rs30x_sniff.tui.panes import FindingsPane
 from rs30x_sniff.tui.servos_pane import ServosPane
-from rs30x_sniff.tui.sources import FileSource
+from rs30x_sniff.sources.feeds import FileSource
 from rs30x_sniff.tui.timeline import Timeline
 from rs30x_sniff.protocol.wire import encode_return, encode_short
 

@@ -10,7 +10,8 @@ import pytest
 from rs30x_sniff.sources.captures import CaptureError, read_capture, write_capture
 from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.tui.feed import Feeder, default_linter
-from rs30x_sniff.tui.sources import ChunkSource, FileSource, ReplaySource, SimulatorSource, paced
+from rs30x_sniff.sim.source import SimulatorSource
+from rs30x_sniff.sources.feeds import ChunkSource, FileSource, ReplaySource, paced
 from rs30x_sniff.protocol.wire import encode_short
 
 from .helpers import GatedSource, MANUAL
@@ -226,7 +227,7 @@ def test_a_damaged_mcap_says_so_on_the_screen_not_behind_it(tmp_path, capsys):
 @pytest.fixture
 def read_ahead_all(monkeypatch):
     """Every file through a child process (io.read_ahead), however small."""
-    from rs30x_sniff.tui import sources
+    from rs30x_sniff.sources import feeds as sources
 
     monkeypatch.setattr(sources, "READ_AHEAD_BYTES", 0)
 

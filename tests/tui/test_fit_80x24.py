@@ -12,7 +12,7 @@ from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.tui.app import make_app
 from rs30x_sniff.tui.header import SessionInfo, status_text
 from rs30x_sniff.tui.panes import range_label
-from rs30x_sniff.tui.sources import FileSource
+from rs30x_sniff.sources.feeds import FileSource
 from rs30x_sniff.tui.store import Store
 
 from .helpers import ROOT, FrozenClock, wait_done

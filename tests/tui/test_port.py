@@ -10,7 +10,7 @@ import pytest
 from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.sim import run
 from rs30x_sniff.tui.app import make_app
-from rs30x_sniff.tui.sources import PortSource
+from rs30x_sniff.sources.feeds import PortSource
 
 from .helpers import SIZE, records_of
 

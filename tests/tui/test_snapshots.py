@@ -17,7 +17,7 @@ import pytest
 from rs30x_sniff.lint import Linter
 from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.tui.app import make_app
-from rs30x_sniff.tui.sources import FileSource
+from rs30x_sniff.sources.feeds import FileSource
 
 from .helpers import ROOT, SIZE, FrozenClock, wait_done
 

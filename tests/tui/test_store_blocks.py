@@ -326,7 +326,7 @@ def test_capture_stats_flush_health_buffers_as_the_record_path(monkeypatch, rows
 def test_the_feeder_loads_a_file_as_blocks(tmp_path):
     from rs30x_sniff.sources.captures import write_capture
     from rs30x_sniff.tui.feed import Feeder, default_linter
-    from rs30x_sniff.tui.sources import FileSource
+    from rs30x_sniff.sources.feeds import FileSource
 
     frames = hexapod_frames(20_000)
     path = tmp_path / "t.thex"
@@ -355,7 +355,7 @@ def read_capture_of(path):
 
 def test_a_live_source_stays_record_by_record():
     from rs30x_sniff.tui.feed import Feeder
-    from rs30x_sniff.tui.sources import ChunkSource
+    from rs30x_sniff.sources.feeds import ChunkSource
 
     port = ChunkSource("port", hexapod_frames(2000))
     port.kind, port.live = "port", True  # chunks as a serial port hands them out
@@ -370,7 +370,7 @@ def test_recording_while_a_file_loads_gets_records(tmp_path):
     screen only once it has built them (no row is two objects)."""
     from rs30x_sniff.sources.captures import write_capture
     from rs30x_sniff.tui.feed import Feeder
-    from rs30x_sniff.tui.sources import FileSource
+    from rs30x_sniff.sources.feeds import FileSource
 
     path = tmp_path / "t.thex"
     write_capture(path, hexapod_frames(20_000), "timestamped")

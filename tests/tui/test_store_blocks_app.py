@@ -12,7 +12,7 @@ from rs30x_sniff.lint import Linter
 from rs30x_sniff.decode.decoder import DecodeOptions, Decoder
 from rs30x_sniff.tui.app import make_app
 from rs30x_sniff.filters import parse_filter
-from rs30x_sniff.tui.sources import FileSource
+from rs30x_sniff.sources.feeds import FileSource
 from rs30x_sniff.tui.timeline import Timeline
 
 from .helpers import SIZE, FrozenClock, wait_done

@@ -10,7 +10,7 @@ from rs30x_sniff.sim import run as simulate
 from rs30x_sniff.tui.app import make_app
 from rs30x_sniff.tui.detail import DetailPane
 from rs30x_sniff.tui.header import StatusHeader
-from rs30x_sniff.tui.sources import ChunkSource, FileSource
+from rs30x_sniff.sources.feeds import ChunkSource, FileSource
 
 from .helpers import ROOT, FrozenClock, wait_done
 
