@@ -1,4 +1,4 @@
-"""Where the monitor's bytes come from: a capture file (at once or replayed), a serial port, or the simulator."""
+"""What the monitor's feeder reads: a capture file (at once or replayed), a serial port, chunks in memory."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ from typing import Protocol
 from collections.abc import Callable, Iterable, Iterator
 
 from ..protocol.chunks import remark
-from ..sources.captures import CaptureError
-from ..sources.inputs import read_input
-from ..sources.protocol import Pacing
-from ..sources.read_ahead import ReadAhead
+from .captures import CaptureError
+from .inputs import read_input
+from .protocol import Pacing
+from .read_ahead import ReadAhead
 from ..protocol.wire import DEFAULT_BAUD, byte_time
 
 Chunk = tuple[bytes, "float | None"]
@@ -24,21 +24,14 @@ POLL_SECONDS = 0.1       # a live source yields at least this often, so commands
 # 230400 baud) makes Blocks that the linter and the statistics take at a fraction of the cost per frame
 # (the feeder thread on the hexapod: ~0.55 s of CPU over 10 s with 0.1 s gathers, ~0.3 s with these).
 PORT_GATHER_SECONDS = 0.5
-SIMULATE_SECONDS = 3600.0  # a simulated session runs for an hour of bus time unless the user quits
 # A capture file at least this large is read by a child process (io.read_ahead) while this one decodes:
 # below it, starting a Python process (~0.2 s) costs more than the reading it takes off this one.
 READ_AHEAD_BYTES = 8 << 20
 
 
-def _rest(src) -> Iterator[Chunk]:
-    """The chunk a source read ahead (to fail before the screen starts), then the rest of its iterator."""
-    if src._first is not None:
-        first, src._first = src._first, None
-        yield first
-    yield from src._it
+class Feed(Pacing, Protocol):
+    """A source as the monitor's feeder thread reads it: chunks until told to stop (the simulator: sim/source.py)."""
 
-
-class Source(Pacing, Protocol):
     name: str        # what the header shows
     kind: str        # "file", "replay", "port", "simulator"
     time_base: str   # for the MCAP sink: "capture", "synthetic" or "wall"
@@ -178,7 +171,7 @@ class PortSource:
     time_base = "wall"
 
     def __init__(self, port: str, baud: int) -> None:
-        from ..sources.serial_tap import LiveSource  # pyserial is needed only for live capture
+        from .serial_tap import LiveSource  # pyserial is needed only for live capture
 
         self.name = port
         self.tap = LiveSource(port, baud, announce=False, gather=PORT_GATHER_SECONDS)
@@ -209,42 +202,6 @@ class PortSource:
 
     def close(self) -> None:
         self.tap.close()
-
-
-class SimulatorSource:
-    """The built-in simulator running a scenario in this process, paced in real time (``speed`` x)."""
-
-    kind = "simulator"
-    live = True  # paced in real time, as a port
-    streamed = False
-    batched = False
-    time_base = "capture"
-
-    def __init__(self, scenario: str, baud: int, *, speed: float = 1.0, duration: float = SIMULATE_SECONDS,
-                 seed: int = 0, clock: Callable[[], float] = time.monotonic) -> None:
-        from ..sim import SCENARIOS, run
-
-        if scenario not in SCENARIOS:
-            raise CaptureError(f"--simulate {scenario}: unknown scenario (known: {', '.join(SCENARIOS)})")
-        self.name = scenario
-        self.speed = speed
-        self.byte_seconds = byte_time(baud)
-        self.clock = clock
-        try:
-            self._it = run(scenario, baud=baud, seed=seed, duration=duration)
-            self._first = next(self._it, None)
-        except ValueError as e:
-            raise CaptureError(f"--simulate {scenario}: {e}") from None
-
-    def _all(self) -> Iterator[Chunk]:
-        return _rest(self)
-
-    def chunks(self, stop: threading.Event) -> Iterator[Chunk]:
-        # The simulator computes far faster than real time: pacing makes it look like a live bus.
-        yield from paced(self._all(), stop, speed=self.speed, byte_seconds=self.byte_seconds, clock=self.clock)
-
-    def close(self) -> None:
-        self._it.close()
 
 
 class ChunkSource:
