@@ -118,7 +118,8 @@ def _timestamps_layer(path: str, time_unit: str | None = None) -> dict[str, Any]
         # included, leads the reason info gives for the times: timebase.TimedSource.)
         out["time_unit"] = unit.unit
         how = unit.how_known()
-        out["origin"]["time_unit"] = f"capture ({unit.describe()}, {how}" + (f": {unit.evidence})" if unit.told else ")")
+        evidence = f": {unit.evidence}" if unit.told else ""
+        out["origin"]["time_unit"] = f"capture ({unit.describe()}, {how}{evidence})"
         out["unit_note"] = f"{unit.describe()}, {how}"
     if est.baud is not None:
         out["baud"] = est.baud
