@@ -148,3 +148,16 @@ def rate_fit(chunks: Iterable[tuple[bytes, float | None]]) -> RateFit:
     """The :class:`RateFit` of timed chunks (``t`` in seconds). Neighbours whose times do not increase
     (a clock that went back, or equal stamps) are left out: they say nothing of the rate."""
     return RateFit(tuple((gap, min(n, m)) for gap, n, m in _neighbours(chunks)))
+
+
+def contradiction(estimate: BaudEstimate | None, fit: RateFit | None, baud: int) -> tuple[int | None, str] | None:
+    """How a capture's timestamps contradict decoding it at ``baud``: (the rate they show, or None when they
+    fit no rate of table 4.7; the evidence), or None when they do not. Chunks that would overlap at ``baud``
+    come first; else back-to-back bytes that name another rate with confidence."""
+    if fit is not None and fit.rules_out(baud):
+        shown = estimate.baud if estimate and estimate.baud is not None and not fit.rules_out(estimate.baud) \
+            else fit.slowest()
+        return shown, fit.evidence(baud)
+    if estimate is not None and contradicts(estimate, baud):
+        return estimate.baud, estimate.evidence
+    return None
