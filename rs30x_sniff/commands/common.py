@@ -257,16 +257,13 @@ def _time_unit_applies(path: str, fmt: str | None, unit: str) -> None:
 def _contradicted(path: str | None, settings: Settings, estimate: Any, fit: Any) -> Settings:
     """``settings`` with ``timing_unsupported`` set, and a warning on stderr, when the capture's timestamps
     contradict the rate it is decoded at: chunks would overlap at it, or back-to-back bytes name another."""
-    from ..protocol.baud import contradicts
+    from ..protocol.baud import contradiction
 
     baud = settings.baud
-    if fit is not None and fit.rules_out(baud):
-        shown = estimate.baud if estimate and not fit.rules_out(estimate.baud) else fit.slowest()
-        evidence = fit.evidence(baud)
-    elif contradicts(estimate, baud):
-        shown, evidence = estimate.baud, estimate.evidence
-    else:
+    found = contradiction(estimate, fit, baud)
+    if found is None:
         return settings
+    shown, evidence = found
     where = settings.origin.get("baud", DEFAULTS)
     if where == COMMAND_LINE:
         label, given = f"--baud {baud}", f"the {baud} given ({where})"
