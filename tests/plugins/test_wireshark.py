@@ -18,7 +18,7 @@ from rs30x_sniff.plugins.maps import plugin_maps
 from rs30x_sniff.plugins.wireshark import generate, install_hint, lua_value
 from rs30x_sniff.protocol import wire
 from rs30x_sniff.sim import SCENARIOS
-from tests.conftest import CAPTURES, ROOT
+from tests.conftest import CAPTURES
 from tests.plugins.user_maps import toml_string, write_user_maps
 
 TSHARK = shutil.which("tshark")
@@ -32,12 +32,34 @@ def write_plugin(folder: Path, maps: dict) -> Path:
     return folder / "rs30x.lua"
 
 
+# tshark reads the user's personal folders (plug-ins, preferences, profiles): a dissector installed there as
+# docs/integrations.md says would register the protocol twice ("there cannot be two protocols"). Every tshark
+# here runs with a HOME and XDG folders of its own (own_home), and none of Wireshark's folder overrides.
+OWN_HOME: dict[str, str] = {}
+WIRESHARK_OVERRIDES = ("WIRESHARK_CONFIG_DIR", "WIRESHARK_PLUGIN_DIR", "WIRESHARK_DATA_DIR", "WIRESHARK_EXTCAP_DIR")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def own_home(tmp_path_factory):
+    """A fresh HOME (and XDG config, data and cache folders under it) for every tshark this module runs."""
+    home = tmp_path_factory.mktemp("home")
+    OWN_HOME.update(HOME=str(home), XDG_CONFIG_HOME=str(home / ".config"), XDG_DATA_HOME=str(home / ".local/share"),
+                    XDG_CACHE_HOME=str(home / ".cache"))
+    yield home
+    OWN_HOME.clear()
+
+
+def tshark_env(env: dict | None = None) -> dict[str, str]:
+    assert OWN_HOME, "own_home sets the HOME tshark runs with"
+    base = {k: v for k, v in os.environ.items() if k not in WIRESHARK_OVERRIDES}
+    return {**base, **OWN_HOME, **(env or {})}
+
+
 def tshark(lua: Path | None, pcapng: Path, *args: str, env: dict | None = None) -> str:
     cmd = [TSHARK, "-n", "-r", str(pcapng), *args]
     if lua is not None:
         cmd[1:1] = ["-X", f"lua_script:{lua}"]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=120,
-                         env={**os.environ, **(env or {})})
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=tshark_env(env))
     assert run.returncode == 0, run.stderr
     assert "Lua: Error" not in run.stderr and "lua_script" not in run.stderr, run.stderr
     return run.stdout
@@ -343,7 +365,26 @@ def test_install_hint_names_the_personal_lua_folder_and_the_one_run_form():
 
 
 @needs_tshark
-def test_the_personal_lua_folder_is_where_the_hint_says():
-    run = subprocess.run([TSHARK, "-G", "folders"], capture_output=True, text=True, timeout=60)
+def test_the_personal_lua_folder_is_where_the_hint_says(own_home):
+    run = subprocess.run([TSHARK, "-G", "folders"], capture_output=True, text=True, timeout=60, env=tshark_env())
     folders = dict(line.split(":", 1) for line in run.stdout.splitlines() if ":" in line)
-    assert folders["Personal Lua Plugins"].strip() == str(Path.home() / ".local/lib/wireshark/plugins")
+    assert folders["Personal Lua Plugins"].strip() == str(own_home / ".local/lib/wireshark/plugins")
+
+
+@needs_tshark
+def test_a_dissector_installed_in_the_users_home_is_not_read(plugin, converted, own_home, monkeypatch, tmp_path):
+    """The user's HOME may hold the plug-in, installed as docs/integrations.md says: the tests above run beside it
+    (here, a HOME holding it, as the user's would, and a WIRESHARK_PLUGIN_DIR pointing at it)."""
+    lua, _ = plugin
+    users = tmp_path / "users-home"
+    installed = users / ".local/lib/wireshark/plugins"
+    installed.mkdir(parents=True)
+    (installed / "rs30x.lua").write_text(lua.read_text())
+    monkeypatch.setenv("HOME", str(users))
+    monkeypatch.setenv("WIRESHARK_PLUGIN_DIR", str(installed))
+    pcapng = converted["manual-examples.hex"][0]
+    bare = subprocess.run([TSHARK, "-n", "-r", str(pcapng), "-X", f"lua_script:{lua}"], capture_output=True,
+                          text=True, timeout=120, env={**os.environ, "XDG_CONFIG_HOME": str(users / ".config")})
+    assert "two protocols" in bare.stderr  # what the test would meet with the user's own HOME
+    text = tshark(lua, pcapng, "-T", "fields", "-e", "rs30x.kind")
+    assert text.split()
