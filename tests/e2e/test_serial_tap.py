@@ -60,7 +60,7 @@ def test_a_slow_consumer_loses_nothing():
         got = bytearray()
         deadline = time.monotonic() + 5
         while len(got) < len(data) and time.monotonic() < deadline:
-            for chunk, t in src.poll(0.1):
+            for chunk, _ in src.poll(0.1):
                 got += chunk
         assert bytes(got) == data
     finally:
@@ -69,22 +69,29 @@ def test_a_slow_consumer_loses_nothing():
     assert src.reason == "stopped"
 
 
+def tap_now(src: LiveSource) -> float:
+    """Now on the tap's own clock (its chunks' stamps: the monotonic clock anchored to the wall when it opened)."""
+    return (src.tap.wall_start_ns + src.tap.clock() - src.tap.start_ns) / 1e9
+
+
 def test_a_busy_port_is_handed_out_in_batches_each_chunk_with_its_own_stamp():
     p = Pty()
-    src = LiveSource(p.path, 115200, announce=False, gather=0.3).start()
+    src = LiveSource(p.path, 115200, announce=False, gather=1.0).start()
     try:
         os.write(p.master, b"\x07")
         assert [c for c, _ in src.poll(2.0)] == [b"\x07"]
-        handed_out = time.monotonic()
         os.write(p.master, b"\x08")
+        time.sleep(0.1)
+        between = tap_now(src)
         time.sleep(0.1)
         os.write(p.master, b"\x07\x07")
         batch = src.poll(2.0)
-        # The second poll waited out the gather time, so both writes came out in one batch...
-        assert time.monotonic() - handed_out >= 0.3
+        handed_out = tap_now(src)
+        # The second poll waited out the gather time: the byte that was there before `between` came out with the
+        # bytes written after it, in one batch...
         assert b"".join(c for c, _ in batch) == b"\x08\x07\x07" and len(batch) == 2
-        # ...stamped as they arrived, 0.1 s apart, not when they were handed out.
-        assert 0.08 < batch[1][1] - batch[0][1] < 0.25
+        # ...each stamped as it arrived, on either side of `between`, not when they were handed out.
+        assert batch[0][1] < between < batch[1][1] < handed_out
     finally:
         src.close()
         p.close()
@@ -92,12 +99,30 @@ def test_a_busy_port_is_handed_out_in_batches_each_chunk_with_its_own_stamp():
 
 def test_duration_ends_the_capture():
     p = Pty()
+    writing = threading.Event()
+    written = bytearray()
+
+    def write():
+        """A line that never goes quiet: a byte every 10 ms until the test is over."""
+        k = 0
+        while writing.is_set():
+            os.write(p.master, bytes([k % 256]))
+            written.append(k % 256)
+            k += 1
+            time.sleep(0.01)
+
+    writing.set()
+    writer = threading.Thread(target=write)
+    writer.start()
     try:
         src = LiveSource(p.path, 115200, duration=0.3, announce=False)
-        t0 = time.monotonic()
-        assert list(src) == []
-        assert src.reason == DURATION and 0.25 < time.monotonic() - t0 < 2.0
+        got = b"".join(c for c, _ in src)
+        assert writer.is_alive()  # the line was still busy: the duration ended the capture, not the line
+        assert src.reason == DURATION and not src.lost and src.message == "0.3 s elapsed"
+        assert got and got in bytes(written)  # what came while the port was open, in order, none lost
     finally:
+        writing.clear()
+        writer.join(5)
         p.close()
 
 

@@ -152,28 +152,65 @@ def test_paced_follows_timestamps_and_line_rate():
     assert waits == [0.064]
 
 
+class Waits(threading.Event):
+    """A stop event that notes each wait the replay asks for and advances a fake clock by it, or is set meanwhile."""
+
+    def __init__(self, now: list[float], stop_in: float | None = None) -> None:
+        super().__init__()
+        self.now, self.stop_in, self.asked, self.returned = now, stop_in, [], []
+
+    def wait(self, timeout=None):
+        self.asked.append(round(timeout, 6))
+        if self.stop_in is not None and self.stop_in < timeout:  # a stop arrives before the wait is over
+            self.now[0] += self.stop_in
+            self.set()
+        else:
+            self.now[0] += timeout
+        self.returned.append(self.is_set())
+        return self.is_set()
+
+
 def test_replay_plays_a_timestamped_capture_at_its_own_pace(tmp_path):
     p = tmp_path / "t.thex"
     write_capture(p, [(encode_short(1, 0, 30, b"\x00\x00"), 0.1 * i) for i in range(5)], "timestamped")
-    src = ReplaySource(str(p), speed=4.0)
-    start = time.monotonic()
-    chunks = list(src.chunks(threading.Event()))
-    took = time.monotonic() - start
+    now = [0.0]
+    src = ReplaySource(str(p), speed=4.0, clock=lambda: now[0])
+    stop = Waits(now)
+    chunks = list(src.chunks(stop))
     assert [t for _, t in chunks] == [0.0, 0.1, 0.2, 0.3, 0.4]
-    assert took >= 0.09  # 0.4 s of capture at 4x: it waited a tenth of a second (the pacing itself: above)
+    # 0.1 s of capture between chunks, at 4x: a wait of 25 ms before each but the first (the pacing itself: above).
+    assert stop.asked == [0.025] * 4 and now[0] == pytest.approx(0.1)
 
 
 def test_a_stop_interrupts_a_replay(tmp_path):
     p = tmp_path / "t.thex"
     write_capture(p, [(b"\x07", 0.0), (b"\x07", 100.0)], "timestamped")
-    stop = threading.Event()
-    src = ReplaySource(str(p))
+    now = [0.0]
+    stop = Waits(now, stop_in=0.05)
+    src = ReplaySource(str(p), clock=lambda: now[0])
     it = src.chunks(stop)
     assert next(it) == (b"\x07", 0.0)
-    threading.Timer(0.05, stop.set).start()
-    start = time.monotonic()
     assert list(it) == []
-    assert time.monotonic() - start < 2
+    # The replay waited for the second chunk on the stop event itself, which the stop ended, not its 100 s.
+    assert stop.asked == [100.0] and stop.returned == [True]
+
+
+def test_a_stop_interrupts_a_replay_from_another_thread(tmp_path):
+    p = tmp_path / "t.thex"
+    write_capture(p, [(b"\x07", 0.0), (b"\x07", 100.0)], "timestamped")
+    returned = []
+
+    class Stop(threading.Event):
+        def wait(self, timeout=None):
+            returned.append(super().wait(timeout))
+            return returned[-1]
+
+    stop = Stop()
+    it = ReplaySource(str(p)).chunks(stop)
+    assert next(it) == (b"\x07", 0.0)
+    threading.Timer(0.05, stop.set).start()
+    assert list(it) == []
+    assert returned == [True]  # the wait ended by the stop, not by its timeout
 
 
 def test_the_simulator_source_runs_a_scenario():
@@ -241,7 +278,8 @@ def test_a_big_file_is_read_by_a_child_process_with_the_same_result(read_ahead_a
     assert src.time_base == "synthetic"
     _, batches = run_feeder(FileSource(MANUAL), linter=default_linter())
     findings = [f.code for b in batches for f in b.findings]
-    assert [r.offset for b in batches for r in b.records][:3] == [0, 10, 18] and {"B002", "M002", "Q002"} <= set(findings)
+    assert [r.offset for b in batches for r in b.records][:3] == [0, 10, 18]
+    assert {"B002", "M002", "Q002"} <= set(findings)
 
 
 def test_a_child_read_error_ends_the_capture_with_one_line(read_ahead_all, tmp_path):
