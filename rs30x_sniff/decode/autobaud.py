@@ -36,7 +36,7 @@ def is_valid(rec: Record | AnyEvent) -> bool:
 
 
 # ---- the rate from timestamps, streamed -----------------------------------------------------
-class BaudFromTimes(Sink):
+class BaudFromTimes(Sink[Record]):
     """The streaming :func:`rs30x_sniff.protocol.baud.estimate_baud`: a pipeline Sink; read :attr:`estimate`
     at any time.
 
@@ -230,7 +230,7 @@ def scan(read_for: Callable[[int, float], bytes], rates: Iterable[int] = SCAN_OR
     return ScanResult(best.baud, best.frames_per_s, table, seconds, clock() - start)
 
 
-class BaudWatch(Sink):
+class BaudWatch(Sink[Record]):
     """Watches a live pipeline at ``baud``: :attr:`rescan_due` turns True when the rate stops giving
     valid frames (a baud change written to the servos, flashed and rebooted, is common during setup).
 

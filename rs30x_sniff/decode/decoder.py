@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
-from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any, Generic, TypeVar, cast
+from collections.abc import Iterable, Sequence
 
 from .blocks import Block, feed_run
 from .pairing import DEFAULT_REPLY_TIMEOUT, BusTracker, Record
@@ -20,6 +20,10 @@ if TYPE_CHECKING:  # for the checker only: the linter is a later stage, which th
     from ..lint.registry import Finding
     from .framing import Seam
 
+# What a Step holds: Records, or (from a columnar decoder) Records and Blocks. For the checker only: a sink that
+# takes Blocks is a Sink[Record | Block], any other a Sink[Record] (the drive loop expands Blocks for it).
+Item = TypeVar("Item", bound="Record | Block")
+
 
 @dataclass
 class DecodeOptions:
@@ -34,7 +38,7 @@ class DecodeOptions:
 
 
 
-class Step(list["Record | Block"]):
+class Step(list[Item], Generic[Item]):
     """The records one :meth:`Decoder.feed` (or :meth:`Decoder.close`) decided, in wire order.
 
     ``findings`` holds every lint finding new since the previous call (those on these records, and at
@@ -45,7 +49,7 @@ class Step(list["Record | Block"]):
 
     __slots__ = ("findings", "late", "blocks", "seams")
 
-    def __init__(self, records: Iterable[Record | Block] = (), findings: list[Finding] | None = None,
+    def __init__(self, records: Iterable[Item] = (), findings: list[Finding] | None = None,
                  late: list[Finding] | None = None) -> None:
         super().__init__(records)
         self.findings: list[Finding] = findings if findings is not None else []
@@ -60,7 +64,8 @@ class Step(list["Record | Block"]):
         """How many records the step holds (a Block counts its rows)."""
         if not self.blocks:
             return len(self)
-        return sum(len(x) if type(x) is Block else 1 for x in self)
+        items: Sequence[Record | Block] = self  # (for the checker: an Item is one or the other)
+        return sum(len(x) if type(x) is Block else 1 for x in items)
 
     def loose(self) -> list[Finding]:
         """The findings of this step on none of its records and not late: what the decoder found between records
@@ -69,18 +74,20 @@ class Step(list["Record | Block"]):
         if not self.findings:
             return []
         on = {id(f) for f in self.late}
-        for x in self:
+        items: Sequence[Record | Block] = self
+        for x in items:
             for rec in (x.made_rows.values() if type(x) is Block else (x,)):
                 on.update(map(id, rec.findings))
         return [f for f in self.findings if id(f) not in on]
 
-    def expanded(self) -> Step:
+    def expanded(self) -> Step[Record]:
         """This step with each Block's rows as Records (itself when it holds no Block)."""
         if not self.blocks:
-            return self
-        out = Step((), self.findings, self.late)
+            return cast("Step[Record]", self)
+        out: Step[Record] = Step((), self.findings, self.late)
         out.seams = self.seams
-        for x in self:
+        items: Sequence[Record | Block] = self
+        for x in items:
             if type(x) is Block:
                 out += x.records()
             else:
@@ -88,7 +95,7 @@ class Step(list["Record | Block"]):
         return out
 
 
-class Sink:
+class Sink(Generic[Item]):
     """Where decoded traffic goes (text, JSON lines, a lint report, MCAP, statistics, the monitor): what
     takes the Steps a :class:`Decoder` gives. Declared here, beside the Step, so that a piece of the decode
     stage can be one (rs30x_sniff.decode.autobaud's rate watches); the drive loop that feeds sinks is
@@ -120,7 +127,7 @@ class Sink:
         """The source lost the line from ``lost_at`` until ``t`` (``note`` says why): a sink that keeps gaps
         (the MCAP's metadata, the black box) notes it."""
 
-    def batch(self, step: Step) -> None:
+    def batch(self, step: Step[Item]) -> None:
         pass
 
     def idle(self) -> None:
@@ -166,7 +173,7 @@ class Decoder:
         return new
 
     def feed(self, data: bytes, t: float | None = None, sender: str | None = None,
-             error: str | None = None) -> Step:
+             error: str | None = None) -> Step[Record | Block]:
         """Decode one chunk (its first byte at capture time ``t``); the records it completes.
 
         ``sender`` is who the capture says sent these bytes, ``error`` a UART fault it flagged on them
@@ -183,7 +190,7 @@ class Decoder:
         time segment (FrameDecoder.mark_gap), reported as F010 like any seam of the capture's clock."""
         self.frames.mark_gap(note)
 
-    def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> Step:
+    def feed_many(self, chunks: list[tuple[bytes, float | None]]) -> Step[Record | Block]:
         """Decode several plain chunks (nothing said of their sender or errors) at once: the same
         records as feeding them one by one, in one step (the columnar path's way in)."""
         if self.senders:
@@ -191,7 +198,7 @@ class Decoder:
         self.bytes_in += sum(map(len, [c[0] for c in chunks]))
         return self._decided(self.frames.feed_many(chunks))
 
-    def _track(self, events: list, out: Step) -> Step:
+    def _track(self, events: list, out: Step[Record | Block]) -> Step[Record | Block]:
         """Pair ``events`` (and in columnar mode, FrameRuns) into ``out``."""
         if not self.columnar:
             return self.bus.feed_many(events, out)
@@ -204,7 +211,7 @@ class Decoder:
                 track(ev, out)
         return out
 
-    def _lint(self, out: Step) -> None:
+    def _lint(self, out: Step[Record | Block]) -> None:
         """Every item of ``out`` to the linter, in order: a Record by feed, a Block by feed_block (which may
         halve it: its parts take its place in ``out``)."""
         linter = self.linter
@@ -224,7 +231,7 @@ class Decoder:
         if parted:
             out[:] = items
 
-    def _decided(self, events: list) -> Step:
+    def _decided(self, events: list) -> Step[Record | Block]:
         if len(self.frames.seams) > self._seams:
             return self._across_seams(events)
         out = self._track(events, Step())
@@ -233,12 +240,12 @@ class Decoder:
             out.findings = self._new_findings()
         return out
 
-    def _across_seams(self, events: list) -> Step:
+    def _across_seams(self, events: list) -> Step[Record | Block]:
         """:meth:`_decided` for events among which the clock has a seam: each time segment is paired
         and linted on its own, as if one capture ended at the seam and another began."""
         seams = self.frames.seams[self._seams:]
         self._seams = len(self.frames.seams)
-        out = Step()
+        out: Step[Record | Block] = Step()
         out.seams = tuple(seams)
         k = 0
         for seam in seams:
@@ -256,16 +263,16 @@ class Decoder:
             out.findings = self._new_findings()
         return out
 
-    def _take_piece(self, out: Step, piece: Step) -> None:
+    def _take_piece(self, out: Step[Record | Block], piece: Step[Record | Block]) -> None:
         if self.linter is not None and piece:
             self._lint(piece)
         out += piece
         out.blocks |= piece.blocks
 
-    def close(self) -> Step:
+    def close(self) -> Step[Record | Block]:
         """End of input: the records still pending, and the findings only the end reveals (``late``)."""
         out = self._decided(self.frames.close())  # linted, its findings taken
-        tail = Step(self.bus.close(self.frames.end_time))
+        tail: Step[Record | Block] = Step(self.bus.close(self.frames.end_time))
         if self.linter is not None:
             self._lint(tail)
         out += tail

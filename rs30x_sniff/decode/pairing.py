@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections import deque
-from typing import Any, final
+from typing import Any, Protocol, TypeVar, final
 from collections.abc import Callable, Collection, Iterable, Mapping
 from weakref import ref
 
@@ -276,6 +276,18 @@ class Record:
         return f"<Record {self.index} {self.kind}@{self.offset} status={self.status}>"
 
 
+class TakesRecords(Protocol):
+    """Where the tracker appends the Records it releases: a list of them, or a decoder's Step (which may hold
+    Blocks too, rs30x_sniff.decode.decoder)."""
+
+    def append(self, rec: Record, /) -> None: ...
+
+    def __iadd__(self, recs: list[Record], /) -> Any: ...
+
+
+TakesT = TypeVar("TakesT", bound=TakesRecords)
+
+
 class ServoState:
     """What the bus has told us about one servo: a shadow of its memory map."""
 
@@ -443,14 +455,14 @@ class BusTracker:
         self.feed_into(ev, out)
         return out
 
-    def feed_many(self, events: list[AnyEvent], out: list[Record]) -> list[Record]:
+    def feed_many(self, events: list[AnyEvent], out: TakesT) -> TakesT:
         """Append the records released by ``events`` to ``out`` (the batch form the decoder uses)."""
         step = self.feed_into
         for ev in events:
             step(ev, out)
         return out
 
-    def feed_into(self, ev: AnyEvent, out: list[Record]) -> None:
+    def feed_into(self, ev: AnyEvent, out: TakesRecords) -> None:
         """Append the records released by one more event to ``out`` (the form the decoder's loops call)."""
         t = type(ev)
         if t is ShortPacket or t is ReturnPacket:
@@ -511,7 +523,7 @@ class BusTracker:
         self._segment_t = None
         return out
 
-    def _end_segment(self, out: list[Record], end_t: float | None) -> None:
+    def _end_segment(self, out: TakesRecords, end_t: float | None) -> None:
         p = self._pending
         if p is None:
             return
@@ -527,7 +539,7 @@ class BusTracker:
             rec.status = UNSEEN
 
     # ---- pairing -----------------------------------------------------------------------------
-    def _resolve_missing(self, out: list[Record], by: Record | None = None) -> None:
+    def _resolve_missing(self, out: TakesRecords, by: Record | None = None) -> None:
         self._pending.status = MISSING
         self._pending.resolved_by = by
         self._pending = None

@@ -11,6 +11,7 @@ from collections.abc import Callable, Iterable
 
 from ..decode.blocks import Block
 from ..decode.decoder import Sink, Step
+from ..decode.pairing import Record
 from ..filters import Filter, FilterError, parse_filter
 from ..protocol.chunks import SourceGap
 
@@ -99,7 +100,7 @@ class Window:
     fires: list[tuple[float, str]] = field(default_factory=list)
 
 
-class BlackBox(Sink):
+class BlackBox(Sink[Record | Block]):
     """Keeps the chunks of the last ``pre`` seconds; when a trigger fires at t, holds on until t + ``post``
     and hands ``save`` the chunks of [t - pre, end] with what fired, to be written as a capture of its own.
     A later fire whose window would overlap this one extends it instead (so a window is saved only once the bus has

@@ -43,7 +43,7 @@ def involves(rec: Record, ids: set[int]) -> bool:
     return rec.id in ids
 
 
-class _LineSink(Sink):
+class _LineSink(Sink[Record | Block]):
     """One line per record (and one per finding only the end of input reveals), optionally one servo's."""
 
     def __init__(self, out: IO[str], *, ids: set[int] | None = None, flush: bool = False,
@@ -147,7 +147,7 @@ class JsonlSink(_LineSink):
         return json.dumps({"type": "diagnostic", **f.as_json()}) + "\n"
 
 
-class FindingsSink(Sink):
+class FindingsSink(Sink[Record | Block]):
     """Every lint finding and the record count: what a lint report needs of one capture."""
 
     takes_blocks = True  # counts a Block's rows; reads nothing else of them
@@ -162,7 +162,7 @@ class FindingsSink(Sink):
             self.findings += step.findings
 
 
-class ProgressSink(Sink):
+class ProgressSink(Sink[Record | Block]):
     """Advances a progress bar by the bytes read."""
 
     takes_blocks = True

@@ -9,6 +9,7 @@ from typing import IO, Any
 from collections.abc import Iterable
 
 from ..decode.decoder import Step
+from ..decode.pairing import Record
 from ..protocol.wire import byte_time
 from ..version import __version__
 from .pipeline import Sink
@@ -88,7 +89,7 @@ def finding_comment(f: Any) -> str:
     return f"{f.code} {f.name}: {f.message}"
 
 
-class PcapngSink(Sink):
+class PcapngSink(Sink[Record]):
     """Writes pcapng: a section and one interface (the bus), then an Enhanced Packet Block per record.
 
     Times are in nanoseconds: the capture's own (plus ``start_time``, a wall-clock anchor, when given), or

@@ -193,11 +193,11 @@ def decode_records(chunks: Iterable[tuple[bytes, float | None]], options: Decode
                    decoder: Decoder | None = None) -> Iterator[Record]:
     """Stream records from chunks (a generator over the same decoder, for library use)."""
     dec = decoder or Decoder(options)
-    for chunk in chunks:
+    for chunk in chunks:  # (a columnar decoder's Blocks as their Records: expanded() is the step itself otherwise)
         if type(chunk) is Marked:
-            yield from dec.feed(chunk[0], chunk[1], chunk.sender, chunk.error)
+            yield from dec.feed(chunk[0], chunk[1], chunk.sender, chunk.error).expanded()
         elif type(chunk) is SourceGap:
             dec.mark_gap(chunk.note)
         else:
-            yield from dec.feed(*chunk)
-    yield from dec.close()
+            yield from dec.feed(*chunk).expanded()
+    yield from dec.close().expanded()

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from collections import Counter
 from operator import itemgetter
-from typing import TYPE_CHECKING, Any
+from typing import Any
 from collections.abc import Iterable
 
 import numpy as np
 
 from ..decode.blocks import Block
 from ..decode.decoder import Step
+from ..decode.pairing import Record
 from ..decode.frame_runs import LONG, RETURN, SHORT
 from ..protocol.events import DATA, FLAG, ID, LONG_RECORDS, OFFSET, RAW, T_END, T_START, Ack, Garbage, LongPacket, \
     ReturnPacket, ShortPacket
@@ -29,9 +30,6 @@ from .pipeline import Sink
 from .segments import TimeSegments
 from .servos import ServoStats, ServoTraffic
 
-if TYPE_CHECKING:  # names for the checker; no import at run time
-    from ..decode.pairing import Record
-
 # Importers' names (RecentLoad: the live displays; FLUSH_ROWS: tests set it here and in health.py).
 __all__ = ["CaptureStats", "FLUSH_ROWS", "LatencyHistogram", "RecentLoad", "ServoStats"]
 
@@ -39,7 +37,7 @@ __all__ = ["CaptureStats", "FLUSH_ROWS", "LatencyHistogram", "RecentLoad", "Serv
 _OPS: dict[tuple[int, bool], tuple[str, bool]] = {}
 
 
-class CaptureStats(Sink):
+class CaptureStats(Sink[Record | Block]):
     """Feed every record (and the findings), then read the figures or :meth:`as_dict`; as a sink of
     the drive loop it counts the bytes, records and findings that pass through.
 

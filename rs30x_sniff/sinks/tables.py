@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import csv
 from datetime import datetime, UTC
-from typing import TYPE_CHECKING, IO, Any
+from typing import IO, Any
 from collections.abc import Callable, Iterable
 
 from ..protocol.chunks import EPOCH_MIN
@@ -12,13 +12,12 @@ from ..protocol.events import LongPacket, ReturnPacket, ShortPacket
 from ..protocol.memmap import ModelRegistry
 from .pipeline import Sink
 from ..decode.decoder import Step
+from ..decode.pairing import Record
 from ..render.records import direction, summary
 from ..protocol.wire import byte_time
 from .mcap.transactions import transaction_json
 from .mcap.servo_states import ServoStates
 
-if TYPE_CHECKING:  # names for the checker; no import at run time
-    from ..decode.pairing import Record
 
 KINDS = ("states", "transactions", "findings", "packets")
 CSV, PARQUET = "csv", "parquet"
@@ -158,7 +157,7 @@ def open_table(path: str, fmt: str, stream: IO[str] | None = None) -> CsvTable |
 
 
 # ---- sinks -----------------------------------------------------------------------------------------
-class TableSink(Sink):
+class TableSink(Sink[Record]):
     """One table of the decoded traffic, a pipeline sink: rows start with ``t`` (seconds), and
     ``wall_time`` (UTC) when the capture's times are epoch times; a subclass gives the rest.
 

@@ -60,7 +60,7 @@ def default_linter() -> Any:
     return Linter()
 
 
-class _Collect(Sink):
+class _Collect(Sink[Record | Block]):
     """Gathers the pipeline's records (and, from a columnar decoder, Blocks) and findings between posts,
     and hands each step to the capture statistics (one sink for both: the pipeline calls every sink
     for every chunk, and the statistics need no chunk but the byte count, which the decoder keeps)."""
@@ -136,7 +136,7 @@ def split_block(blk: Block, k: int) -> tuple[list, list]:
     return head, tail
 
 
-class _Recording(Sink):
+class _Recording(Sink[Record]):
     """The `r` recording: the MCAP sink, guarded so that a full disk stops the recording, never the capture."""
 
     def __init__(self, feeder: Feeder, sink: Any, path: str) -> None:

@@ -8,7 +8,7 @@ import heapq
 import json
 import struct
 from operator import itemgetter
-from typing import TYPE_CHECKING, IO, Any
+from typing import IO, Any
 from collections.abc import Iterable
 
 import foxglove
@@ -25,14 +25,12 @@ from ...render.block_json import record_json_line
 from ...schemas import schema_bytes
 from ...decode.blocks import Block
 from ...decode.decoder import Sink, Step
+from ...decode.pairing import Record
 from .blocks import block_messages
 from .servo_states import ServoStates
 from .transactions import transaction_json
 from ..stats import CaptureStats
 from ...protocol.wire import byte_time
-
-if TYPE_CHECKING:  # names for the checker; no import at run time
-    from ...decode.pairing import Record
 
 # foxglove.LogLevel values (Foxglove's published schema).
 _LOG_LEVEL = {"info": 2, "warning": 3, "error": 4}
@@ -47,7 +45,7 @@ _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 _log_time = itemgetter(0)  # a held message's (log_time, channel, data)
 
 
-class JsonChannels(Sink):
+class JsonChannels(Sink[Record | Block]):
     """The channels' messages, built once for every sink that publishes them (an MCAP file, a Foxglove
     WebSocket server): a subclass says how a channel is opened (``channel``) and a message written
     (``_write``), so both carry the same bodies with the same log times.
