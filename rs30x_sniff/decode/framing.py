@@ -421,7 +421,12 @@ class FrameDecoder:
 
     def _parse(self, final: bool, ended: bool = False) -> list[AnyEvent]:
         """Events from the buffer; ``final``: nothing more comes before them (the end of input or of a
-        time segment when ``ended``, else bytes the UART flagged), so partial frames are cut."""
+        time segment when ``ended``, else bytes the UART flagged), so partial frames are cut.
+
+        One pass from the scan position, each step by what the byte there is: a run of clean frames (the
+        numpy kernel), an intact frame (inline: the hottest code of the product), any other header
+        (:meth:`_at_header`: cut, corrupt or still coming), the ACK/NACK byte a request asked for, or
+        garbage up to the next header or idle gap (:meth:`_skip`)."""
         out: list[AnyEvent] = []
         buf = self._buf
         n = len(buf)
@@ -429,38 +434,28 @@ class FrameDecoder:
         self._final = final
         i = self._scan
         kernel = self.kernel
-        # The packet layout (protocol.wire) as locals: the loop below is the hottest code of the product.
+        # The packet layout (protocol.wire) as locals for the intact frame's test below.
         at_id, at_length, at_count, header_size, overhead = AT_ID, AT_LENGTH, AT_COUNT, HEADER_SIZE, FRAME_OVERHEAD
         while i < n:
             # [start, i) is garbage already: handed out in pieces (the leading tail of a frame whole).
             while i - self._start >= GARBAGE_PIECE and not (self._lead and self._leading(i)):
                 self._emit_garbage(out, self._start + GARBAGE_PIECE)
             start = self._start
-            base = self._base
             br = self._breaks
-            if br:
-                while br and br[0] <= base + start:
-                    br.pop(0)
-                # Garbage runs end at idle gaps, so a live display sees them promptly.
-                if i > start and br and br[0] == base + i:
-                    self._emit_garbage(out, i)
-                    continue
+            if br and self._at_break(out, i):
+                continue
             if i == start and n - i >= _KERNEL_MIN and kernel and not self._ack_pending \
-                    and base + i >= self._kernel_rest:
+                    and self._base + i >= self._kernel_rest:
                 j = self._run_kernel(out, i)
                 if j > i:
                     i = j
                     continue
             c = buf[i]
-            if self._ack_pending:
-                # ACK/NACK bytes have no header: only the byte right after a request asking for one.
-                self._ack_pending = False
-                if i == start and (c == ACK or c == NACK):
-                    self._emit_single(out, Ack if c == ACK else Nack)
-                    i += 1
-                    continue
+            if self._ack_pending and self._at_ack(out, i, c):
+                i += 1
+                continue
             if c == _FA or c == _FD:
-                # Fast path: an intact frame right here, with no idle gap to consider.
+                # An intact frame right here, with no idle gap to consider.
                 if not br and i + header_size <= n and buf[i + 1] == (_AF if c == _FA else _DF):
                     length = buf[i + at_length]
                     size = length * buf[i + at_count] if c == _FA else length
@@ -472,58 +467,102 @@ class FrameDecoder:
                         self._emit_frame(out, end, True)
                         i = end
                         continue
-                end = self._frame_end(i, final)
-                if end == _WAIT:
-                    break
-                if end == _NOT_SYNC or end == _BAD:
-                    if end == _BAD:
-                        self._garbage_reason = BAD_HEADER
-                    i += 1
-                    continue
-                ok = end >= 0 and reduce(xor, buf[i + at_id:end - SUM_SIZE], 0) == buf[end - SUM_SIZE]
-                if not ok:
-                    stop = end if end >= 0 else _CUT - end
-                    q = self._find_intact_inside(i, stop, final)
-                    if q == _WAIT:
-                        break
-                    if q >= 0 or end < 0:
-                        # Cut short, or corrupt with an intact frame inside: the head is garbage.
-                        if i > start:
-                            self._emit_garbage(out, i)
-                        self._garbage_reason = CAPTURE_END if ended and q < 0 and stop == n else TRUNCATED
-                        i = q if q >= 0 else stop
-                        self._emit_garbage(out, i)
-                        continue
+                j = self._at_header(out, i, final, ended)
+                if j == _WAIT:
+                    break  # the scan resumes at this header when more bytes come
+                i = j
+                continue
+            i = self._skip(i)
+        self._settle(out, i, final)
+        return out
+
+    def _at_break(self, out: list[AnyEvent], i: int) -> bool:
+        """Drop the idle gaps behind the events; True when one falls at ``i`` and ends the garbage before it
+        (garbage runs end at idle gaps, so a live display sees them promptly)."""
+        br = self._breaks
+        at = self._base + self._start
+        while br and br[0] <= at:
+            br.pop(0)
+        if i > self._start and br and br[0] == self._base + i:
+            self._emit_garbage(out, i)
+            return True
+        return False
+
+    def _at_ack(self, out: list[AnyEvent], i: int, c: int) -> bool:
+        """The byte right after a request that asked for an ACK (return mode 0001, table 4.3): True when it
+        is that ACK or NACK (handed out); it has no header, so no other byte is one."""
+        self._ack_pending = False
+        if i == self._start and (c == ACK or c == NACK):
+            self._emit_single(out, Ack if c == ACK else Nack)
+            return True
+        return False
+
+    def _at_header(self, out: list[AnyEvent], i: int, final: bool, ended: bool) -> int:
+        """A header at ``i`` that is not an intact frame here and now: where the scan goes on, or _WAIT
+        (more bytes are needed to tell).
+
+        Not a header after all, or one whose length is implausible: one byte on. Cut short (an idle gap or
+        the end) or corrupt with an intact frame starting inside it: the head is garbage, up to that frame.
+        Corrupt with none inside: a frame with a bad Sum."""
+        buf = self._buf
+        start = self._start
+        end = self._frame_end(i, final)
+        if end == _WAIT:
+            return _WAIT
+        if end == _NOT_SYNC or end == _BAD:
+            if end == _BAD:
+                self._garbage_reason = BAD_HEADER
+            return i + 1
+        ok = end >= 0 and reduce(xor, buf[i + AT_ID:end - SUM_SIZE], 0) == buf[end - SUM_SIZE]
+        if not ok:
+            stop = end if end >= 0 else _CUT - end
+            q = self._find_intact_inside(i, stop, final)
+            if q == _WAIT:
+                return _WAIT
+            if q >= 0 or end < 0:
                 if i > start:
                     self._emit_garbage(out, i)
-                self._emit_frame(out, end, ok)
-                i = end
-                continue
-            # Not a sync byte: skip ahead to the next possible one (or the next idle gap).
-            a = buf.find(REQUEST_FIRST, i + 1)
-            b = buf.find(RETURN_FIRST, i + 1)
-            nxt = n if a < 0 else a
-            if 0 <= b < nxt:
-                nxt = b
-            if br:
-                gap = self._next_break(base + i, base + nxt)
-                if gap is not None:
-                    nxt = gap - base
-            i = nxt
+                self._garbage_reason = CAPTURE_END if ended and q < 0 and stop == len(buf) else TRUNCATED
+                i = q if q >= 0 else stop
+                self._emit_garbage(out, i)
+                return i
+        if i > start:
+            self._emit_garbage(out, i)
+        self._emit_frame(out, end, ok)
+        return end
+
+    def _skip(self, i: int) -> int:
+        """Past a byte that starts no frame: the next possible header (FA or FD), or the next idle gap if
+        sooner, or the end of the buffer."""
+        buf = self._buf
+        a = buf.find(REQUEST_FIRST, i + 1)
+        b = buf.find(RETURN_FIRST, i + 1)
+        nxt = len(buf) if a < 0 else a
+        if 0 <= b < nxt:
+            nxt = b
+        if self._breaks:
+            base = self._base
+            gap = self._next_break(base + i, base + nxt)
+            if gap is not None:
+                nxt = gap - base
+        return nxt
+
+    def _settle(self, out: list[AnyEvent], i: int, final: bool) -> None:
+        """After a pass up to ``i``: the garbage before it in pieces, all that is left when ``final``; then the
+        buffer drops what is in events, keeping pending garbage and any partial frame."""
+        n = len(self._buf)
         while i - self._start >= GARBAGE_PIECE and not (self._lead and self._leading(i)):
             self._emit_garbage(out, self._start + GARBAGE_PIECE)
         if final and n > self._start:
             self._emit_garbage(out, n)
             i = n
-        # Drop what is now in events; keep pending garbage and any partial frame.
         start = self._start
         if start:
-            del buf[:start]
+            del self._buf[:start]
             self._base += start
             i -= start
         self._scan = i
         self._trim_chunks()
-        return out
 
     # ---- emitting ----------------------------------------------------------------------------
     def _take(self, end: int) -> tuple[int, bytes, float | None, float | None]:
