@@ -426,7 +426,7 @@ class FrameDecoder:
         One pass from the scan position, each step by what the byte there is: a run of clean frames (the
         numpy kernel), an intact frame (inline: the hottest code of the product), any other header
         (:meth:`_at_header`: cut, corrupt or still coming), the ACK/NACK byte a request asked for, or
-        garbage up to the next header or idle gap (:meth:`_skip`)."""
+        garbage up to the next header or idle gap (:meth:`_skip`); then what is in events leaves the buffer."""
         out: list[AnyEvent] = []
         buf = self._buf
         n = len(buf)
@@ -473,7 +473,20 @@ class FrameDecoder:
                 i = j
                 continue
             i = self._skip(i)
-        self._settle(out, i, final)
+        # The pass's end, inline: it runs once per feed, a frame's worth of work on a port read frame by frame.
+        while i - self._start >= GARBAGE_PIECE and not (self._lead and self._leading(i)):
+            self._emit_garbage(out, self._start + GARBAGE_PIECE)
+        if final and n > self._start:
+            self._emit_garbage(out, n)
+            i = n
+        # Drop what is now in events; keep pending garbage and any partial frame.
+        start = self._start
+        if start:
+            del buf[:start]
+            self._base += start
+            i -= start
+        self._scan = i
+        self._trim_chunks()
         return out
 
     def _at_break(self, out: list[AnyEvent], i: int) -> bool:
@@ -546,23 +559,6 @@ class FrameDecoder:
             if gap is not None:
                 nxt = gap - base
         return nxt
-
-    def _settle(self, out: list[AnyEvent], i: int, final: bool) -> None:
-        """After a pass up to ``i``: the garbage before it in pieces, all that is left when ``final``; then the
-        buffer drops what is in events, keeping pending garbage and any partial frame."""
-        n = len(self._buf)
-        while i - self._start >= GARBAGE_PIECE and not (self._lead and self._leading(i)):
-            self._emit_garbage(out, self._start + GARBAGE_PIECE)
-        if final and n > self._start:
-            self._emit_garbage(out, n)
-            i = n
-        start = self._start
-        if start:
-            del self._buf[:start]
-            self._base += start
-            i -= start
-        self._scan = i
-        self._trim_chunks()
 
     # ---- emitting ----------------------------------------------------------------------------
     def _take(self, end: int) -> tuple[int, bytes, float | None, float | None]:
