@@ -8,8 +8,8 @@ from collections.abc import Callable, Iterable
 from ..decode.blocks import Block
 from ..decode.pairing import Record
 from ..protocol.codegen import line_function
-from ..protocol.events import RAW, LongPacket, ReturnPacket, ShortPacket
-from ..protocol.memmap import ByRaw, Field, Register
+from ..protocol.events import RAW, Ack, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
+from ..protocol.memmap import ByRaw, Field, Model, Register
 from .records import (
     OWN_TIME, bad_sum, direction, field_text, is_shown, kind_word, packet_notes, text_line, verbose_lines)
 from .times import NO_TIME, WIDTH
@@ -89,10 +89,13 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
     blob, base = run.blob, run.base
     starts = run.starts[lo:blk.hi].tolist()
     ends = run.ends[lo:blk.hi].tolist()
-    timed = run.t0 is not None
-    if timed:
-        ts = blk.t0.tolist() if times is None else times
-        lats = blk.latencies().tolist()
+    t0 = blk.t0
+    lat = blk.latencies()
+    ts: list[Any]
+    lats: list[float | None]
+    if t0 is not None and lat is not None:  # (a timed Block has both)
+        ts = t0.tolist() if times is None else times
+        lats = lat.tolist()
         # How the time is written: a number of seconds, or a text made by render.times (absolute, delta).
         tspec = "" if n and type(ts[0]) is str else f"{WIDTH}.6f"
     else:
@@ -101,7 +104,7 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
     made = blk.made_rows
     only_key = None if only is None else frozenset(only)
     local: dict[tuple, _Shape] = {}  # this Block's shapes by their bytes (the models are the Block's)
-    out = []
+    out: list[str] = []
     append = out.append
     for k in (range(n) if rows is None else rows):
         if made:
@@ -115,7 +118,7 @@ def block_text(blk: Block, only: set[int] | None = None, verbose: bool = False,
         if h[AT_ID] != LONG_PACKET_ID or h[0] == RETURN_FIRST:
             x = lats[k]
             # A reply with no latency (read with its request) has none in its line: a shape of its own.
-            key = (h, e - s) if x is None or x == x else (h, e - s, None)
+            key: tuple[Any, ...] = (h, e - s) if x is None or x == x else (h, e - s, None)
         else:  # a long packet: its VIDs too (every record starts with one)
             key = (h, e - s, blob[s + AT_DATA:e - SUM_SIZE:h[AT_LENGTH]] if h[AT_LENGTH] else b"")
         shape = local.get(key)
@@ -162,7 +165,7 @@ def record_line(rec: Record, only: set[int] | None = None, at: Any = OWN_TIME) -
            None if only is None else frozenset(only))
     shape = model.cache.get(key)
     if shape is None:
-        shape = _record_shape(rec, key, only, at)
+        shape = _record_shape(rec, model, key, only, at)
     fn = shape.fn
     if fn is None:
         return text_line(rec, only, at) + "\n"
@@ -178,7 +181,7 @@ def _time_spec(at: Any) -> str | None:
     return "" if type(at) is str else f"{WIDTH}.6f"
 
 
-def _record_shape(rec: Record, key: tuple, only: set[int] | None, at: Any) -> _Shape:
+def _record_shape(rec: Record, model: Model, key: tuple, only: set[int] | None, at: Any) -> _Shape:
     """A single record's compiled shape, checked once against text_line as a Block's are."""
     raw, fn = _compile(rec, only, _time_spec(at))
     if fn is not None:
@@ -188,7 +191,7 @@ def _record_shape(rec: Record, key: tuple, only: set[int] | None, at: Any) -> _S
                  request.offset if request is not None else None)
         if got != text_line(rec, only, at) + "\n":
             fn = None
-    return rec.model.keep(key, _Shape(raw, fn))
+    return model.keep(key, _Shape(raw, fn))
 
 
 def _records_text(blk: Block, only: set[int] | None, verbose: bool, rows: Iterable[int] | None,
@@ -215,7 +218,7 @@ def _shape(blk: Block, k: int, key: tuple, only: set[int] | None, only_key: froz
         vm = blk.vid_models
         vid_models = None if vm is None or not h[AT_LENGTH] else tuple([vm[v] for v in key[2]])
         owner = blk.default
-        gkey = ("text", tspec, key, vid_models, only_key)
+        gkey: tuple[Any, ...] = ("text", tspec, key, vid_models, only_key)
     else:
         owner = blk.models[h[AT_ID]]
         gkey = ("text", tspec, key)
@@ -243,7 +246,7 @@ def _compile(rec: Record, only: set[int] | None, tspec: str | None) -> tuple[Cal
     ``t`` is written (_time_spec)."""
     ev = rec.event
     kind = ev.kind
-    if kind not in ("short", "long", "return") or rec.findings:
+    if type(ev) is Garbage or type(ev) is Ack or type(ev) is Nack or rec.findings:  # only packets have shapes
         return None, None
     # Literal text, or (what, ...) for codegen.line_function: an argument, a text by raw value, a group.
     pieces: list[Any] = []
@@ -278,6 +281,7 @@ def _compile(rec: Record, only: set[int] | None, tspec: str | None) -> tuple[Cal
         for vid, at, reg, partial in items:
             if only is None or vid in only:
                 by_vid.setdefault(vid, []).append((at, reg, partial))
+        assert type(ev) is LongPacket  # (kind is "long")
         vids = [r.vid for r in ev.records]
         for vid, group in by_vid.items():
             hidden = [reg.name is None for _, reg, _ in group]

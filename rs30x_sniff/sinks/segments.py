@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:  # names for the checker; no import at run time
+    from ..decode.framing import Seam
 
 NO_SEAM = 1 << 62  # a stream offset no capture reaches
 
@@ -18,11 +24,11 @@ class TimeSegments:
         self.segment_t: float | None = None  # the current time segment's first
         self.last_t: float | None = None     # the current time segment's last
         self.closed_span = 0.0  # seconds of the time segments before it
-        self.seams: list = []   # every seam passed so far
+        self.seams: list[Seam] = []   # every seam passed so far
         self.next_seam = NO_SEAM  # stream offset where the next seam takes effect
-        self._pending: list = []
+        self._pending: list[Seam] = []
 
-    def expect(self, seams: list) -> None:
+    def expect(self, seams: Iterable[Seam]) -> None:
         """Seams a step announces: each takes effect at the first record at or after its offset."""
         self._pending += seams
         self.next_seam = self._pending[0].offset
@@ -32,9 +38,10 @@ class TimeSegments:
         """A record on the wire from ``ts`` to ``end`` (None: ``ts``)."""
         if end is None:
             end = ts
-        if self.segment_t is None:  # its first record (a segment's first and last times are set together)
+        last = self.last_t
+        if last is None:  # its first record (a segment's first and last times are set together)
             self._start(ts, end)
-        elif end > self.last_t:
+        elif end > last:
             self.last_t = end
 
     def _start(self, ts: float, end: float) -> None:

@@ -143,6 +143,7 @@ class CaptureStats(Sink[Record | Block]):
             key = (ev[FLAG], bool(data))
             op = _OPS.get(key)
             if op is None:  # the op and whether it reads depend on the flag and on data being there
+                assert type(ev) is ShortPacket  # (t is its type; told once per flag and data)
                 op = _OPS[key] = (ev.op, ev.read_range is not None)
             self.by_op[op[0]] += 1
             sid = ev[ID]
@@ -194,9 +195,9 @@ class CaptureStats(Sink[Record | Block]):
         end_offset = run.base + int(ends[-1])  # rows are in wire order
         if end_offset > self.bytes:
             self.bytes = end_offset
-        t0 = blk.t0
-        if t0 is not None:
-            self.segments.add_rows(t0, blk.t1)
+        t0, t1 = blk.t0, blk.t1
+        if t0 is not None and t1 is not None:  # (a timed Block has both)
+            self.segments.add_rows(t0, t1)
             self.load.add_rows(t0, ends - starts)
         is_short = kind == SHORT
         to_servo = is_short & (sid != BROADCAST_ID)
@@ -210,7 +211,7 @@ class CaptureStats(Sink[Record | Block]):
             writes = np.flatnonzero(to_servo & (dlen > 0))
             if writes.size:
                 health.written_rows(blk, writes)
-        if counts[LONG]:
+        if long_rows is not None:  # counts[LONG] rows
             self.by_op["long-write"] += counts[LONG]
             health.long_written_rows(blk, long_rows)
         if counts[RETURN]:
@@ -233,6 +234,7 @@ class CaptureStats(Sink[Record | Block]):
             op = _OPS.get((key >> 1, bool(key & 1)))
             if op is None:  # the op and whether it reads depend on the flag and on data being there
                 ev = blk.run.event(blk.lo + int(np.flatnonzero(is_short & (keys == key))[0]))
+                assert type(ev) is ShortPacket  # a row of kind SHORT
                 op = _OPS[key >> 1, bool(key & 1)] = (ev.op, ev.read_range is not None)
             table[key] = op[1]
             self.by_op[op[0]] += int(by_key[key])

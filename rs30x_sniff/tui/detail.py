@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Sequence
 
 from rich.text import Text
 from textual.app import ComposeResult
@@ -13,7 +14,7 @@ from textual.widgets import Static, Tree
 from textual.widgets.tree import TreeNode
 
 from ..decode.pairing import Record
-from ..protocol.events import Garbage, LongPacket, ReturnPacket, ShortPacket
+from ..protocol.events import Ack, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
 from ..protocol.wire import (
     AT_ADDRESS, AT_COUNT, AT_DATA, AT_FLAG, AT_ID, AT_LENGTH, HEADER_SIZE, SUM_SIZE, VID_SIZE)
 from ..render.records import format_value, kind_word
@@ -28,26 +29,24 @@ def time_label(t: float, times: TimeForm | None) -> str:
     """A record's time in the title, as --time-format shows it: seconds since the start (delta too: one record
     has no neighbour here) and the time of day where the capture has a wall clock, the date and time alone, or
     epoch seconds."""
-    if times is None or not times.started:
+    if times is None or times.origin is None:  # (not started)
         return f"t={t:.6f}s"
-    shown = times.shown
-    if shown == ABSOLUTE:
-        return wall_text(times.wall + t)
-    if shown == EPOCH:
-        return f"t={times.wall + t:.6f}s"
+    shown, wall = times.shown, times.wall
+    if shown == ABSOLUTE or shown == EPOCH:
+        assert wall is not None  # a form with a date is shown only where the capture has a wall clock
+        return wall_text(wall + t) if shown == ABSOLUTE else f"t={wall + t:.6f}s"
     since = f"t={t - times.origin:.6f}s"
     # The time of day beside it, without the date (the title must fit a narrow pane; absolute shows the date).
-    return since if times.wall is None else f"{since} ({wall_text(times.wall + t)[DATE:]})"
+    return since if wall is None else f"{since} ({wall_text(wall + t)[DATE:]})"
 
 
 def field_spans(rec: Record) -> list[tuple[int, int]]:
     """Where each of ``rec.fields`` sits in the raw frame, as (start, end) byte indexes."""
     ev = rec.event
     fields = rec.fields
-    t = type(ev)
-    if t is ShortPacket or t is ReturnPacket:
+    if type(ev) is ShortPacket or type(ev) is ReturnPacket:
         return [(AT_DATA + f.address - ev.address, AT_DATA + f.address - ev.address + len(f.raw)) for f in fields]
-    if t is LongPacket and ev.count and fields:
+    if type(ev) is LongPacket and ev.count and fields:
         per = len(fields) // ev.count or 1  # every record of a long packet splits into the same fields
         out = []
         for i, f in enumerate(fields):
@@ -78,7 +77,7 @@ def hex_dump(raw: bytes, span: tuple[int, int] | None = None) -> Text:
     return text
 
 
-_STATUS_LINES = {
+_STATUS_LINES: dict[str | None, tuple[str, str]] = {
     "missing": ("no reply came", "red"),
     "unsolicited": ("unsolicited: no request asked for this", "yellow"),
     "unknown": ("the capture ended while its reply was still due", "grey70"),
@@ -86,8 +85,8 @@ _STATUS_LINES = {
 }
 
 
-def _same(a: Text, b: Text) -> bool:
-    return a.plain == b.plain and a.style == b.style and a.spans == b.spans
+def _same(a: str | Text, b: Text) -> bool:  # (textual keeps a node's label as a Text)
+    return isinstance(a, Text) and a.plain == b.plain and a.style == b.style and a.spans == b.spans
 
 
 def _relabel(node: TreeNode, label: Text, data: object) -> None:
@@ -215,14 +214,14 @@ class DetailPane(Vertical):
 
     def _header(self, rec: Record) -> list[_Node]:
         ev = rec.event
-        t = type(ev)
         whole = (0, min(HEADER_SIZE, len(ev.raw)))
-        if t is Garbage:
+        if type(ev) is Garbage:
             return [_Node(Text("header", "bold"), whole, [_Node(Text(f"skipped: {ev.reason}"), (0, len(ev.raw)))])]
-        if t not in (ShortPacket, ReturnPacket, LongPacket):
+        if type(ev) is Ack or type(ev) is Nack:
             return [_Node(Text(f"{'ACK' if ev.kind == 'ack' else 'NACK'} byte 0x{ev.raw[0]:02X}", "bold"), (0, 1),
                           allow_expand=False)]
-        flag = ev.flags if t is ReturnPacket else ev.flag
+        t = type(ev)
+        flag = ev.flags if type(ev) is ReturnPacket else ev.flag
         items = [("header", 0, AT_ID, ev.raw[:AT_ID].hex(" ").upper()),
                  ("id", AT_ID, AT_FLAG, str(ev.raw[AT_ID])),
                  ("flags" if t is ReturnPacket else "flag", AT_FLAG, AT_ADDRESS,
@@ -242,11 +241,12 @@ class DetailPane(Vertical):
     @staticmethod
     def _flag_text(rec: Record) -> str:
         ev = rec.event
+        names: Sequence[str]
         if type(ev) is ReturnPacket:
             names = ev.flag_names
         elif type(ev) is ShortPacket:
-            names = list(ev.commands) + ([f"return {ev.read_range[1]}B @{ev.read_range[0]}"] if ev.read_range
-                                         else ["ack"] if ev.wants_ack else [])
+            read = ev.read_range
+            names = list(ev.commands) + ([f"return {read[1]}B @{read[0]}"] if read else ["ack"] if ev.wants_ack else [])
         else:
             names = []
         return f" ({', '.join(names)})" if names else ""
@@ -278,8 +278,8 @@ class DetailPane(Vertical):
             label = Text(f"{arrow} @{other.offset} ", "bold underline")
             label.append(kind_word(other), kind_style(kind_word(other)))
             label.append(" " + short_summary(other)[:60])
-            if rec.latency is not None or other.latency is not None:
-                lat = rec.latency if rec.latency is not None else other.latency
+            lat = rec.latency if rec.latency is not None else other.latency
+            if lat is not None:
                 label.append(f" ({lat * 1e3:.3f} ms)", "grey70")
             return [_Node(label, other)]
         said = _STATUS_LINES.get(rec.status)
