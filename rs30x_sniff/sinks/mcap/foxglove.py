@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import os
+import socket
+import struct
+import sys
 import time
-
+from collections.abc import Callable
 from typing import Any
 
 import foxglove
@@ -39,8 +43,86 @@ def parse_address(text: str) -> tuple[str, int]:
     return host, number
 
 
-# How long a server with a subscribed client stays up after the last message, so that the client gets it.
-LINGER_S = 0.5
+# Before the server stops, its subscribed clients are sent what is queued for them. The SDK has no flush (foxglove-sdk
+# 0.30: WebSocketServer.stop() ends each client's send loop at once and drops its queue; no queue length, no callback
+# per message sent), so the kernel tells: the SDK writes a queued message to its client's socket as soon as it can,
+# so once every connection of this server has had nothing in flight and no byte written for QUIET_S, the queues are
+# sent. A client that reads slowly is waited for up to FLUSH_MAX_S. Where the sockets cannot be seen (not Linux),
+# the server waits FLUSH_BLIND_S, as it did always before.
+QUIET_S = 0.2
+FLUSH_MAX_S = 3.0
+FLUSH_BLIND_S = 0.5
+FLUSH_POLL_S = 0.01
+TCP_INFO_BYTES_ACKED = 120  # struct tcp_info (linux/tcp.h): 8 u8 fields, 24 u32, pacing_rate, max_pacing_rate, then it
+
+
+def _connections(port: int) -> list[socket.socket] | None:
+    """Copies of this process's TCP connections whose local port is ``port`` (the server's clients); None when the
+    process's sockets cannot be listed."""
+    try:
+        fds = [int(fd) for fd in os.listdir("/proc/self/fd")]
+    except OSError:
+        return None
+    out = []
+    for fd in fds:
+        try:
+            if not os.readlink(f"/proc/self/fd/{fd}").startswith("socket:"):
+                continue
+            sock = socket.socket(fileno=os.dup(fd))
+        except OSError:
+            continue  # closed meanwhile, or not a socket
+        try:
+            if (sock.family in (socket.AF_INET, socket.AF_INET6) and sock.type == socket.SOCK_STREAM
+                    and sock.getsockname()[1] == port and sock.getpeername()):
+                out.append(sock)
+                continue
+        except OSError:
+            pass  # the listening socket (no peer), or one closing
+        sock.close()
+    return out
+
+
+def _written(sock: socket.socket) -> tuple[int, int] | None:
+    """(bytes written to the connection so far, bytes of them not yet acknowledged by the client), or None."""
+    try:
+        import fcntl  # POSIX only, as TCP_INFO and SIOCOUTQ are Linux's
+        import termios
+
+        info = sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, TCP_INFO_BYTES_ACKED + 8)
+        acked = struct.unpack_from("=Q", info, TCP_INFO_BYTES_ACKED)[0]
+        queued = struct.unpack("i", fcntl.ioctl(sock.fileno(), termios.TIOCOUTQ, b"\0" * 4))[0]  # SIOCOUTQ
+    except (ImportError, OSError, struct.error, AttributeError):
+        return None
+    return acked + queued, queued
+
+
+def flush_clients(port: int, clock: Callable[[], float] = time.monotonic) -> bool:
+    """Wait until the server's client connections on ``port`` are quiet (see QUIET_S), at most FLUSH_MAX_S; False
+    when they cannot be watched (then waited FLUSH_BLIND_S) or stayed busy."""
+    socks = _connections(port) if sys.platform == "linux" else None
+    if socks is not None and not socks:
+        return True  # subscribed a moment ago, gone now: nobody to send to
+    if socks is None or any(_written(sock) is None for sock in socks):
+        for sock in socks or ():
+            sock.close()
+        time.sleep(FLUSH_BLIND_S)
+        return False
+    try:
+        start = last_change = clock()
+        before: list[tuple[int, int]] = []
+        while clock() - start < FLUSH_MAX_S:
+            now = [w for w in map(_written, socks) if w is not None]
+            if len(now) < len(socks):
+                return False  # a connection closed meanwhile: its client is gone
+            if now != before:
+                before, last_change = now, clock()
+            elif all(queued == 0 for _, queued in now) and clock() - last_change >= QUIET_S:
+                return True
+            time.sleep(FLUSH_POLL_S)
+        return False
+    finally:
+        for sock in socks:
+            sock.close()
 
 
 class FoxgloveSink(JsonChannels):
@@ -105,12 +187,12 @@ class FoxgloveSink(JsonChannels):
 
     # chunk, batch and idle (the drive loop's sink protocol) are JsonChannels'.
     def close(self) -> None:
-        """Stop the server (clients see it close); idempotent. A client still subscribed is given LINGER_S
-        first: the server sends from its own thread, and stopping it drops what is still queued (the last
-        records and the end-of-input findings, logged just before)."""
+        """Stop the server (clients see it close); idempotent. A client still subscribed is sent what is queued
+        for it first (flush_clients): the server sends from its own thread, and stopping it drops what is still
+        queued (the last records and the end-of-input findings, logged just before)."""
         if self._closed:
             return
         self._closed = True
         if any(ch.has_sinks() for ch in self._channels.values()):
-            time.sleep(LINGER_S)
+            flush_clients(self.port)
         self.server.stop()
