@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 from bisect import bisect_left, bisect_right
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -14,7 +14,7 @@ from ..filters import SEVERITY_RANK
 
 CHUNK_RECORDS = 1 << 16  # Records held per list of the history (trimming cuts the first list only)
 
-Segment = list[Record] | Block
+Segment = list[Record] | Block  # (told apart by type(seg) is Block: Block is final)
 
 
 class History:
@@ -42,10 +42,10 @@ class History:
         j = self.segment_index(seq)
         seg = self.segments[j]
         k = seq - self.starts[j]
-        return seg[k] if type(seg) is list else seg.record(k)
+        return seg[k] if type(seg) is not Block else seg.record(k)
 
     def blocks(self) -> Iterator[Block]:
-        return (seg for seg in self.segments if type(seg) is not list)
+        return (seg for seg in self.segments if type(seg) is Block)
 
     def newest_first(self) -> Iterator[tuple[Segment, int]]:
         """(segment, seq of its first row) from the newest segment back."""
@@ -86,7 +86,7 @@ class History:
         del segs[:n], starts[:n]
         if segs and starts[0] < first:
             seg, cut = segs[0], first - starts[0]
-            if type(seg) is list:
+            if type(seg) is not Block:
                 drop(seg[:cut])
                 del seg[:cut]
                 starts[0] = first
@@ -105,7 +105,7 @@ class History:
         while j < len(segs) and starts[j] < stop:
             seg, s0 = segs[j], starts[j]
             a, b = max(start, s0) - s0, min(stop, s0 + len(seg)) - s0
-            yield s0 + a, seg[a:b] if type(seg) is list else seg.rows(a, b)
+            yield s0 + a, seg[a:b] if type(seg) is not Block else seg.rows(a, b)
             j += 1
 
     def seq_of_offset(self, offset: int) -> int | None:
@@ -115,7 +115,7 @@ class History:
         if j < 0:
             return None
         seg = segs[j]
-        if type(seg) is list:
+        if type(seg) is not Block:
             i = bisect_left(seg, offset, key=lambda r: r.event.offset)
             found = i < len(seg) and seg[i].event.offset == offset
         else:
@@ -151,8 +151,10 @@ class History:
             if s0 >= hi or s0 + len(seg) <= lo:
                 break
             a, b = max(lo, s0) - s0, min(hi, s0 + len(seg)) - s0
-            if type(seg) is list or seg.linted_by_rows:
-                recs = seg if type(seg) is list else seg.records()
+            recs: Sequence[Record] | Mapping[int, Record]
+            ks: Iterable[int]
+            if type(seg) is not Block or seg.linted_by_rows:
+                recs = seg if type(seg) is not Block else seg.records()
                 ks = range(a, b) if forward else range(b - 1, a - 1, -1)
             elif seg.made_rows:
                 # A Block the linter passed whole has no finding of its own; one of the Records it keeps may
@@ -172,10 +174,10 @@ class History:
     def list_nbytes(self) -> int:
         """Bytes of the history's own lists (the segment lists and the lists of Records)."""
         return (sys.getsizeof(self.segments) + 2 * sys.getsizeof(self.starts)
-                + sum(sys.getsizeof(seg) for seg in self.segments if type(seg) is list))
+                + sum(sys.getsizeof(seg) for seg in self.segments if type(seg) is not Block))
 
 
 def _first_offset(seg: Segment) -> int:
-    if type(seg) is list:
+    if type(seg) is not Block:
         return seg[0].event.offset
     return seg.run.base + int(seg.run.starts[seg.lo])

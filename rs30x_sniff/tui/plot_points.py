@@ -17,15 +17,14 @@ from ..protocol.wire import AT_DATA, VID_SIZE
 def register_value(rec: Record, servo_id: int, name: str) -> Any:
     """The value of register ``name`` of ``servo_id`` that a record carries, if it carries all of it."""
     ev = rec.event
-    t = type(ev)
     model = rec.model
     if model is None or not ev.checksum_ok:
         return None
-    if t is ReturnPacket or t is ShortPacket:
+    if type(ev) is ReturnPacket or type(ev) is ShortPacket:
         if ev.id != servo_id or not ev.data:
             return None
         address, data = ev.address, ev.data
-    elif t is LongPacket:
+    elif type(ev) is LongPacket:
         for r in ev.records:
             if r.vid == servo_id:
                 # rec.model is the bus default here; the register addresses the plot offers are the
@@ -42,29 +41,6 @@ def register_value(rec: Record, servo_id: int, name: str) -> Any:
         return None
 
 
-def _values_of(reg: Any, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For a 1- or 2-byte register's raw bytes (as an unsigned little-endian number): the value
-    register_value gives, as a float, and whether it is a number (an enum's label is not). Each raw
-    value is converted once, when first seen: (values, is a number, worked out) by raw bytes, kept in
-    the register's cache."""
-    lut = reg.cache.get("plot values")
-    if lut is None:
-        size = 1 << 8 * reg.size
-        lut = reg.cache["plot values"] = (np.zeros(size), np.zeros(size, dtype=bool), np.zeros(size, dtype=bool))
-    values, ok, known = lut
-    new = raw[~known[raw]]
-    if new.size:
-        bits = 8 * reg.size
-        convert = reg.convert
-        for u in np.unique(new).tolist():
-            v = convert(u - (1 << bits) if reg.signed and u >= 1 << (bits - 1) else u)
-            if isinstance(v, (int, float)):
-                values[u] = float(v)
-                ok[u] = True
-            known[u] = True
-    return values[raw], ok[raw]
-
-
 def _register_of(model: Any, name: str) -> Any:
     if model is None:
         return None
@@ -72,22 +48,6 @@ def _register_of(model: Any, name: str) -> Any:
         return model.register(name)
     except KeyError:
         return None
-
-
-def _values_at(blob_array: np.ndarray, blob: bytes, at: np.ndarray, reg: Any) -> tuple[np.ndarray, np.ndarray]:
-    """(values, is a number) of ``reg`` whose bytes start at ``at`` in the blob."""
-    if reg.size <= 2:
-        raw = blob_array[at].astype(np.intp)
-        if reg.size == 2:
-            raw |= blob_array[at + 1].astype(np.intp) << 8
-        return _values_of(reg, raw)
-    vals, oks = [], []
-    for p in at.tolist():  # a wider register: as Register.value_in reads it
-        v = reg.convert(int.from_bytes(blob[p:p + reg.size], "little", signed=reg.signed))
-        good = isinstance(v, (int, float))
-        vals.append(float(v) if good else 0.0)
-        oks.append(good)
-    return np.array(vals, dtype=float), np.array(oks, dtype=bool)
 
 
 def block_points(blk: Block, ids: Iterable[int], name: str, byte_seconds: float,
@@ -101,7 +61,7 @@ def block_points(blk: Block, ids: Iterable[int], name: str, byte_seconds: float,
     address = cols["address"][a:].astype(np.int64)
     starts = run.starts[blk.lo + a:blk.hi]
     t0 = None if run.t0 is None else run.t0[blk.lo + a:blk.hi]
-    arr, blob = run.bytes_array, run.blob
+    arr = run.bytes_array
     out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     own = (kind != LONG) & (dlen > 0)
     long_rows = np.flatnonzero((kind == LONG) & (cols["length"][a:] > 0) & (dlen > 0))
@@ -150,7 +110,8 @@ def block_points(blk: Block, ids: Iterable[int], name: str, byte_seconds: float,
         got_rows, got_vals = [], []
         for rws, at, reg in zip(rows_parts, at_parts, regs):
             if rws.size:
-                vals, ok = _values_at(arr, blob, at, reg)
+                # Register.raw_column and value_column: the one decoding of a register from columns.
+                vals, ok = reg.value_column(reg.raw_column(arr, at))
                 got_rows.append(rws[ok])
                 got_vals.append(vals[ok])
         if not got_rows:
