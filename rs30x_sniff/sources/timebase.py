@@ -40,7 +40,7 @@ def judge(chunks: list[Chunk], baud: int) -> TimeRef:
     bt = byte_time(baud)
     tol = bt / 4
     as_first = as_arrival = pairs = 0
-    prev: Chunk | None = None
+    prev: tuple[bytes, float] | None = None  # the last chunk with bytes and a time
     for data, t in chunks:
         if t is None or not data:
             continue
@@ -110,7 +110,7 @@ class TimedSource:
     def time_ref(self) -> TimeRef:
         """What the times mark and why; once a timestamped capture's unit is known, the unit leads the
         reason (``in seconds since the epoch, told by the content; stamped at the first byte ...``)."""
-        unit = getattr(self.source, "time_unit", None)
+        unit = self.source.time_unit
         if unit is None:
             return self._time_ref
         # A unit given (by an option, or by the settings from the capture's own first lines) has its origin
@@ -150,7 +150,7 @@ class TimedSource:
             data, t = chunk
             if t is not None and shift is None:
                 shift = -t if t < 0 else 0.0
-                found = getattr(getattr(self.source, "context", None), "found", None)
+                found = self.source.context.found
                 if shift and found and found.get("start_time") is not None:
                     found["start_time"] -= timedelta(seconds=shift)
             if shift and t is not None:

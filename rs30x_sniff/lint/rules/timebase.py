@@ -98,10 +98,11 @@ def _seam_message(seam: Seam) -> Message:
     """F010's text: where the new time segment begins and why, with the span across the seam in seconds."""
     params: dict = {}
     shown: dict = {}
-    timed = seam.t_end is not None
-    if timed:
+    t_end = seam.t_end
+    timed = t_end is not None
+    if t_end is not None:
         # Back by how much at a restart, forward by how much elsewhere.
-        gap = seam.t_end - seam.t_start if seam.kind == SEAM_RESTART else seam.t_start - seam.t_end
+        gap = t_end - seam.t_start if seam.kind == SEAM_RESTART else seam.t_start - t_end
         params["gap"], shown["gap"] = Measured(gap, DURATION), f"{gap:.3f}"
     if seam.kind == SEAM_SOURCE:
         # The note is the source's own words, no measurement (sources.reconnect: why the port was lost).
