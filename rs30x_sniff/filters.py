@@ -457,7 +457,7 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
     # One compiled check per model: (address, size, signed, test of the raw value). The register's
     # bytes are read straight from the packet, so a scan over a long history decodes nothing else.
     tables: list[tuple[Register, Any]] = []
-    arrays: dict[Model, tuple[int, int, np.ndarray]] = {}  # the tables as arrays, for the column form
+    arrays: dict[Model, tuple[Register, np.ndarray]] = {}  # the tables as arrays, for the column form
 
     def compile_for(model: Model):
         try:
@@ -477,7 +477,7 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
             half = 1 << (bits - 1)
             table = bytes(bool(test(u - (1 << bits) if reg.signed and u >= half else u)) for u in range(1 << bits))
             tables.append((reg, table))
-        arrays[model] = (reg.address, reg.size, np.frombuffer(table, dtype=bool))
+        arrays[model] = (reg, np.frombuffer(table, dtype=bool))
         return reg.address, reg.size, False, table.__getitem__
 
     specs: dict[Model, Any] = {}  # by model (a Model hashes as itself)
@@ -546,11 +546,8 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
         address = c["address"].astype(np.int64)
         dlen = c["data_len"].astype(np.int64)
 
-        def judge(at: np.ndarray, size: int, table: np.ndarray) -> np.ndarray:
-            raw = a[at].astype(np.int64)
-            if size == 2:
-                raw |= a[at + 1].astype(np.int64) << 8
-            return table[raw]
+        def judge(at: np.ndarray, reg: Register, table: np.ndarray) -> np.ndarray:
+            return table[reg.raw_column(a, at)]  # the one decoding of a register from columns
 
         for model, rows in _rows_by_model(blk, np.arange(n) if among is None else np.flatnonzero(among)):
             spec = None if model is None else spec_for(model)
@@ -561,12 +558,13 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
             if arr is None or (is_long.any() and blk.vid_models is not None):
                 maybe[rows] = True  # no table to read columns by, or servos of mixed models: ask the records
                 continue
-            reg_address, size, table = arr
+            reg, table = arr
+            reg_address, size = reg.address, reg.size
             start = reg_address - address[rows]
             if not is_long[0]:
                 ok = (start >= 0) & (start + size <= dlen[rows])
                 r = rows[ok]
-                hit = judge(starts[r] + AT_DATA + start[ok], size, table)
+                hit = judge(starts[r] + AT_DATA + start[ok], reg, table)
                 maybe[r] = surely[r] = hit
                 continue
             for lrows, count, rsize, at in _long_records(blk):
@@ -579,7 +577,7 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
                 lr, at, st = lrows[ok], at[ok], st[ok]
                 hit = np.zeros(len(lr), dtype=bool)
                 for k in range(count):
-                    hit |= judge(at + k * rsize + VID_SIZE + st, size, table)
+                    hit |= judge(at + k * rsize + VID_SIZE + st, reg, table)
                 maybe[lr] = surely[lr] = hit
         return maybe, surely
 

@@ -69,13 +69,8 @@ class BlockView:
 
     def values(self, plan: Any, j: int, at: np.ndarray) -> np.ndarray:
         """Raw value of part ``j`` of ``plan`` for data starting at ``at`` (as Plan.unpack)."""
-        start, size, reg, partial_ = plan.model.layout(plan.address, plan.n).parts[j]
-        a = self.bytes
-        lo = a[at + start].astype(np.int64)
-        if size == 2 and not partial_:
-            v = lo | a[at + start + 1].astype(np.int64) << 8
-            return v - (v >= 0x8000) * 0x10000 if reg.signed else v
-        return lo - (lo >= 0x80) * 0x100 if reg.signed and not partial_ else lo
+        start, _, reg, partial_ = plan.model.layout(plan.address, plan.n).parts[j]
+        return reg.raw_column(self.bytes, at + start, partial_)
 
     def written(self, t: Target, j: int) -> np.ndarray:
         """The raw values the writes ``t`` carry in part ``j`` of their plan (made once per Block)."""

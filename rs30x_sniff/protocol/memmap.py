@@ -109,6 +109,55 @@ class Register:
             return raw_value
         return self.convert(raw_value)
 
+    def raw_column(self, data: Any, at: Any, partial: str | None = None) -> Any:
+        """The raw value :meth:`value_of` takes, for every row at once: this register's bytes (one byte of it
+        with ``partial``) starting at ``at`` in the uint8 array ``data``, little-endian and signed as the
+        register is, as int64. ``at`` is an index array, or an int into the first axis of a 2-D ``data``
+        (``matrix.T``: a column of frame rows). The one place a column of bytes becomes register values
+        (numpy is taken from the array: this module imports none). A table indexed by the unsigned raw
+        value reads a signed raw value right too: numpy counts a negative index from the end."""
+        size = 1 if partial else self.size
+        signed = self.signed and not partial
+        col = data[at]
+        if size == 1:
+            return (col.view("int8") if signed else col).astype("int64")
+        if size == 2:
+            col = col.astype("uint16") | data[at + 1].astype("uint16") << 8
+            return (col.view("int16") if signed else col).astype("int64")
+        col = col.astype("int64")
+        for k in range(1, size):
+            col |= data[at + k].astype("int64") << 8 * k
+        if signed:
+            col -= (col >= 1 << (8 * size - 1)) * (1 << 8 * size)
+        return col
+
+    def value_column(self, raw: Any) -> tuple[Any, Any]:
+        """:meth:`value_of` of each raw value (:meth:`raw_column`'s): (the values as float64, whether each is
+        a number: an enum's label or an unknown table code is not). For a 1- or 2-byte register each raw
+        value is converted once, when first met, into tables kept in :attr:`cache`."""
+        import numpy as np  # only where columns are read: the maps load without it
+
+        if self.size > 2:
+            got = [self.value_of(u) for u in raw.tolist()]
+            ok_ = [isinstance(v, (int, float)) for v in got]
+            return (np.array([float(v) if k else 0.0 for v, k in zip(got, ok_)], dtype=float),
+                    np.array(ok_, dtype=bool))
+        lut = self.cache.get("value column")
+        if lut is None:
+            n = 1 << 8 * self.size
+            lut = self.cache["value column"] = (np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool))
+        values, ok, known = lut
+        new = raw[~known[raw]]
+        if new.size:
+            convert = self.value_of
+            for u in set(new.tolist()):
+                v = convert(u)
+                if isinstance(v, (int, float)):
+                    values[u] = float(v)
+                    ok[u] = True
+                known[u] = True
+        return values[raw], ok[raw]
+
     def value_in(self, address: int, data: bytes | bytearray) -> Any:
         """Engineering value of this register in ``data`` that starts at memory ``address``;
         None unless ``data`` holds all of the register."""

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from collections import Counter
 from typing import TYPE_CHECKING, Any
 from collections.abc import Iterable
@@ -26,8 +25,6 @@ FLAG_NAMES = tuple(RETURN_FLAG_BITS.values())
 # sink a list append instead of Python arithmetic per value. The column form (HealthRecorder's *_rows)
 # fills the same buffers and flushes at the same count.
 FLUSH_ROWS = 4096
-_TYPECODES = {(1, False): "B", (1, True): "b", (2, False): "H", (2, True): "h"}
-_LITTLE = sys.byteorder == "little"
 
 
 def _where(model: Any, names: tuple[str, ...], address: int, n: int) -> list[tuple[Any, int]]:
@@ -39,20 +36,9 @@ def _where(model: Any, names: tuple[str, ...], address: int, n: int) -> list[tup
         except KeyError:
             continue
         start = reg.address - address
-        if start >= 0 and start + reg.size <= n and (reg.size, reg.signed) in _TYPECODES:
+        if start >= 0 and start + reg.size <= n and reg.size <= 2:
             out.append((reg, start))
     return out
-
-
-def _column(block: bytes, off: int, stride: int, reg: Any) -> memoryview:
-    """The values of ``reg`` at ``off`` in every ``stride``-byte row of ``block``, as a typed view."""
-    code = _TYPECODES[reg.size, reg.signed]
-    if reg.size == 1:
-        return memoryview(block[off::stride]).cast(code)
-    lo, hi = block[off::stride], block[off + 1::stride]
-    buf = bytearray(2 * len(lo))
-    buf[0::2], buf[1::2] = (lo, hi) if _LITTLE else (hi, lo)
-    return memoryview(buf).cast(code)
 
 
 class Frames(bytes):
@@ -112,12 +98,8 @@ def _frames(raws: list[bytes], run: Any, rows: np.ndarray | None, size: int) -> 
 
 
 def _register_column(mat: np.ndarray, at: int, reg: Any) -> np.ndarray:
-    """A 1- or 2-byte register's raw values at byte ``at`` of every row (_column's values)."""
-    if reg.size == 1:
-        col = mat[:, at]
-        return col.view(np.int8) if reg.signed else col
-    col = mat[:, at].astype(np.uint16) | mat[:, at + 1].astype(np.uint16) << 8
-    return col.view(np.int16) if reg.signed else col
+    """A register's raw values at byte ``at`` of every row (Register.raw_column, the one decoding)."""
+    return reg.raw_column(mat.T, at)
 
 
 def _take(h: Any, reg: Any, col: np.ndarray) -> None:
@@ -220,7 +202,7 @@ class HealthRecorder:
             # Servos of mixed models in one packet: each record on its own, in its servo's model.
             for m, (vid, data) in zip(vm, records):
                 for reg, off in _where(m, WRITTEN, ev[LONG_ADDRESS], len(data)):
-                    self.servo(vid).take(reg, _column(data, off, len(data), reg))
+                    self.servo(vid).take(reg, _register_column(np.frombuffer(data, np.uint8)[None], off, reg).tolist())
             return
         key = (ev[LONG_ADDRESS], ev[LONG_LENGTH], len(records))
         b = self.long_writes.get(key)
