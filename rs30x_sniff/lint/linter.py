@@ -14,7 +14,7 @@ from ..protocol.wire import (
     AT_DATA, BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, SUM_SIZE, byte_time)
 from .batch import BlockLinter
 from .config import LintConfig
-from .registry import KINDS, RULES, WHEN, Finding, Rule
+from .registry import KINDS, RULES, WHEN, Finding, Rule, crowded
 from .state import Plan, Shadow
 
 if TYPE_CHECKING:  # names for the checker; no import at run time
@@ -156,7 +156,7 @@ class Linter:
             self._setup(ev[T_START] is not None)
         self.records += 1
         on = self._on
-        kind = ev.kind
+        kind: str = ev.kind  # or "corrupt", a kind of the dispatch's own
         if kind == "garbage":
             for fn in on["garbage"]:
                 fn(self, rec, ev)
@@ -271,7 +271,7 @@ class Linter:
             sid = ev.id
             if sid != BROADCAST_ID:
                 ids.add(sid)
-        if len(ids) > self.config.max_servos:
+        if crowded(self):
             self._counting = False  # Q008 has all it needs; stop paying for the count
 
     # ---- per kind ----------------------------------------------------------------------------
@@ -350,9 +350,9 @@ class Linter:
             apply = plan.apply
             for _, raws, sh in targets:
                 apply(sh, raws)
-            k = plan.id_part
-            if k is not None:
-                self._renumber(rec, plan, [(vid, raws[k]) for vid, raws, _ in targets])
+            part = plan.id_part
+            if part is not None:
+                self._renumber(rec, plan, [(vid, raws[part]) for vid, raws, _ in targets])
             return
         moves = []
         for (vid, d), model in zip(records, vid_models or (rec.model,) * len(records)):

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from ..protocol.codegen import attribute_setter
 from ..protocol.memmap import Model
 
@@ -54,8 +57,11 @@ class Plan:
         self.parts = tuple(parts)
         self.unpack = layout.unpack_raw
         self.index = {reg.name: j for j, (reg, p) in enumerate(parts) if reg.name and not p}
-        seen = set()
-        ro, res, part, ranged = [], [], [], []
+        seen: set[str] = set()
+        ro: list[str | None] = []
+        res: list[str] = []
+        part: list[str] = []
+        ranged: list[tuple[int, str | None, Any, Any]] = []
         named = [j for j, (reg, _) in enumerate(parts) if reg.name]
         for j, (reg, p) in enumerate(parts):
             if reg.name is None:
@@ -81,7 +87,7 @@ class Plan:
         # apply(shadow, raws): store the tracked registers (setattr of each of tracked), generated once per
         # plan as it runs per servo written (protocol.codegen; the attributes are Shadow's, from _TRACKED).
         self.apply = attribute_setter(self.tracked)
-        self.target_checks: tuple | None = None  # filled by the linter: the target rules this write wakes
+        self.target_checks: tuple[Callable[..., Any], ...] = ()  # filled by the linter: the target rules it wakes
 
     def unpack_long(self, count: int):
         """An unpacker for ``count`` records of VID + these bytes (one call for a whole long packet)."""

@@ -74,7 +74,7 @@ class Event(tuple):
         return self[0] + len(self[1])
 
 
-def _with_fields(cls: type, names: tuple[str, ...]) -> type:
+def _with_fields(cls: type[Event], names: tuple[str, ...]) -> type[Event]:
     """Give an event class its ordered fields as read-only attributes."""
     cls._fields = names
     for k, name in enumerate(names):
@@ -92,7 +92,7 @@ class ShortPacket(Event):
     flag: int
     address: int
     length: int
-    count: int
+    count: int  # type: ignore[assignment]  # the frame's Count field: it shadows tuple.count on purpose
     data: bytes
     checksum_ok: bool
 
@@ -162,7 +162,7 @@ class LongPacket(Event):
     flag: int
     address: int
     length: int
-    count: int
+    count: int  # type: ignore[assignment]  # the frame's Count field: it shadows tuple.count on purpose
     records: tuple[LongRecord, ...]
     checksum_ok: bool
 
@@ -184,7 +184,7 @@ class ReturnPacket(Event):
     flags: int
     address: int
     length: int
-    count: int
+    count: int  # type: ignore[assignment]  # the frame's Count field: it shadows tuple.count on purpose
     data: bytes
     checksum_ok: bool
 
