@@ -15,6 +15,9 @@ Each rule declares its column form itself (``@rule(..., column=...)``, rs30x_sni
 - a function quiet(view) beside the rule, written on the :class:`BlockView`'s columns with the same
   arithmetic, in the same order, as the rule's check.
 Which rule has which form is said by the rules alone (``Rule.column``); this module keeps no list of them.
+Nor of the rows it leaves to the record path (commands, flagged returns, a first row after a cut, a crowded
+bus): each is a bail-out (rs30x_sniff.lint.registry.BAIL_OUTS) the rules that need it ask, by their
+precondition (``when=``) or their kind ("command"), and the linter's memory asks commands and flags.
 """
 
 from __future__ import annotations
@@ -27,9 +30,9 @@ import numpy as np
 
 from ..decode.frame_runs import LONG, RETURN, SHORT
 from ..protocol.events import RAW
-from ..protocol.wire import (AT_DATA, AT_ID, AT_LENGTH, BROADCAST_ID, COMMAND_BITS, HEADER_SIZE, SUM_SIZE,
+from ..protocol.wire import (AT_DATA, AT_ID, AT_LENGTH, BROADCAST_ID, HEADER_SIZE, SUM_SIZE,
                              VID_SIZE)
-from .registry import follows_cut
+from .registry import bail_outs
 
 UNKNOWN = -(1 << 40)  # an unknown shadow value in an int64 column (BlockView.shadows)
 
@@ -66,6 +69,34 @@ class BlockView:
         self.sets: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {"pos": [], "goal_time": []}
         self.made: dict[tuple[str, str], Any] = {}  # shadow columns and lookups, made on first use
         self.on_accept: list[Callable[[], None]] = []  # the rules' memory moves (when_quiet)
+        self._vid_groups: list | None = None
+        self._new_ids: set[int] | None = None
+
+    def vid_groups(self) -> list[tuple[np.ndarray, np.ndarray, int]]:
+        """The long packets' VIDs: (rows, their VIDs as a matrix, record length) per (length, count) shape."""
+        groups = self._vid_groups
+        if groups is None:
+            length, count = self.length, self.blk.cols["count"]
+            long_rows = np.flatnonzero(self.is_long & (length > 0))
+            a, starts = self.bytes, self.starts
+            groups = self._vid_groups = []
+            shape = length[long_rows] * 256 + count[long_rows]
+            for key in np.unique(shape).tolist():
+                rows = long_rows[shape == key]
+                ln, cnt = key // 256, key % 256
+                groups.append((rows, a[(starts[rows] + AT_DATA)[:, None] + np.arange(cnt) * ln], ln))
+        return groups
+
+    def new_ids(self) -> set[int]:
+        """The servo IDs the Block's rows show that the bus has not seen yet (requests, VIDs, returns; not 255)."""
+        new = self._new_ids
+        if new is None:
+            sid = self.ids
+            ids = set(np.unique(sid[(self.is_short & (sid != BROADCAST_ID)) | self.is_return]).tolist())
+            for _, vids, _ in self.vid_groups():
+                ids.update(np.unique(vids).tolist())
+            new = self._new_ids = ids - self.lint.ids
+        return new
 
     def values(self, plan: Any, j: int, at: np.ndarray) -> np.ndarray:
         """Raw value of part ``j`` of ``plan`` for data starting at ``at`` (as Plan.unpack)."""
@@ -109,40 +140,23 @@ class BlockLinter:
     def __init__(self, lint: Any) -> None:
         self.lint = lint
         self.header_verdicts: dict[tuple, bool] = {}
+        self.bails: tuple[tuple, tuple] = ((), ())  # (the rules run, the bail-outs they ask)
 
     def quiet(self, blk: Any) -> bool:
         """True if no enabled rule finds anything in ``blk``, with the linter moved past it; else False
         and the linter untouched."""
         lint = self.lint
         lint.begin(blk.t0 is not None)
-        max_servos = lint.config.max_servos
-        if len(lint.ids) > max_servos:
-            return False  # Q008 speaks on every packet now
-        view = BlockView(lint, blk)
-        sid, flag = view.ids, view.flag
-        is_short, is_long, is_return = view.is_short, view.is_long, view.is_return
-        if (is_short & ((flag & COMMAND_BITS) != 0)).any():
-            return False  # flash / reboot / initialize: command rules and their state (P008, P009, Q001-Q004)
-        if (is_return & (flag != 0)).any():
-            return False  # a status flag: P013, S001-S004, and the temperature lock Q009 reads
-        if follows_cut(lint.prev, int(blk.offsets[0])):
-            return False  # B007 ("after-cut"): the first row starts where a cut-short frame ended
-        # Q008: the servo IDs the bus has seen, with these.
-        length = view.length
-        long_rows = np.flatnonzero(is_long & (length > 0))
-        a, starts = view.bytes, view.starts
-        vid_groups = []
-        for key in np.unique(length[long_rows] * 256 + blk.cols["count"][long_rows]).tolist():
-            rows = long_rows[length[long_rows] * 256 + blk.cols["count"][long_rows] == key]
-            ln, cnt = key // 256, key % 256
-            vid_groups.append((rows, a[(starts[rows] + AT_DATA)[:, None] + np.arange(cnt) * ln], ln))
-        ids = set(np.unique(sid[(is_short & (sid != BROADCAST_ID)) | is_return]).tolist())
-        for _, vids, _ in vid_groups:
-            ids.update(np.unique(vids).tolist())
-        new_ids = ids - lint.ids
-        if len(lint.ids) + len(new_ids) > max_servos:
-            return False
         run = lint.active_rules
+        if self.bails[0] is not run:
+            self.bails = (run, bail_outs(run))  # what the rules declare (rs30x_sniff.lint.registry.BAIL_OUTS)
+        view = BlockView(lint, blk)
+        for bail in self.bails[1]:
+            if bail.in_block(view):
+                return False  # rows the rules that ask this bail-out see only one by one
+        sid, is_return = view.ids, view.is_return
+        vid_groups = view.vid_groups()
+        new_ids = view.new_ids()
         if not _headers_quiet(lint, self.header_verdicts, blk, run, vid_groups):
             return False
         shadow_order = _writes(view, run, vid_groups)

@@ -10,7 +10,7 @@ from collections.abc import Callable, Iterable, Iterator
 
 from ..decode.pairing import ANSWERED, PAIRED
 from ..protocol.events import FLAG, OFFSET, REASON, TRUNCATED
-from ..protocol.wire import REQUEST_HEADER, checksum
+from ..protocol.wire import COMMAND_BITS, REQUEST_HEADER, checksum
 
 SEVERITIES = ("info", "warning", "error")
 SEVERITY_RANK = {"info": 1, "warning": 2, "error": 3}
@@ -82,8 +82,14 @@ def _flagged(lint, rec, ev) -> bool:
     return ev[FLAG] != 0
 
 
+def crowded(lint, more: int = 0) -> bool:
+    """Whether the bus has seen more distinct servo IDs than max-servos (with ``more`` not counted yet): the
+    one test of a crowded bus (Q008), for its rule, its precondition, the linter's count and a Block."""
+    return len(lint.ids) + more > lint.config.max_servos
+
+
 def _crowded(lint, rec, ev) -> bool:
-    return len(lint.ids) > lint.config.max_servos
+    return crowded(lint)
 
 
 def _settles(lint, rec, ev) -> bool:
@@ -98,6 +104,58 @@ WHEN: dict[str, tuple[str, Callable[..., bool]]] = {
     "crowded": ("more distinct servo IDs seen than max-servos", _crowded),
     "settles": ("the record settled that the latest unanswered request got no reply", _settles),
 }
+
+
+# Rows the column path (rs30x_sniff.lint.batch) leaves to the record path, each for the rules that ask it: a
+# rule asks its precondition's (when=, above: it runs on rows the precondition picks, one by one) and, if it
+# checks commands (kind "command"), "command". Each is tested on a BlockView (its columns, the linter):
+# True when some row of the Block may meet it. "unpaired" and "settles" need none: a Block holds no unpaired
+# reply and settles no missing one (rs30x_sniff.decode.blocks).
+@dataclass(frozen=True, slots=True)
+class BailOut:
+    """Rows of a Block some rules see only one by one: what they are, and whether a Block has any."""
+
+    doc: str
+    in_block: Callable[[Any], bool]
+
+
+def _command_rows(view) -> bool:
+    return bool((view.is_short & ((view.flag & COMMAND_BITS) != 0)).any())
+
+
+def _flagged_rows(view) -> bool:
+    return bool((view.is_return & (view.flag != 0)).any())
+
+
+def _after_cut_rows(view) -> bool:
+    return follows_cut(view.lint.prev, int(view.blk.offsets[0]))  # only a Block's first row can
+
+
+def _crowded_rows(view) -> bool:
+    return crowded(view.lint) or crowded(view.lint, len(view.new_ids()))
+
+
+BAIL_OUTS: dict[str, BailOut] = {
+    "command": BailOut("a short packet with flash, reboot or initialize bits (table 4.2)", _command_rows),
+    "flagged": BailOut("a return with any status flag set (table 4.4)", _flagged_rows),
+    "after-cut": BailOut("the Block's first row starts where a cut-short frame ended", _after_cut_rows),
+    "crowded": BailOut("the Block's servo IDs bring the bus above max-servos", _crowded_rows),
+}
+# Asked whatever rules run: the linter's own memory of each servo (rs30x_sniff.lint.state.Shadow), which the
+# rules read, follows a reboot or initialize (table 4.2) and the temperature lock (table 4.4 bit 7) on the
+# record path only.
+MEMORY_BAIL_OUTS = ("command", "flagged")
+
+
+def bail_outs(rules: Iterable[Rule]) -> tuple[BailOut, ...]:
+    """The bail-outs a Block is tested for when ``rules`` run: the linter's memory's, then the rules' own
+    (:attr:`Rule.bails`), each once, cheapest first (BAIL_OUTS' order)."""
+    asked = set(MEMORY_BAIL_OUTS)
+    for r in rules:
+        asked.update(r.bails)
+    return tuple(b for name, b in BAIL_OUTS.items() if name in asked)
+
+
 _ALIASES = {"request": ("short", "long"), "reply": ("return", "ack", "nack"), "packet": ("short", "long", "return")}
 
 
@@ -143,6 +201,13 @@ class Rule:
     state: Callable[[], Any] | None = None  # makes the rule's own memory, once per linter run
     handlers: dict[str, Callable[..., Any]] = field(default_factory=dict)  # kind -> check, where not ``check``
     column: str | Callable[..., bool] | None = None  # the column form: "header", "silent" or quiet(view) (KINDS)
+
+    @property
+    def bails(self) -> tuple[str, ...]:
+        """The bail-outs (BAIL_OUTS) the rule asks of the column path: its precondition's, and "command"
+        for a rule that checks commands."""
+        own = ("command",) if "command" in self.kinds else ()
+        return own + ((self.when,) if self.when in BAIL_OUTS else ())
 
     def check_for(self, kind: str) -> Callable[..., Any]:
         """The function that checks records of ``kind`` (unbound: a stateful rule's take the state first)."""

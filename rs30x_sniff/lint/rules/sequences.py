@@ -10,7 +10,7 @@ from ...protocol.wire import (
     encode_long, encode_return, encode_short)
 from ..batch import UNKNOWN
 from ..params import DURATION, OFFSET, Measured, Message, said, said_as
-from ..registry import example, rule
+from ..registry import crowded, example, rule
 
 # A flash write or reboot still due when a timed capture ends this soon after the write that needs it
 # is no finding: the capture may have stopped before it came (the seams of a capture are not faults).
@@ -445,7 +445,7 @@ load and the time each poll cycle takes both grow with every servo.
 """, kinds=("short", "long", "return"), when="crowded", state=list, column="silent")
 def too_many_servos(told, lint, rec, ev):
     # told: empty until Q008 has spoken (it speaks once)
-    if not told and len(lint.ids) > lint.config.max_servos:
+    if not told and crowded(lint):
         told.append(rec)
         lint.emit("Q008", rec, said("{seen} servo IDs on the bus; a TTL bus carries at most {most}",
                                     {"seen": Measured(len(lint.ids)), "most": lint.config.max_servos}))
