@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .language import TIME_UNITS, TIME_UNITS_SAID, LanguageError, parse_id_range, unit_scale
 from .decode.frame_runs import LONG, RETURN, SHORT
 from .decode.pairing import Record
 from .protocol.events import LongPacket, ReturnPacket, ShortPacket
@@ -26,13 +27,13 @@ EVENT_KINDS = ("short", "long", "return", "ack", "nack", "garbage")
 OP_KINDS = ("write", "read", "write+read", "write+ack", "ping", "nop", "flash", "reboot", "init",
             "request", "reply")
 KEYS = ("id", "kind", "reg", "sev", "latency", "t")
-COMPARISONS = (">", ">=", "<", "<=", "=", "!=")
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+# language.OPERATORS: `=` and `==` are one operator, as in checks (read here as "=").
+COMPARISONS = (">", ">=", "<", "<=", "=", "==", "!=")
 
 # A term: optional negation, then a "quoted phrase" or a bare word.
 _TOKEN = re.compile(r'(?P<neg>[-!]?)(?:"(?P<quoted>[^"]*)"|(?P<word>\S+))')
-_TERM = re.compile(r"^(?P<key>[a-zA-Z_][a-zA-Z0-9_]*)(?P<op>>=|<=|!=|:|=|>|<)(?P<value>.*)$")
-_COMPARISON = re.compile(r"^(?P<name>[a-zA-Z_][a-zA-Z0-9_]*)(?P<op>>=|<=|!=|=|>|<)(?P<value>.*)$")
+_TERM = re.compile(r"^(?P<key>[a-zA-Z_][a-zA-Z0-9_]*)(?P<op>>=|<=|!=|==|:|=|>|<)(?P<value>.*)$")
+_COMPARISON = re.compile(r"^(?P<name>[a-zA-Z_][a-zA-Z0-9_]*)(?P<op>>=|<=|!=|==|=|>|<)(?P<value>.*)$")
 _NUMBER = re.compile(r"^(?P<num>[-+]?(?:0[xX][0-9a-fA-F]+|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?))\s*(?P<unit>.*)$")
 
 
@@ -120,21 +121,22 @@ def parse_filter(text: str, registry: ModelRegistry | None = None) -> Filter | N
             raise FilterError("empty quotes: nothing to search for")
         m = None if quoted else _TERM.match(word)
         key = m["key"].lower() if m else ""
+        op = _op(m["op"]) if m else ""
         fpred: FindingPredicate | None = None
         if m and key in KEYS:
-            pred, fpred = _keyed(key, m["op"], m["value"], registry)
-        elif m and m["op"] != ":" and key in known:
+            pred, fpred = _keyed(key, op, m["value"], registry)
+        elif m and op != ":" and key in known:
             # "present_temperature>40" needs no "reg:": a comparison on a register name is one.
-            pred = _compare_register(word, key, m["op"], m["value"], registry)
-        elif m and m["op"] != ":" and m["value"]:
+            pred = _compare_register(word, key, op, m["value"], registry)
+        elif m and op != ":" and m["value"]:
             # Free text cannot hold a comparison on a name we do not know: it is a typo far more often
             # than a search (and a search can be quoted).
             raise FilterError(f"{word}: no register or filter key {m['key']!r}{_hint(key, known)} "
                               f"(quote free text)")
-        elif m and m["op"] == ":" and m["value"] and key in known:
+        elif m and op == ":" and m["value"] and key in known:
             raise FilterError(f"{word}: {key} is a register, not a key: compare it ({key}={m['value']}, "
                               f"{key}>{m['value']}) or name it (reg:{key})")
-        elif m and m["op"] == ":" and m["value"]:
+        elif m and op == ":" and m["value"]:
             # "ids:3" is a keyed term with a typo, not text to search for; free text with a colon can be quoted.
             raise FilterError(f"unknown filter key {m['key']!r} (keys: {', '.join(KEYS)}; quote free text)")
         else:
@@ -204,6 +206,11 @@ def _register_names(registry: ModelRegistry) -> frozenset[str]:
     return frozenset(n for m in registry.models.values() for n in m.names)
 
 
+def _op(text: str) -> str:
+    """A comparison as the terms read it: ``==`` is ``=`` (language.OPERATORS)."""
+    return "=" if text == "==" else text
+
+
 def _hint(name: str, known: frozenset[str]) -> str:
     close = sorted(k for k in known if name.lower() in k)
     return f" (did you mean {', '.join(close[:3])}?)" if close else ""
@@ -227,7 +234,7 @@ def _keyed(key: str, op: str, value: str,
         return _kinds(value), None
     m = _COMPARISON.match(value)
     if m:
-        return _compare_register(f"{key}{op}{value}", m["name"].lower(), m["op"], m["value"], registry), None
+        return _compare_register(f"{key}{op}{value}", m["name"].lower(), _op(m["op"]), m["value"], registry), None
     return _registers(value, registry), None
 
 
@@ -255,30 +262,20 @@ def _numeric_test(op: str, x: float) -> Callable[[Any], bool]:
 
 
 def _duration(term: str, value: str) -> float:
-    """Seconds of ``2ms``, ``150us``, ``0.002`` (bare numbers are seconds)."""
+    """Seconds of ``2ms``, ``150us``, ``1min``, ``0.002`` (bare numbers are seconds; language.py's units)."""
     num, unit = _number(term, value)
-    scale = TIME_UNITS.get(unit.lower() if unit != "µs" else unit) if unit else 1.0
+    scale = unit_scale(unit) if unit else 1.0
     if scale is None:
-        raise FilterError(f"{term}: unit {unit!r} is not a time unit (s, ms, us)")
+        raise FilterError(f"{term}: unit {unit!r} is not a time unit ({TIME_UNITS_SAID})")
     return num * scale
 
 
 # ---- id ---------------------------------------------------------------------------------------
 def _ids(value: str) -> tuple[Predicate, FindingPredicate]:
-    wanted: set[int] = set()
-    for part in value.split(","):
-        lo, sep, hi = part.partition("-")
-        try:
-            a = int(lo, 0)
-            b = int(hi, 0) if sep else a
-        except ValueError:
-            raise FilterError(f"id:{value}: {part!r} is not an ID or a range like 1-6") from None
-        if not (0 <= a <= 255 and 0 <= b <= 255):
-            raise FilterError(f"id:{value}: IDs run from 0 to 255")
-        if a > b:
-            raise FilterError(f"id:{value}: range {part} runs backwards")
-        wanted.update(range(a, b + 1))
-    frozen = frozenset(wanted)
+    try:
+        frozen = frozenset(parse_id_range(value))  # 0-255: a long packet's 0 and the broadcast 255 too
+    except LanguageError as e:
+        raise FilterError(f"id:{value}: {e}") from None
 
     def match(rec: Record) -> bool:
         ev = rec.event
@@ -438,8 +435,9 @@ def _raw_test(term: str, reg: Register, op: str, value: str) -> Callable[[int], 
         test = _numeric_test(op, num)
         return lambda raw: test(raw)
     if unit and unit.lower() != (reg.unit or "").lower():
-        if reg.unit in TIME_UNITS and unit.lower() in TIME_UNITS:
-            num = num * TIME_UNITS[unit.lower()] / TIME_UNITS[reg.unit]
+        given, own = unit_scale(unit), TIME_UNITS.get((reg.unit or "").lower())
+        if own is not None and given is not None:
+            num = num * given / own
         elif reg.unit:
             raise FilterError(f"{term}: {name} is in {reg.unit}, not {unit}")
         else:

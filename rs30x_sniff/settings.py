@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 from collections.abc import Callable, Mapping
 
+from .language import LanguageError, parse_duration
 from .decode.pairing import DEFAULT_REPLY_TIMEOUT
 from .decode.framing import DEFAULT_GAP_BYTES
 from .lint.config import FAIL_ON, FORMATS, ConfigError, LintConfig
@@ -166,6 +167,8 @@ KEYS: dict[str, Key] = {
                    "thresholds of `diff --fail-on-regress` (each checked by rs30x_sniff.compare)"),
 }
 LINT_THRESHOLDS = ("latency_margin", "inter_byte_gap", "flash_write_time", "max_servos")
+# The keys that are times: a number of seconds, or a duration in language.py's grammar ("50ms", "2min").
+DURATIONS = ("reply_timeout", "latency_margin", "flash_write_time")
 
 
 def _label(key: str, value: Any, where: str) -> str:
@@ -192,6 +195,11 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
         if spec is None:
             known = ", ".join(sorted(k.replace("_", "-") for k in KEYS))
             raise SettingsError(f"{where}: unknown key {raw_key!r} (known: {known})")
+        if key in DURATIONS and isinstance(value, str):  # "50ms": language.py's grammar, as on the command line
+            try:
+                value = parse_duration(value)
+            except LanguageError as e:
+                raise SettingsError(f"{_label(key, value, where)}: {e}") from None
         problem = spec.check(value)
         if problem:
             raise SettingsError(f"{_label(key, value, where)}: {problem}")
@@ -396,8 +404,8 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     cap_origin = cap.pop("origin", {})  # why the capture says what it says (its metadata, its timestamps)
     layers = [(CAPTURE, cap), (where_conf, conf), (COMMAND_LINE, cli)]
     values: dict[str, Any] = {"baud": DEFAULT_BAUD, "model": None, "gap_bytes": DEFAULT_GAP_BYTES,
-                              "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False, "time_ref": None, "time_unit": None,
-                              "channel": None, "time_format": DEFAULT_TIME_FORMAT}
+                              "reply_timeout": DEFAULT_REPLY_TIMEOUT, "baud_any": False, "time_ref": None,
+                              "time_unit": None, "channel": None, "time_format": DEFAULT_TIME_FORMAT}
     origin = {k: DEFAULTS for k in ("baud", "model", "gap_bytes", "reply_timeout")}
     models: dict[int, str] = {}
     lint: dict[str, Any] = {}

@@ -1,4 +1,4 @@
-"""Options and helpers shared by the subcommands: settings from every layer (a capture's own: sources/probe.py), inputs."""
+"""Options and helpers shared by the subcommands: settings from every layer (a capture's: sources/probe), inputs."""
 
 from __future__ import annotations
 

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 from collections.abc import Callable
 
+from ..language import LanguageError, parse_duration, say_duration, split_number, unit_scale
 from ..decode.decoder import Step
 from ..errors import CliError
 from .mcap.writer import McapSink
@@ -20,8 +21,6 @@ from .pipeline import Sink
 
 FLUSH_INTERVAL = 1.0  # an idle bus still gets its open MCAP chunk written within about a second
 
-_SPAN = re.compile(r"\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([a-zA-Z]*)\s*")
-SPAN_UNITS = {"": 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "min": 60.0, "m": 60.0, "h": 3600.0, "d": 86400.0}
 SIZE_UNITS = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
               "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
 
@@ -31,27 +30,17 @@ MIN_SPLIT_MB = 0.01     # 10 kB: a part must hold more than its own header, meta
 
 
 def parse_span(option: str, text: str, *, least: float | None = None, most: float | None = None) -> float:
-    """Seconds of ``90``, ``90s``, ``500ms``, ``10min``, ``2h``, ``1d``, within [least, most] where given; a
-    one-line error otherwise."""
-    m = _SPAN.fullmatch(text)
-    unit = m.group(2).lower() if m else ""
-    if m is None or unit not in SPAN_UNITS:
-        raise CliError(f"{option} {text}: expected a time such as 30s, 10min, 2h or 1d")
-    seconds = float(m.group(1)) * SPAN_UNITS[unit]
-    if not (math.isfinite(seconds) and seconds > 0):
-        raise CliError(f"{option} {text}: must be a finite, positive time")
+    """Seconds of a duration in language.py's grammar (``90``, ``500ms``, ``10min``, ``2h``, ``1d``), within
+    [least, most] where given; a one-line error otherwise."""
+    try:
+        seconds = parse_duration(text, what=option)
+    except LanguageError as e:
+        raise CliError(str(e)) from None
     if least is not None and seconds < least:
-        raise CliError(f"{option} {text}: must be at least {_said(least)}")
+        raise CliError(f"{option} {text}: must be at least {say_duration(least)}")
     if most is not None and seconds > most:
-        raise CliError(f"{option} {text}: must be at most {_said(most)}")
+        raise CliError(f"{option} {text}: must be at most {say_duration(most)}")
     return seconds
-
-
-def _said(seconds: float) -> str:
-    for unit, size in (("h", 3600.0), ("min", 60.0), ("s", 1.0)):
-        if seconds >= size and seconds % size == 0:
-            return f"{seconds / size:g}{unit}"
-    return f"{seconds:g}s"
 
 
 @dataclass(frozen=True)
@@ -64,16 +53,16 @@ class Keep:
 
 
 def parse_keep(text: str) -> Keep:
-    """``--keep 24h`` (an age: any time of :func:`parse_span`) or ``--keep 5GB`` (a size: B, kB, MB, GB, TB,
-    KiB, MiB, GiB, TiB)."""
-    m = _SPAN.fullmatch(text)
-    unit = m.group(2).lower() if m else ""
-    if m is not None and unit in SIZE_UNITS:
-        size = float(m.group(1)) * SIZE_UNITS[unit]
+    """``--keep 24h`` (an age: any duration of language.py's grammar but a bare number) or ``--keep 5GB`` (a size:
+    B, kB, MB, GB, TB, KiB, MiB, GiB, TiB)."""
+    got = split_number(text)
+    unit = got[1].lower() if got else ""
+    if got is not None and unit in SIZE_UNITS:
+        size = got[0] * SIZE_UNITS[unit]
         if not (math.isfinite(size) and size >= 1):
             raise CliError(f"--keep {text}: must be a finite, positive size")
         return Keep(text, bytes=int(size))
-    if m is not None and unit in SPAN_UNITS and unit:
+    if got is not None and unit and unit_scale(unit) is not None:
         return Keep(text, seconds=parse_span("--keep", text))
     raise CliError(f"--keep {text}: expected an age (24h, 7d, 90min) or a size (500MB, 5GB)")
 
