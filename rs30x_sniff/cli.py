@@ -8,13 +8,17 @@ import importlib
 import importlib.util
 import math
 import os
+import re
 import signal
 import sys
 import threading
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, NoReturn
 
+from . import language
 from .version import __version__
-from .commands.common import CliError
+from .commands.common import CliError, say_deprecations
+from .commands.options import duration
 from .sources.captures import CaptureError
 from .protocol.memmap import ModelError
 
@@ -24,24 +28,29 @@ COMMANDS = ("decode", "lint", "rules", "info", "diff", "convert", "export", "tab
             "serve", "plugin")
 
 
-# The largest value of each command-only numeric option, checked for every command here and said in its
-# --help (the settings' options, --gap-bytes, --reply-timeout and --baud, are bounded in settings.KEYS,
-# from the command line and a config file alike). Each is far beyond any real use; a typo such as 1e308
-# gets one line, never an OverflowError deep in a command.
+# The largest value of each command-only numeric option, checked for every command here (the settings'
+# options, --gap-bytes, --reply-timeout and --baud, are bounded in settings.KEYS, from the command line and a
+# config file alike). Each is far beyond any real use, so --help does not say it (it would read as a limit
+# of the bus); a typo such as 1e308 gets one line, never an OverflowError deep in a command. An option with
+# a real range says it in its own help (`decode --id`: 1-127, `simulate --baud`: table 4.7).
 OPTION_MAX: dict[str, float] = {
     "--duration": 366 * 86400,  # seconds: a year of capture
     "--split-size": 1_000_000,  # MB: a terabyte per file
     "--speed": 1_000_000,       # replay speed: a day of capture in a tenth of a second
     "--history": 100_000_000,   # records the monitor keeps
     "--jobs": 1024,             # files linted at once
-    "--id": 65535,              # decode takes 1 to 127 and says so: this only keeps a huge number out
     "--seed": 2**64 - 1,        # the simulator's random seed
     "--baud": 1_000_000,        # simulate: bit/s (it takes the rates of table 4.7 only)
 }
+NUMBERS = (int, float, duration)  # the types of a number option (--baud's own type also takes "auto")
+ERROR = "rs30x-sniff: error: "  # the one prefix of an error line, argparse's own included
+# Older spellings of a command, read as the one command they name (docs/cli.md): `export --table KIND` is
+# `table --of KIND`.
+ALIASES = {("export", "--table"): ("table", "--of")}
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog="rs30x-sniff",
         description="Protocol analyzer and bus logger for the Futaba RS30x (RS303MR/RS304MD) servo bus.",
     )
@@ -57,37 +66,42 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 class CommandParser(argparse.ArgumentParser):
-    """A command's parser: it keeps each numeric option it is given (``numbers``: option, dest, type)
-    and says the option's bound in its help, so :func:`check_bounds` finds them without a list of its own."""
+    """A command's parser: it keeps each bounded option it is given (``numbers``: option, dest), so
+    :func:`check_bounds` finds them without a list of its own, and says a usage error as one line with the
+    one error prefix."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.numbers: list[tuple[str, str, type]] = []
+        self.numbers: list[tuple[str, str]] = []
+        self.commands: Mapping[str, argparse.ArgumentParser] = {}  # the root's: name -> the command's parser
         self.set_defaults(command_parser=self)  # for main, to check the numbers of the command given
 
     def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
-        kind = kwargs.get("type")
-        if kind in (int, float) and args and str(args[0]).startswith("-"):
-            option = args[-1]
-            limit = OPTION_MAX.get(option)
-            if limit is not None and kwargs.get("help"):
-                kwargs["help"] += f" (at most {limit:g})"
-            action = super().add_argument(*args, **kwargs)
-            self.numbers.append((option, action.dest, kind))
-            return action
-        return super().add_argument(*args, **kwargs)
+        action = super().add_argument(*args, **kwargs)
+        if kwargs.get("type") in NUMBERS and args and str(args[0]).startswith("-"):
+            self.numbers.append((args[-1], action.dest))
+        return action
+
+    def error(self, message: str) -> NoReturn:
+        # argparse says "argument --x: ..."; the option's name is enough ("--id 999: not a servo ID" where the
+        # option's type names the value, as the commands' own checks do). The usage is a --help away.
+        message = re.sub(r"^argument ([^:/ ]*)(?:/[^:]*)?: (?:([^: ]+): )?",
+                         lambda m: f"{m[1]} {m[2]}: " if m[2] else f"{m[1]}: ", message)
+        command = self.prog.removeprefix("rs30x-sniff").strip()
+        where = f"{command}: " if command else ""
+        self.exit(2, f"{ERROR}{where}{message} (see {self.prog} --help)\n")
 
 
 def check_bounds(command: CommandParser, args: argparse.Namespace) -> None:
     """Each command-only number within OPTION_MAX (the settings check their own keys)."""
-    for option, dest, _ in command.numbers:
+    for option, dest in command.numbers:
         limit = OPTION_MAX.get(option)
         values = getattr(args, dest, None)
         if limit is None or values is None:
             continue
         for v in values if isinstance(values, list) else (values,):
             # NaN and infinity are left to the command's own check, which says what the number must be.
-            if math.isfinite(v) and v > limit:
+            if isinstance(v, (int, float)) and math.isfinite(v) and v > limit:  # --baud auto: a word
                 raise CliError(f"{option} {v:g}: must be at most {limit:g}")
 
 
@@ -130,9 +144,24 @@ def _reader_gone() -> int:
     return 0
 
 
+def aliased(argv: list[str]) -> list[str]:
+    """``argv`` with an older spelling of a command (:data:`ALIASES`) written as the command it names."""
+    if not argv:
+        return argv
+    for (command, option), (to_command, to_option) in ALIASES.items():
+        if argv[0] == command and any(a == option or a.startswith(option + "=") for a in argv[1:]):
+            return [to_command, *(to_option + a[len(option):] if a == option or a.startswith(option + "=") else a
+                                  for a in argv[1:])]
+    return argv
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    language.deprecation_notes.clear()  # this command's notes, not a former one's (a library caller's main)
+    try:
+        args = parser.parse_args(aliased(list(sys.argv[1:] if argv is None else argv)))
+    except SystemExit as e:  # a usage error (said in one line by CommandParser.error), --help or --version
+        return e.code if isinstance(e.code, int) else 2
     if not getattr(args, "run", None):
         parser.print_help()
         return 2
@@ -140,11 +169,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         check_bounds(args.command_parser, args)
         code = int(args.run(args) or 0)
+        say_deprecations()  # an old spelling read after the config (a --keep 5m): said once the command ends
         if sys.stdout is not None:
             sys.stdout.flush()  # here, not at exit: a reader gone or a full disk is reported like the rest
         return code
     except (CliError, CaptureError, ModelError) as e:
-        print(f"rs30x-sniff: error: {e}", file=sys.stderr)
+        say_deprecations()
+        print(f"{ERROR}{e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130
@@ -160,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         # command's output files report their own write errors, with what was saved.)
         name = e.filename or ("stdout" if e.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG) else None)
         where = f"{name}: " if name else ""
-        print(f"rs30x-sniff: error: {where}{e.strerror or e}", file=sys.stderr)
+        print(f"{ERROR}{where}{e.strerror or e}", file=sys.stderr)
         return 2
     finally:
         for sig, handler in saved.items():

@@ -12,78 +12,14 @@ from collections.abc import Iterator
 from .. import language
 from ..errors import CliError
 from ..sources import probe
-from ..sources.captures import BINARY, HEX, MCAP, input_formats, TIMESTAMPED, CaptureError, Chunk, detect_format
+from ..sources.captures import BINARY, HEX, MCAP, TIMESTAMPED, CaptureError, Chunk, detect_format
 from ..sources.inputs import read_input
-from ..sources.timebase import TIME_REFS
-from ..sources.timeunit import UNITS as TIME_UNITS
 from ..protocol.wire import DEFAULT_BAUD
 from ..sinks.baud_watch import BaudWatchWarning
 from ..sinks.pipeline import Sink
 from ..lint.registry import RULES
-from ..render.times import HELP as TIME_FORMAT_HELP, TIME_FORMATS, TimeForm
+from ..render.times import TimeForm
 from ..settings import COMMAND_LINE, DEFAULTS, Settings, SettingsError, find_config, load_config, own_rules, resolve
-
-
-def add_decode_options(p: argparse.ArgumentParser) -> None:
-    """--model, --baud and the timing knobs every decoding command shares."""
-    p.add_argument("--model", action="append", default=[], metavar="[ID=]MODEL",
-                   help="servo model for every ID (RS303MR, RS304MD) or for one ID (3=RS304MD); repeatable")
-    p.add_argument("--baud", type=baud_arg, default=None, metavar="BPS|auto",
-                   help="bus baud rate, one of table 4.7's, or auto: a port is tried at each rate, a capture goes "
-                        "by its metadata or timestamps (default: what the capture shows, else 115200)")
-    p.add_argument("--baud-any", action="store_true", default=None,
-                   help="accept a --baud that is not one of the manual's rates")
-    p.add_argument("--input-format", choices=input_formats(), default=None,
-                   help="capture format, when the extension and content do not tell")
-    p.add_argument("--gap-bytes", type=float, default=None, metavar="N",
-                   help="idle byte times inside a frame that end it as truncated (default 20; 0 turns it off)")
-    p.add_argument("--reply-timeout", type=float, default=None, metavar="S",
-                   help="seconds after a request before its reply counts as missing (default 0.05)")
-    p.add_argument("--time-ref", choices=TIME_REFS, default=None,
-                   help="what a timestamped hex capture's times mark: each line's first byte, or its arrival "
-                        "(the end of its last byte, as serial loggers stamp reads); default: told by the content")
-    p.add_argument("--time-unit", choices=TIME_UNITS, default=None,
-                   help="the unit of a timestamped hex capture's times (counted from its start or from the epoch); "
-                        "default: told by the content, else s")
-    p.add_argument("--channel", default=None, metavar="NAME|INDEX",
-                   help="a logic capture's channel to decode (.sr): its name (D0, RX) or its index from 0 "
-                        "(default: the only channel, else the first that toggles)")
-
-
-def baud_arg(text: str) -> int | str:
-    """--baud's value: a number, or ``auto``."""
-    if text.strip().lower() == "auto":
-        return "auto"
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a baud rate (a number, or auto)") from None
-
-
-def add_lint_selection(p: argparse.ArgumentParser) -> None:
-    """--select / --ignore and the settings file options (every command that lints)."""
-    p.add_argument("--select", action="append", default=None, metavar="RULES",
-                   help="only these rules: codes, prefixes (Q, B00) or names, comma-separated; repeatable")
-    p.add_argument("--ignore", action="append", default=None, metavar="RULES",
-                   help="skip these rules (same forms as --select); repeatable")
-    add_config_options(p)
-
-
-def add_config_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--config", metavar="FILE",
-                   help="settings file (default: the nearest rs30x-sniff.toml or pyproject.toml [tool.rs30x-sniff])")
-    p.add_argument("--isolated", action="store_true", help="ignore configuration files")
-
-
-def add_lint_options(p: argparse.ArgumentParser) -> None:
-    """The linter's rule selection, as `lint` takes it, and --no-lint."""
-    add_lint_selection(p)
-    p.add_argument("--no-lint", action="store_true", help="do not run the linter")
-
-
-def add_time_format_option(p: argparse.ArgumentParser) -> None:
-    """--time-format: how the text outputs and the monitor show times (one option, the same everywhere)."""
-    p.add_argument("--time-format", choices=TIME_FORMATS, default=None, help=TIME_FORMAT_HELP)
 
 
 def time_form(settings: Settings, anchor: Any = None) -> TimeForm:
@@ -91,12 +27,6 @@ def time_form(settings: Settings, anchor: Any = None) -> TimeForm:
     says it (a callable, asked at its first timed byte); a note that it cannot be shown goes to stderr."""
     return TimeForm(settings.time_format, anchor,
                     say=lambda line: print(f"rs30x-sniff: {line}", file=sys.stderr, flush=True))
-
-
-def add_live_options(p: argparse.ArgumentParser) -> None:
-    """--duration, for commands whose INPUT may be a serial port (a device or a pyserial URL)."""
-    p.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="when INPUT is a serial port: stop after S seconds (default: run until Ctrl-C)")
 
 
 # ---- settings: one precedence for every command ------------------------------------------------------

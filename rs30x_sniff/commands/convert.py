@@ -15,8 +15,8 @@ from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
 from ..settings import Settings
 from ..sinks.lines import ProgressSink
-from .common import (CliError, add_decode_options, add_lint_options, capture_start_time, make_linter, open_input,
-                     settings_for)
+from .common import CliError, capture_start_time, make_linter, open_input, settings_for
+from .options import add_decode_options, add_format_option, add_lint_options
 from ..sinks.outputs import STDOUT, check_output, output_binary, report_end
 
 
@@ -39,7 +39,7 @@ def output_kind(path: str, to: str | None) -> str:
         kinds = " or ".join(f".{k}" for k in OUTPUT_KINDS)
         raise CliError(f"-o {path}: convert writes {' or '.join(OUTPUT_KINDS)}, not .{ext}: name the output {kinds}")
     if to is not None and named is not None and to != named:
-        raise CliError(f"-o {path} and --to {to}: the name says {named}; name the output .{to} or drop --to")
+        raise CliError(f"-o {path} and --format {to}: the name says {named}; name the output .{to} or drop --format")
     return to or named or "mcap"
 
 
@@ -47,14 +47,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("convert", help="convert a capture into an MCAP log for Foxglove or a pcapng for Wireshark",
                        description="Convert a capture (bin, hex, timestamped hex or MCAP) into an MCAP file: raw "
                                    "bytes, decoded packets, per-servo state, transactions and lint findings; or, "
-                                   "for OUT.pcapng (or --to pcapng), into a pcapng file for Wireshark and tshark "
+                                   "for OUT.pcapng (or --format pcapng), into a pcapng file for Wireshark and tshark "
                                    "with the dissector of `rs30x-sniff plugin wireshark`: a packet per frame and "
                                    "per garbage run, the findings as packet comments.")
     p.add_argument("input", metavar="INPUT", help="capture file, or - for raw bytes on stdin")
     p.add_argument("-o", "--output", required=True, metavar="OUT.mcap",
                    help="MCAP or pcapng file to write (- for stdout)")
-    p.add_argument("--to", choices=OUTPUT_KINDS, default=None,
-                   help="what to write (default: pcapng for a name ending .pcapng, else mcap)")
+    add_format_option(p, OUTPUT_KINDS, "what to write (default: pcapng for a name ending .pcapng, else mcap)",
+                      aliases=("--to",))  # --to: its name before every command said --format
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     add_decode_options(p)
     add_lint_options(p)
@@ -124,7 +124,7 @@ def open_pcapng_sink(out: IO[bytes], source: str, settings: Settings, *, timed: 
 # ---- the command ---------------------------------------------------------------------------------
 def run(args: argparse.Namespace) -> int:
     check_output(args.output, args.force, (args.input,))
-    kind = output_kind(args.output, args.to)  # before anything is opened or written
+    kind = output_kind(args.output, args.format)  # before anything is opened or written
     start_time = parse_start_time(args.start_time)
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)

@@ -8,9 +8,10 @@ from ..filters import FilterError, parse_filter
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
 from ..sinks.lines import JsonlSink, TextSink
-from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, add_time_format_option,
-                     capture_start_time, check_positive, is_live, live_sinks, make_linter, no_data, open_input,
-                     settings_for, time_form)
+from .common import (CliError, capture_start_time, check_positive, is_live, live_sinks, make_linter, no_data,
+                     open_input, settings_for, time_form)
+from .options import (SERVO_IDS, add_decode_options, add_lint_selection, add_live_options, add_time_format_option,
+                      servo_ids)
 from ..sinks.outputs import output_stream
 from .outputs import add_output_options
 
@@ -24,8 +25,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_decode_options(p)
     add_live_options(p)
     p.add_argument("--format", choices=("text", "jsonl"), default="text", help="output format (default text)")
-    p.add_argument("--id", type=int, action="append", default=None, metavar="N",
-                   help="only events to or from servo N (repeatable)")
+    p.add_argument("--id", type=servo_ids, action="append", default=None, metavar="IDS",
+                   help=f"only events to or from these servos: an ID or a range (3, 1-6,9; {SERVO_IDS}); repeatable")
     p.add_argument("--filter", metavar="EXPR",
                    help="only events matching EXPR, the monitor's filter language (e.g. "
                         "'id:1-6 present_temperature>40', 'latency>1ms', 't:1.5-3.0', 'sev>=warning')")
@@ -47,10 +48,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"--filter: {e}") from None
     linter = make_linter(args, settings)
     chunks = open_input(args.input, args.input_format, settings, duration=args.duration)
-    ids = set(args.id) if args.id else None
-    for sid in ids or ():
-        if not (1 <= sid <= 127 or sid == 255):
-            raise CliError(f"--id {sid}: not a servo ID (1 to 127, table 4.6 No. 4; 255 is the broadcast)")
+    ids = {sid for given in args.id for sid in given} if args.id else None
     with output_stream(args.output, force=args.force, inputs=(args.input,)) as out:
         if args.format == "jsonl":
             sink = JsonlSink(out, ids=ids, filter=flt, flush=is_live(chunks))

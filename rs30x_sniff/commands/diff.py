@@ -13,8 +13,9 @@ from ..decode.decoder import Decoder
 from ..lint.report import append_step_summary, github_escape, md_cell, md_code
 from ..sinks.pipeline import columnar_for, drive
 from ..sinks.stats import CaptureStats
-from .common import (CliError, add_decode_options, add_lint_options, add_live_options, check_positive, config_layer,
-                     is_live, live_sinks, make_linter, open_input, say_deprecations, settings_for)
+from .common import (CliError, config_layer, is_live, live_sinks, make_linter, open_input,
+                     say_deprecations, settings_for)
+from .options import add_decode_options, add_lint_options
 from ..sinks.outputs import STDOUT, check_output, output_stream
 from .outputs import add_output_options
 
@@ -30,8 +31,7 @@ def add_parser(sub: Any) -> None:  # argparse's subparsers action (no public nam
                                    "threshold crossed exits 1.")
     p.add_argument("before", metavar="BEFORE", help="the reference capture (e.g. recorded on main)")
     p.add_argument("after", metavar="AFTER", help="the capture to compare with it")
-    add_decode_options(p)
-    add_live_options(p)
+    add_decode_options(p, channel=False)  # two captures of one bus: no port to time, no logic channel to pick
     add_lint_options(p)
     p.add_argument("--format", choices=("text", "json", "markdown", "github"), default="text",
                    help="output format (default text); github: the text with a workflow annotation per threshold "
@@ -74,7 +74,7 @@ def figures_of(args: argparse.Namespace, path: str, conf: dict[str, Any]) -> dic
     same pass), with ``unsolicited_counted``: whether rule B003 ran."""
     settings = settings_for(args, path, config=conf)
     linter = make_linter(args, settings)
-    source = open_input(path, args.input_format, settings, duration=args.duration)
+    source = open_input(path, args.input_format, settings)
     stats = CaptureStats(settings.baud)
     stats.timing_unsupported = getattr(settings, "timing_unsupported", None)
     stats.stalls = getattr(source, "stalls", stats.stalls)
@@ -88,7 +88,6 @@ def figures_of(args: argparse.Namespace, path: str, conf: dict[str, Any]) -> dic
 
 
 def run(args: argparse.Namespace) -> int:
-    check_positive("--duration", args.duration)
     if args.allow_unchecked and not args.fail_on_regress:
         raise CliError("--allow-unchecked: only with --fail-on-regress (what it allows is its failure)")
     if args.before == STDOUT and args.after == STDOUT:

@@ -7,40 +7,29 @@ import sys
 from collections.abc import Iterator
 
 from ..sources.captures import BINARY, HEX, MCAP, TIMESTAMPED, Chunk, detect_format, format_for_output, write_capture
-from ..sinks.tables import KINDS, TABLE_FORMATS, table_format
-from .common import CliError, add_decode_options, add_lint_options
+from ..sinks.tables import KINDS, table_format
+from .common import CliError
 from ..sinks.outputs import STDOUT, check_output, output_path, write_stream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("export", help="write the raw bytes of an MCAP log back out as a capture",
                        description="Write the /rs30x/raw channel of an MCAP file as a capture: byte for byte "
-                                   "what was on the bus, with the original timestamps for --format timestamped.")
-    p.add_argument("input", metavar="INPUT",
-                   help="MCAP file written by rs30x-sniff (for the raw bytes); any capture with --table")
+                                   "what was on the bus, with the original timestamps for --format timestamped. "
+                                   "A table of a capture is `table --of KIND` (`export --table KIND` says the same).")
+    p.add_argument("input", metavar="INPUT", help="MCAP file written by rs30x-sniff")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="capture to write (.bin/.raw binary, .hex hex text, .thex/.log timestamped), or a table "
-                        "(.csv, .parquet); - for stdout")
-    p.add_argument("--format", choices=(BINARY, HEX, TIMESTAMPED, *TABLE_FORMATS), default=None,
+                   help="capture to write (.bin/.raw binary, .hex hex text, .thex/.log timestamped); - for stdout")
+    # The bytes as they were: nothing is decoded, so no model, baud rate or rule selection applies.
+    p.add_argument("--format", choices=(BINARY, HEX, TIMESTAMPED), default=None,
                    help="output format (default: from OUT's extension, else hex)")
-    p.add_argument("--table", choices=KINDS, default=None,
-                   help="write a table instead of the bytes: states (servo registers over time), transactions, "
-                        "findings or packets, as CSV or Parquet (pip install 'rs30x-sniff[parquet]')")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
-    add_decode_options(p)
-    add_lint_options(p)
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    by_name = args.format is None and args.output != "-" and table_format(args.output, None) is not None
-    if args.table is not None or args.format in TABLE_FORMATS or by_name:
-        if args.table is None:
-            raise CliError(f"{args.output}: a table needs --table ({', '.join(KINDS)})")
-        from . import table  # one implementation of the tables: `export --table` is `table --of`
-
-        args.of = args.table
-        return table.run(args)
+    if args.format is None and args.output != "-" and table_format(args.output, None) is not None:
+        raise CliError(f"{args.output}: a table is written by `table --of KIND` ({', '.join(KINDS)})")
     from ..sources.mcap_reader import McapRawReader
 
     if detect_format(args.input) != MCAP:

@@ -11,9 +11,9 @@ from ..sinks.pipeline import columnar_for, drive
 from ..sinks.stats import CaptureStats
 from ..protocol.wire import byte_time
 from ..sinks.summary import seconds_text, timer, what_happened
-from .common import (add_decode_options, add_lint_options, add_live_options, add_time_format_option,
-                     capture_start_time, check_positive, live_sinks, make_linter, no_data, open_input, settings_for,
+from .common import (capture_start_time, check_positive, live_sinks, make_linter, no_data, open_input, settings_for,
                      time_form)
+from .options import add_decode_options, add_lint_options, add_live_options, add_time_format_option
 from ..sinks.outputs import check_output, output_stream
 from .outputs import add_output_options
 

@@ -24,8 +24,9 @@ from ..expect import evaluate
 from ..expect import findings as check_findings
 from ..sinks.lines import FindingsSink, ProgressSink
 from ..sinks.stats import CaptureStats
-from .common import (CliError, add_decode_options, add_lint_selection, add_live_options, check_positive, config_layer,
-                     is_live, lint_config, live_sinks, no_data, open_input, settings_for)
+from .common import (CliError, check_positive, config_layer, is_live, lint_config, live_sinks, no_data, open_input,
+                     settings_for)
+from .options import add_decode_options, add_lint_selection, add_live_options
 from ..sinks.outputs import check_output, output_stream
 from .outputs import add_output_options
 

@@ -7,8 +7,8 @@ import os
 from typing import Any
 
 from ..decode.decoder import DecodeOptions
-from .common import (CliError, add_decode_options, add_lint_options, add_time_format_option, check_positive,
-                     lint_config, settings_for)
+from .common import CliError, check_positive, lint_config, settings_for
+from .options import add_decode_options, add_lint_options, add_time_format_option
 from .live import add_foxglove_option, live_start_time, make_source, start_foxglove
 
 

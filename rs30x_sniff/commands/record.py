@@ -15,8 +15,8 @@ from ..decode.decoder import Decoder, Step
 from ..sinks.pipeline import Sink
 from ..sinks.lines import TextSink
 from ..sinks.stats import RecentLoad
-from .common import (CliError, add_decode_options, add_lint_selection, add_time_format_option, check_positive,
-                     lint_config, live_sinks, make_linter, no_data, settings_for, time_form)
+from .common import CliError, check_positive, lint_config, live_sinks, make_linter, no_data, settings_for, time_form
+from .options import add_bus_options, add_lint_selection, add_live_options, add_time_format_option
 from ..sinks.outputs import STDOUT, check_output, write_error
 from .live import add_foxglove_option, start_foxglove
 from ..sinks.parts import MIN_SPLIT_MB, MIN_SPLIT_SECONDS, Parts, parse_keep, parse_span
@@ -40,8 +40,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT.mcap",
                    help="MCAP file to write (- streams it to stdout)")
     p.add_argument("--force", action="store_true", help="replace OUT (and its numbered parts) if they exist")
-    add_decode_options(p)
-    p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    add_bus_options(p)  # a port: no capture format, no capture times, no logic channel
+    add_live_options(p, help="stop after TIME (30s, 10min, 2h; default: run until Ctrl-C)")
     p.add_argument("--print", dest="print_lines", action="store_true",
                    help="also print each decoded packet as a text line (like decode)")
     add_time_format_option(p)

@@ -8,7 +8,8 @@ import re
 
 from ..lint import RULES
 from ..lint.registry import Rule
-from .common import CliError, add_config_options, config_layer
+from .common import CliError, config_layer
+from .options import add_config_options
 from ..sinks.outputs import output_stream
 from .outputs import add_output_options
 

@@ -8,8 +8,8 @@ import threading
 
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import Pipeline
-from .common import (CliError, add_decode_options, add_lint_options, check_positive, is_port_path, live_sinks,
-                     make_linter, settings_for)
+from .common import CliError, check_positive, is_port_path, live_sinks, make_linter, settings_for
+from .options import add_decode_options, add_lint_options
 from .live import add_foxglove_option, live_start_time, make_source, start_foxglove
 
 

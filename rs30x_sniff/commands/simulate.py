@@ -9,6 +9,7 @@ from typing import IO
 from ..sources.captures import FORMATS, MCAP, format_for_output, write_capture
 from ..protocol.wire import BAUD_RATES, DEFAULT_BAUD
 from .common import CliError, check_positive
+from .options import add_format_option, duration
 from ..sinks.outputs import STDOUT, output_binary, output_path, write_stream
 
 
@@ -22,14 +23,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--list", action="store_true", help="list the scenarios and exit")
     p.add_argument("-o", "--output", metavar="FILE",
                    help="capture file to write (.bin/.raw, .hex, .thex/.log timestamped hex, .mcap); - for stdout")
-    p.add_argument("--output-format", choices=FORMATS, default=None, help="capture format, if not by extension")
+    add_format_option(p, FORMATS, "capture format, if not by extension",
+                      aliases=("--output-format",))  # --output-format: its name before every command said --format
     p.add_argument("--port", metavar="PORT",
                    help="play the bus in real time onto a serial device, pty or pyserial URL")
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD, metavar="BPS",
                    help=f"bus baud rate, one of table 4.7 (default {DEFAULT_BAUD})")
-    p.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="simulated seconds (default: the scenario's own length)")
-    p.add_argument("--seed", type=int, default=0, help="random seed: the same seed gives the same bytes")
+    p.add_argument("--duration", type=duration, default=None, metavar="TIME",
+                   help="simulated time (30s, 2min; default: the scenario's own length)")
+    p.add_argument("--seed", type=int, default=0, metavar="N",
+                   help="random seed, a whole number: the same seed gives the same bytes (default 0)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.set_defaults(run=run)
 
@@ -63,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("say where the bus goes: -o FILE, --port PORT, or both")
     chunks = scenarios.run(args.scenario, baud=args.baud, seed=args.seed, duration=args.duration)
     if args.output:
-        fmt = format_for_output(args.output, args.output_format)
+        fmt = format_for_output(args.output, args.format)
         if args.port:
             chunks = list(chunks)  # the same bytes go to both
         if fmt == MCAP:

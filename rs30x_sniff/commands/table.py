@@ -11,11 +11,13 @@ from ..sinks.tables import (
 from ..protocol.memmap import default_registry
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
-from .common import CliError, add_decode_options, add_lint_options, make_linter, no_data, open_input, settings_for
+from .common import CliError, make_linter, no_data, open_input, settings_for
+from .options import add_decode_options, add_lint_options
 from ..sinks.outputs import STDOUT, check_output, output_path, report_end
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
+    # `export --table KIND` is this command (cli.ALIASES): one implementation of the tables, under one name.
     p = sub.add_parser("table", help="servo states, transactions or findings as CSV or Parquet",
                        description="Write one table of a capture for spreadsheets and dataframes (pandas, polars, "
                                    "DuckDB): states (one row per servo whose registers a packet changes, every "
@@ -24,7 +26,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "seconds (a capture without timestamps: each byte's position at the baud rate); "
                                    "wall_time is added when they are epoch times.")
     p.add_argument("input", metavar="INPUT", help="capture file (.bin/.raw, .hex, timestamped hex, .mcap), - for stdin")
-    p.add_argument("--of", required=True, choices=KINDS, help="which table")
+    p.add_argument("--of", required=True, choices=KINDS,
+                   help="which table (`export --table KIND` is read as `table --of KIND`)")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="table to write (.csv, .parquet); - writes CSV (or --format parquet) to stdout")
     p.add_argument("--format", choices=TABLE_FORMATS, default=None,

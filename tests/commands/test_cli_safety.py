@@ -138,13 +138,14 @@ def test_stdin_empty_is_reported(tmp_path):
 
 @pytest.mark.parametrize("argv, needle", [
     (["decode", str(EXAMPLES), "--id", "999"], "--id 999: not a servo ID"),
-    (["decode", str(EXAMPLES), "--duration", "-1"], "--duration -1: must be a finite, positive number"),
-    (["info", str(EXAMPLES), "--duration", "nan"], "--duration nan: must be a finite, positive number"),
-    (["simulate", "--duration", "nan", "-o", "-"], "--duration nan: must be a finite, positive number"),
-    (["simulate", "--duration", "inf", "-o", "-"], "--duration inf: must be a finite, positive number"),
+    (["decode", str(EXAMPLES), "--id", "1-200"], "--id 1-200: 128 is not a servo ID"),
+    (["decode", str(EXAMPLES), "--duration", "-1"], "--duration -1: must be a finite, positive duration"),
+    (["info", str(EXAMPLES), "--duration", "nan"], "--duration nan: expected a duration"),
+    (["simulate", "--duration", "nan", "-o", "-"], "--duration nan: expected a duration"),
+    (["simulate", "--duration", "inf", "-o", "-"], "--duration inf: expected a duration"),
     (["monitor", str(EXAMPLES), "--speed", "0"], "--speed 0: must be a finite, positive number"),
-    (["decode", str(EXAMPLES), "--reply-timeout", "inf"], "--reply-timeout inf: must be a finite number"),
-    (["decode", str(EXAMPLES), "--reply-timeout", "0"], "--reply-timeout 0.0: must be positive"),
+    (["decode", str(EXAMPLES), "--reply-timeout", "inf"], "--reply-timeout inf: expected a duration"),
+    (["decode", str(EXAMPLES), "--reply-timeout", "0"], "--reply-timeout 0: must be a finite, positive duration"),
 ])
 def test_numbers_are_checked(capsys, argv, needle):
     assert main(argv) == 2

@@ -186,7 +186,7 @@ def test_a_rate_past_table_4_7_needs_baud_any_on_files_and_ports(capsys, tmp_pat
 @pytest.mark.parametrize("name, options, words", [
     ("x.bin", [], "-o {out}: convert writes mcap or pcapng, not .bin: name the output .mcap or .pcapng"),
     ("x.thex", [], "not .thex"),
-    ("x.mcap", ["--to", "pcapng"], "-o {out} and --to pcapng: the name says mcap"),
+    ("x.mcap", ["--to", "pcapng"], "-o {out} and --format pcapng: the name says mcap"),
     ("x.pcapng", ["--to", "mcap"], "the name says pcapng"),
 ])
 def test_convert_refuses_a_name_of_a_format_it_does_not_write(capsys, tmp_path, name, options, words):

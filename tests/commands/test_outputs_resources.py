@@ -258,18 +258,18 @@ def test_every_numeric_option_has_an_upper_bound():
     parser = cli.build_parser()
     settings_options = {k.option for k in KEYS.values()}
     for name, command in parser.commands.items():
-        for option, _, _ in command.numbers:
+        for option, _ in command.numbers:
             assert option in cli.OPTION_MAX or option in settings_options, f"{name} {option}: no upper bound"
 
 
 @pytest.mark.parametrize("args,word", [
     (["record", "/dev/null", "-o", "x.mcap", "--split-size", "1e308"], "--split-size 1e+308: must be at most"),
     (["record", "/dev/null", "-o", "x.mcap", "--duration", "1e308"], "--duration 1e+308: must be at most"),
-    (["decode", str(SESSION), "--duration", "inf"], "--duration inf: must be a finite, positive number"),
+    (["decode", str(SESSION), "--duration", "inf"], "--duration inf: expected a duration"),
     (["decode", str(SESSION), "--gap-bytes", "1e308"], "--gap-bytes 1e+308: must be at most"),
     (["decode", str(SESSION), "--reply-timeout", "1e9"], "--reply-timeout 1000000000.0: must be at most"),
     (["decode", str(SESSION), "--baud", "99999999999", "--baud-any"], "--baud 99999999999: must be at most"),
-    (["decode", str(SESSION), "--id", "100000"], "--id 100000: must be at most 65535"),
+    (["decode", str(SESSION), "--id", "100000"], "--id 100000: not a servo ID"),
     (["lint", str(SESSION), "-j", "100000"], "--jobs 100000: must be at most"),
     (["monitor", str(SESSION), "--speed", "1e300"], "--speed 1e+300: must be at most"),
     (["simulate", "-o", "x.hex", "--seed", str(2**70)], f"--seed {2**70:g}: must be at most"),
