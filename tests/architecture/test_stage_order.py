@@ -14,7 +14,7 @@ render's are, and sits beside it. ``filters.py`` (the filter language) reads Rec
 and the monitor filter with it: it sits between render and sinks. ``settings.py`` builds every stage's
 options (DecodeOptions, LintConfig, a source's time base) and only the commands read it: it sits just
 below the top, so that no stage depends on the command line's settings. ``schemas/`` (the MCAP
-channels' JSON Schemas) and ``language.py`` (durations, ID ranges, operators) import nothing of the package. The top imports anything; within one stage, or
+channels' and the memory map's JSON Schemas, and the small checker of the latter) and ``language.py`` (durations, ID ranges, operators) import nothing of the package. The top imports anything; within one stage, or
 among the top's folders, any order goes.
 """
 
