@@ -68,8 +68,10 @@ class Block:
         """(rows of the replies, their latencies) as bus.reply_latency computes them, in row order, for the replies
         that have one; None for an untimed capture. Made once: the tracker, the linter and the statistics read it."""
         got = self._latencies
-        if got is None and self.run.t0 is not None:
-            t0, t1 = self.t0, self.t1
+        if got is not None:
+            return got
+        t0, t1 = self.t0, self.t1
+        if t0 is not None and t1 is not None:  # (a timed run has both)
             replies = np.flatnonzero(self.answered) + 1
             lat = t0[replies] - t1[replies - 1]
             # A reply that came in one read with its request has no latency to give (pairing.reply_latency): it
@@ -106,7 +108,7 @@ class Block:
         made = self._records
         if made is None:
             return {}
-        if type(made) is list:
+        if isinstance(made, list):  # (once a Block: its rows, all built)
             return _AllRows(made)
         return made
 
@@ -114,7 +116,7 @@ class Block:
         """Let go of the Records built one by one for rows before ``cut`` (a request whose reply is at
         ``cut`` or later stays: the two are built together). A Block linted by rows keeps them all."""
         made = self._records
-        if type(made) is dict:
+        if isinstance(made, dict):
             answered, n = self.answered, len(self)
             for k in [k for k in made if k < cut and not (k + 1 < n and answered[k] and k + 1 >= cut)]:
                 del made[k]
@@ -125,7 +127,7 @@ class Block:
         sub = Block(self.run, self.lo + a, self.lo + b, self.index0 + a, self.answered[a:b], self.models,
                     self.default, self.vid_models)
         made = self._records
-        if type(made) is list:
+        if isinstance(made, list):
             sub._records = made[a:b]
         elif made:
             sub._records = {k - a: r for k, r in made.items() if a <= k < b}
@@ -258,9 +260,10 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     nxt_return = np.zeros(n, dtype=bool)
     nxt_return[:-1] = is_return[1:] & ~slow[1:]
     ok_pair = wants & ~slow & nxt_return
-    if run.t0 is not None and n > 1:
+    rt0, rt1 = run.t0, run.t1
+    if rt0 is not None and rt1 is not None and n > 1:  # (a timed run has both)
         in_time = np.zeros(n, dtype=bool)
-        gap = run.t0[1:] - run.t1[:-1]
+        gap = rt0[1:] - rt1[:-1]
         # Within the timeout, as the tracker pairs. A reply the clock puts sooner than a servo can answer (read in
         # one piece with its request) is paired too, with no latency (Block.reply_latencies).
         in_time[:-1] = ~(gap > tracker.reply_timeout)

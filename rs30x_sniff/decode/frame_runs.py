@@ -61,8 +61,9 @@ class FrameRun:
         """Frame ``k`` as the event the state machine would have made of it."""
         s, e = int(self.starts[k]), int(self.ends[k])
         t0 = t1 = None
-        if self.t0 is not None:
-            t0, t1 = float(self.t0[k]), float(self.t1[k])
+        c0, c1 = self.t0, self.t1
+        if c0 is not None and c1 is not None:  # (a timed run has both)
+            t0, t1 = float(c0[k]), float(c1[k])
         return frame_event(self.base + s, self.blob[s:e], t0, t1, True)
 
     def events(self, lo: int = 0, hi: int | None = None) -> list[AnyEvent]:
@@ -70,7 +71,8 @@ class FrameRun:
         hi = len(self) if hi is None else hi
         base, blob = self.base, self.blob
         starts, ends = self.starts[lo:hi].tolist(), self.ends[lo:hi].tolist()
-        if self.t0 is None:
+        c0, c1 = self.t0, self.t1
+        if c0 is None or c1 is None:  # (untimed: neither)
             return [frame_event(base + s, blob[s:e], None, None, True) for s, e in zip(starts, ends)]
-        t0, t1 = self.t0[lo:hi].tolist(), self.t1[lo:hi].tolist()
+        t0, t1 = c0[lo:hi].tolist(), c1[lo:hi].tolist()
         return [frame_event(base + s, blob[s:e], a, b, True) for s, e, a, b in zip(starts, ends, t0, t1)]
