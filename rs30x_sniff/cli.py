@@ -44,7 +44,7 @@ OPTION_MAX: dict[str, float] = {
 }
 NUMBERS = (int, float, duration)  # the types of a number option (--baud's own type also takes "auto")
 ERROR = "rs30x-sniff: error: "  # the one prefix of an error line, argparse's own included
-# Older spellings of a command, read as the one command they name (docs/cli.md): `export --table KIND` is
+# Older spellings of a command, read as the one command they name (README.md, "One grammar"): `export --table KIND` is
 # `table --of KIND`.
 ALIASES = {("export", "--table"): ("table", "--of")}
 
