@@ -38,4 +38,4 @@ def test_every_table_in_csv_and_parquet(capsys, tmp_path, table):
 
 def test_a_table_needs_its_name(capsys, tmp_path):
     assert main(["export", SESSION, "-o", str(tmp_path / "x.csv")]) == 2
-    assert "a table needs --table" in capsys.readouterr().err
+    assert "a table is written by `table --of KIND`" in capsys.readouterr().err

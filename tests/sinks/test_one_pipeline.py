@@ -179,8 +179,8 @@ def test_config_file_and_command_line_give_the_same_answer(capsys, tmp_path, sim
 
 @pytest.mark.parametrize("argv, needle", [
     (["--baud", "12345"], "--baud 12345: not a rate of table 4.7"),
-    (["--reply-timeout", "nan"], "--reply-timeout nan: must be a finite number"),
-    (["--reply-timeout", "-1"], "--reply-timeout -1.0: must be positive"),
+    (["--reply-timeout", "nan"], "--reply-timeout nan: expected a duration"),
+    (["--reply-timeout", "-1"], "--reply-timeout -1: must be a finite, positive duration"),
     (["--gap-bytes", "-1"], "--gap-bytes -1.0: must be 0 or more"),
     (["--model", "300=RS304MD"], "--model 300=RS304MD: servo IDs run from 1 to 127"),
     (["--model", "0=RS304MD"], "--model 0=RS304MD: servo IDs run from 1 to 127"),
