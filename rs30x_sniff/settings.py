@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -10,12 +9,12 @@ from pathlib import Path
 from typing import Any
 from collections.abc import Callable, Mapping
 
-from .language import LanguageError, parse_duration
+from .language import LanguageError, parse_duration, say_duration
 from .decode.pairing import DEFAULT_REPLY_TIMEOUT
 from .decode.framing import DEFAULT_GAP_BYTES
 from .lint.config import FAIL_ON, FORMATS, ConfigError, LintConfig
 from .lint.config import resolve as resolve_rules
-from .lint.registry import RULES, SEVERITIES
+from .lint.registry import RULES, SEVERITIES, Registry
 from .protocol.memmap import ModelError, ModelRegistry, default_registry
 from .decode.decoder import DecodeOptions
 from .sources.timebase import TIME_REFS
@@ -34,7 +33,6 @@ MAX_SERVO_ID = 127  # table 4.6 No. 4: IDs 1 to 127 (7FH); 0 is the long packet,
 DEFAULTS, CAPTURE, CONFIG, COMMAND_LINE = "defaults", "capture", "config", "command line"
 
 SettingsError = ConfigError  # one error type for a bad option or config value (exit code 2)
-_nothing = contextlib.nullcontext
 
 
 # ---- what a value may be: one check per key, the same for the command line and a config file ----
@@ -60,11 +58,13 @@ def _count(v: Any) -> str | None:
     return None if v > 0 else "must be positive"
 
 
-def _at_most(limit: float, check: Callable[[Any], str | None]) -> Callable[[Any], str | None]:
-    """``check``, and no more than ``limit``: a typo such as 1e308 is a one-line error, never an
-    OverflowError deep in a command."""
+def _at_most(limit: float, check: Callable[[Any], str | None], *, time: bool = False) -> Callable[[Any], str | None]:
+    """``check``, and no more than ``limit`` (``time``: seconds, said as a duration, 1h): a typo such as 1e308 is a
+    one-line error, never an OverflowError deep in a command."""
+    said = say_duration(limit) if time else f"{limit:g}"
+
     def bounded(v: Any) -> str | None:
-        return check(v) or (None if v <= limit else f"must be at most {limit:g}")
+        return check(v) or (None if v <= limit else f"must be at most {said}")
     return bounded
 
 
@@ -72,6 +72,7 @@ def _at_most(limit: float, check: Callable[[Any], str | None]) -> Callable[[Any]
 # longer than any reply, flash write or margin; a million byte times is seconds even at 9600 bit/s.
 MAX_BAUD = 12_000_000
 MAX_SECONDS = 3600.0
+MAX_SECONDS_SAID = say_duration(MAX_SECONDS)  # 1h
 MAX_BYTE_TIMES = 1_000_000
 MAX_CHANNEL = 1023
 
@@ -141,8 +142,8 @@ KEYS: dict[str, Key] = {
     "models": Key(_models, "--model ID=", "model per servo ID"),
     "gap_bytes": Key(_at_most(MAX_BYTE_TIMES, _not_negative), "--gap-bytes",
                      f"idle byte times that end a frame (0: off; at most {MAX_BYTE_TIMES})"),
-    "reply_timeout": Key(_at_most(MAX_SECONDS, _positive), "--reply-timeout",
-                         f"seconds before a reply counts as missing (at most {MAX_SECONDS:g})"),
+    "reply_timeout": Key(_at_most(MAX_SECONDS, _positive, time=True), "--reply-timeout",
+                         f"time before a reply counts as missing (50ms, or seconds; at most {MAX_SECONDS_SAID})"),
     "time_ref": Key(_one_of(TIME_REFS), "--time-ref", "what timestamped hex times mark: first byte or arrival"),
     "time_unit": Key(_one_of(TIME_UNITS), "--time-unit", "the unit of timestamped hex times: s, ms, us or ns"),
     "channel": Key(_channel, "--channel", "the logic capture's channel to decode: a name or an index from 0"),
@@ -153,12 +154,12 @@ KEYS: dict[str, Key] = {
     "severity": Key(_severity, "--severity", "severity per rule"),
     "fail_on": Key(_one_of(FAIL_ON), "--fail-on", "lowest severity that fails lint"),
     "format": Key(_one_of(FORMATS), "--format", "lint report format"),
-    "latency_margin": Key(_at_most(MAX_SECONDS, _positive), "latency-margin",
-                          f"seconds a reply may stray from its return delay (B006; at most {MAX_SECONDS:g})"),
+    "latency_margin": Key(_at_most(MAX_SECONDS, _positive, time=True), "latency-margin",
+                          f"time a reply may stray from its return delay (B006; at most {MAX_SECONDS_SAID})"),
     "inter_byte_gap": Key(_at_most(MAX_BYTE_TIMES, _positive), "inter-byte-gap",
                           f"idle byte times allowed inside a frame (F004; at most {MAX_BYTE_TIMES})"),
-    "flash_write_time": Key(_at_most(MAX_SECONDS, _positive), "flash-write-time",
-                            f"seconds a flash write takes (Q003; at most {MAX_SECONDS:g})"),
+    "flash_write_time": Key(_at_most(MAX_SECONDS, _positive, time=True), "flash-write-time",
+                            f"time a flash write takes (Q003; at most {MAX_SECONDS_SAID})"),
     "max_servos": Key(_at_most(MAX_SERVO_ID, _count), "max-servos",
                       f"servos one bus may carry (Q008; at most {MAX_SERVO_ID}, one per ID)"),
     "rule": Key(_rule_tables, "[[rule]]", "the project's own lint rules (rs30x_sniff.user_rules); config files only"),
@@ -185,8 +186,11 @@ def own_rules(conf: Mapping[str, Any]) -> tuple:
     return (*conf.get("rule", ()), *(as_rule(c) for c in conf.get("expect", ())))
 
 
-def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None = None) -> dict[str, Any]:
-    """Checked settings with snake_case keys (kebab-case accepted); ``where`` names the layer in messages."""
+def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None = None,
+          rules: Registry | None = None) -> dict[str, Any]:
+    """Checked settings with snake_case keys (kebab-case accepted); ``where`` names the layer in messages.
+    Rule selections are checked in ``rules`` (the run's rule set), by default the built-in rules and the
+    table's own user rules."""
     reg = registry or default_registry()
     out: dict[str, Any] = {}
     for raw_key, value in table.items():
@@ -218,18 +222,18 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
             parse_thresholds(out["regress"], where)
         except ThresholdError as e:
             raise SettingsError(str(e)) from None
-    # A config file's selections may name its own user rules and figure checks: checked with those in effect.
-    own = own_rules(out)
-    with RULES.user_rules(own) if own else _nothing():
-        for key in ("select", "ignore"):
-            if key in out:
-                resolve_rules(out[key], key, where)
-        for k, level in out.get("severity", {}).items():
-            if level not in SEVERITIES:
-                name = f"--severity {k}={level}" if where == COMMAND_LINE else f"{where}: severity.{k}"
-                raise SettingsError(f"{name}: level must be one of {', '.join(SEVERITIES)}")
-            resolve_rules([k], "severity", where)
-        _refuse_conflicts(out, where)
+    # A config file's selections may name its own user rules and figure checks: checked in its rule set.
+    if rules is None:
+        rules = rule_set(own_rules(out), where)
+    for key in ("select", "ignore"):
+        if key in out:
+            resolve_rules(out[key], key, where, rules)
+    for k, level in out.get("severity", {}).items():
+        if level not in SEVERITIES:
+            name = f"--severity {k}={level}" if where == COMMAND_LINE else f"{where}: severity.{k}"
+            raise SettingsError(f"{name}: level must be one of {', '.join(SEVERITIES)}")
+        resolve_rules([k], "severity", where, rules)
+    _refuse_conflicts(out, where, rules)
     try:
         if "model" in out:
             out["model"] = reg.get(out["model"]).name
@@ -258,21 +262,32 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
     return out
 
 
-def _refuse_conflicts(out: Mapping[str, Any], where: str) -> None:
+def rule_set(own: tuple, where: str) -> Registry:
+    """The rule set of a run: the built-in rules and ``own`` (a config's user rules and figure checks,
+    :func:`own_rules`); SettingsError naming ``where`` on a code or name given twice."""
+    if not own:
+        return RULES
+    try:
+        return RULES.with_user(own)
+    except ValueError as e:
+        raise SettingsError(f"{where}: {e}") from None
+
+
+def _refuse_conflicts(out: Mapping[str, Any], where: str, rules: Registry = RULES) -> None:
     """One layer's options that contradict each other are an error, never resolved silently: a rule named
     in ``select`` and dropped by ``ignore``; one rule given two severities (by its code and by its name).
     Across layers the higher one wins instead (the command line over the config file)."""
     cli = where == COMMAND_LINE
     if "select" in out and "ignore" in out:
-        named = {r.code: s for s in out["select"] if (r := RULES.get(s)) is not None}
-        for code in resolve_rules(out["ignore"], "ignore", where):
+        named = {r.code: s for s in out["select"] if (r := rules.get(s)) is not None}
+        for code in resolve_rules(out["ignore"], "ignore", where, rules):
             if code in named:
                 said = (f"--select {named[code]} and --ignore {', '.join(out['ignore'])}" if cli
                         else f"{where}: select names {named[code]} and ignore drops it")
                 raise SettingsError(f"{said}: {code} is both selected and ignored; give one")
     levels: dict[str, tuple[str, str]] = {}
     for k, level in out.get("severity", {}).items():
-        r = RULES.get(k)
+        r = rules.get(k)
         if r is None:
             continue  # a prefix (B, Q00) or ALL: a rule named on its own refines it
         if r.code in levels and levels[r.code][1] != level:
@@ -359,6 +374,10 @@ class Settings:
         return DecodeOptions(baud=self.baud, default_model=self.default_model, models=dict(self.models),
                              gap_bytes=self.gap_bytes, reply_timeout=self.reply_timeout, registry=registry)
 
+    def rule_set(self) -> Registry:
+        """The run's rule set: the built-in rules, the config file's [[rule]]s and its [[expect]]s as rules."""
+        return rule_set((*self.user_rules, *(as_rule(c) for c in self.expects)), self.config_path or CONFIG)
+
     def lint_config(self) -> LintConfig:
         """The linter's configuration; its timing thresholds follow the decode options."""
         cfg = LintConfig()
@@ -369,12 +388,10 @@ class Settings:
         if self.gap_bytes:
             cfg.gap_bytes = self.gap_bytes
         cfg.source = self.config_path or "options"
+        cfg.rules = self.rule_set()
         try:
-            # The user rules are in the registry while a command runs (commands.common.config_layer).
-            own = (*self.user_rules, *(as_rule(c) for c in self.expects))
-            with RULES.user_rules(own) if own else _nothing():
-                cfg.enabled_codes()
-                cfg.severities()
+            cfg.enabled_codes()
+            cfg.severities()
         except ConfigError as e:
             raise SettingsError(str(e)) from None
         return cfg
@@ -397,7 +414,7 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
     (``baud``, ``model``, ``models``). Per-ID models merge ID by ID; ``select`` replaces, ``ignore``
     adds up and ``severity`` merges rule by rule.
     """
-    cli = check(command_line or {}, COMMAND_LINE)
+    cli = check(command_line or {}, COMMAND_LINE, rules=rule_set(own_rules(config or {}), COMMAND_LINE))
     conf = dict(config or {})
     where_conf = conf.pop("source", CONFIG)
     cap = dict(capture or {})
