@@ -77,7 +77,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     if stats is not None:
         stats.timing_unsupported = settings.timing_unsupported
         sinks.append(stats)
-    result = FileResult(path, rules=[r.code for r in linter.rules])
+    result = FileResult(path, rules=[r.code for r in linter.rules], rule_set=cfg.rules)
     source = None
     try:
         source = open_input(path, fmt, settings, duration=duration, locate=True)  # findings by line

@@ -8,8 +8,9 @@ import re
 
 from ..lint import RULES
 from ..lint.registry import Rule
+from ..settings import own_rules
 from .common import CliError, config_layer
-from .options import add_config_options
+from .options import add_format_option, add_config_options
 from ..sinks.outputs import output_stream
 from .outputs import add_output_options
 
@@ -69,10 +70,11 @@ def markdown() -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    config_layer(args)
-    rules = list(RULES)
+    # The built-in rules, and with a config file its own rules and figure checks (this run's rule set).
+    rule_set = RULES.with_user(own_rules(config_layer(args)))
+    rules = list(rule_set)
     if args.rule:
-        r = RULES.get(args.rule)
+        r = rule_set.get(args.rule)
         if r is None:
             raise CliError(f"unknown rule {args.rule!r} (see `rs30x-sniff rules`)")
         rules = [r]

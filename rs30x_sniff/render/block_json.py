@@ -65,15 +65,18 @@ def _lines(blk: Block, only: set[int] | None, compact: bool, rows: Any, end: str
     ends = run.ends[lo:blk.hi].tolist()
     base = run.base
     kinds = blk.cols["kind"].tolist()
-    timed = blk.t0 is not None
-    if timed:
-        for what, col in (("t", blk.t0), ("t_end", blk.t1)):
+    c0, c1 = blk.t0, blk.t1
+    timed = c0 is not None
+    if c0 is not None and c1 is not None:  # (a timed Block has both, and its latencies)
+        for what, col in (("t", c0), ("t_end", c1)):
             bad = ~np.isfinite(col)
             if bad.any():  # one check a Block, not one a row
                 k = int(np.argmax(bad))
                 raise _not_finite(base + starts[k], what, float(col[k]))
-        t0, t1 = blk.t0.tolist(), blk.t1.tolist()
-        lat = blk.latencies().tolist()
+        t0, t1 = c0.tolist(), c1.tolist()
+        lats = blk.latencies()
+        assert lats is not None
+        lat = lats.tolist()
     models, default, vid_models = blk.models, blk.default, blk.vid_models
     only_key = None if only is None else frozenset(only)
     out = []
@@ -85,7 +88,7 @@ def _lines(blk: Block, only: set[int] | None, compact: bool, rows: Any, end: str
             model = default
             vids = raw[AT_DATA:-SUM_SIZE:raw[AT_LENGTH] or 1]
             # Servos of mixed models: the VIDs' models are part of the shape (a model learned later changes it).
-            key = ("json", raw[:HEADER_SIZE], e - s, vids, timed, compact, only_key,
+            key: tuple[Any, ...] = ("json", raw[:HEADER_SIZE], e - s, vids, timed, compact, only_key,
                    None if vid_models is None or not raw[AT_LENGTH] else tuple([vid_models[v].name for v in vids]))
         else:
             model = models[raw[AT_ID]]

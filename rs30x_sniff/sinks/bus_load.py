@@ -77,9 +77,9 @@ class LoadWindows:
     def end_segment(self, last: float) -> None:
         """A seam of the capture's clock: the segment's last window closes at its last byte ``last``, and
         the next segment starts its own windows."""
-        load = self.open_load(last)
-        if load is not None:
-            self.closed.append((load, self.start))
+        load, start = self.open_load(last), self.start
+        if load is not None and start is not None:  # (a load is measured only in an open window)
+            self.closed.append((load, start))
         self.start, self.end, self.bytes = None, float("-inf"), 0
 
     def open_load(self, last: float | None) -> float | None:
@@ -97,9 +97,9 @@ class LoadWindows:
         measured over a reader's stall."""
         best = max((w for w in self.closed if not (stalls and stalled(w[1], stalls))), key=lambda w: w[0],
                    default=None)
-        load = self.open_load(last)
-        if load is not None and not stalled(self.start, stalls) and (best is None or load > best[0]):
-            best = (load, self.start)
+        load, start = self.open_load(last), self.start
+        if load is not None and start is not None and not stalled(start, stalls) and (best is None or load > best[0]):
+            best = (load, start)
         return best
 
 

@@ -77,17 +77,19 @@ class CsvTable:
 
     def start(self, columns: list[Column]) -> None:
         self._writer.writerow([name for name, _ in columns])
-        conv = {STRS: " ".join, WALL: _iso}
+        conv: dict[str, Callable[[Any], Any]] = {STRS: " ".join, WALL: _iso}
         self._convert = [(i, conv[kind]) for i, (_, kind) in enumerate(columns) if kind in conv]
 
     def write(self, row: tuple) -> None:
         if self._convert:
-            row = list(row)
+            cells = list(row)
             for i, f in self._convert:
-                v = row[i]
+                v = cells[i]
                 if v is not None:
-                    row[i] = f(v)
-        self._writer.writerow(row)
+                    cells[i] = f(v)
+            self._writer.writerow(cells)
+        else:
+            self._writer.writerow(row)
 
     def close(self) -> None:
         self._stream.flush()

@@ -144,7 +144,7 @@ class FoxgloveSink(JsonChannels):
         self._context = foxglove.Context()
         try:
             # The SDK's own default backlog unless asked: passing None is not the same as leaving it out.
-            options = {} if backlog is None else {"message_backlog_size": backlog}
+            options: dict[str, Any] = {} if backlog is None else {"message_backlog_size": backlog}
             self.server = foxglove.start_server(name=SERVER_NAME, host=host, port=port, context=self._context,
                                                 **options)
         except Exception as e:  # noqa: BLE001 - the SDK raises its own error types for a busy port
