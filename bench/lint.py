@@ -75,7 +75,7 @@ def user_config() -> dict:
 
 
 def decode_lint_user(chunks) -> tuple[int, int]:
-    """The columnar path with USER_CONFIG's rules and checks: the rules in the registry, info's figures as one
+    """The columnar path with USER_CONFIG's rules and checks: the rules in the run's rule set, info's figures as one
     more sink, the checks evaluated at the end (as rs30x_sniff.commands.lint does)."""
     from rs30x_sniff.expect import evaluate, findings
     from rs30x_sniff.lint.registry import RULES
@@ -83,14 +83,13 @@ def decode_lint_user(chunks) -> tuple[int, int]:
     from rs30x_sniff.sinks.stats import CaptureStats
 
     conf = user_config()
-    with RULES.user_rules(own_rules(conf)):
-        linter = Linter(LintConfig())
-        dec = Decoder(None, linter, columnar=True)
-        checks = conf.get("expect", ())
-        count, stats = Count(), CaptureStats(115200, ranges=any(c.reads_ranges for c in checks))
-        drive(chunks, dec, count, stats)
-        results = evaluate(checks, stats.as_dict(), [r.code for r in linter.rules])
-        return count.n, len(linter.findings) + len(findings(results, stats.bytes))
+    linter = Linter(LintConfig(rules=RULES.with_user(own_rules(conf))))  # this run's rule set
+    dec = Decoder(None, linter, columnar=True)
+    checks = conf.get("expect", ())
+    count, stats = Count(), CaptureStats(115200, ranges=any(c.reads_ranges for c in checks))
+    drive(chunks, dec, count, stats)
+    results = evaluate(checks, stats.as_dict(), [r.code for r in linter.rules])
+    return count.n, len(linter.findings) + len(findings(results, stats.bytes))
 
 
 def _driven(dec, chunks) -> int:

@@ -94,8 +94,8 @@ def compile_rule(table: Mapping[str, Any], label: str, registry: ModelRegistry,
         raise bad("name", f"{name!r} is not kebab-case (lower-case words joined by '-')")
     if re.fullmatch(r"[a-z]\d{3}", name):
         raise bad("name", f"{name!r} reads as a rule code: a name is words (such as servo-too-hot)")
-    taken = RULES.get(name)
-    if taken is not None and not taken.is_user:
+    taken = RULES.get(name)  # the built-in rules (a run's user rules are never in RULES)
+    if taken is not None:
         raise bad("name", f"{name!r} is the built-in rule {taken.code}'s name")
     severity = table.get("severity", DEFAULT_SEVERITY)
     if severity not in SEVERITIES:
@@ -127,7 +127,7 @@ def compile_rule(table: Mapping[str, Any], label: str, registry: ModelRegistry,
     full = (f"## What it does\nReports every record that matches `{text}` (the filter language of "
             f"`decode --filter`).\n\n## Why it matters\n{doc.strip() or 'A rule of the project (no doc given).'}\n\n"
             f"## Defined in\n{label}\n")
-    check = _check(code, text, flt, message, registers)
+    check = _check(code, name, text, flt, message, registers)
     # A filter no record kind can pass (kind:ack present_temperature>60) still makes a rule, which never fires.
     return Rule(code, name, severity, summary, full, kinds or ("garbage",), check,
                 needs_time=flt.uses_time, column=_quiet(flt) if kinds else _always_quiet)
@@ -164,7 +164,7 @@ def _quiet(flt: Any):
     return quiet
 
 
-def _check(code: str, when: str, flt: Any, message: str | None, registers: frozenset[str]):
+def _check(code: str, name: str, when: str, flt: Any, message: str | None, registers: frozenset[str]):
     matches = flt.matches
     named = [w for w in _words(when) if w in registers]
     template = message if message is not None else None
@@ -183,7 +183,7 @@ def _check(code: str, when: str, flt: Any, message: str | None, registers: froze
         base = {"id": rec.id, "kind": rec.kind, "offset": Measured(rec.offset, OFFSET),
                 "t": None if rec.t is None else Measured(rec.t, TIME),
                 "latency": None if rec.latency is None else Measured(rec.latency, DURATION),
-                "address": getattr(rec.event, "address", None), "code": code, "name": RULES[code].name,
+                "address": getattr(rec.event, "address", None), "code": code, "name": name,
                 "severity": lint.severity_of(code), "when": when}
         return said(template, {**values, **base})
 

@@ -78,14 +78,15 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
 def config_layer(args: argparse.Namespace) -> dict[str, Any]:
     """The config file's settings (checked), or {} when there is none or --isolated.
 
-    Its user rules (``[[rule]]``, and ``[[expect]]`` figure checks as rules) become the registry's for the rest of the command (none without a
-    config), so that every rule selection, report and listing takes them as it takes the built-in rules.
+    Its user rules (``[[rule]]``, and ``[[expect]]`` figure checks as rules) are checked here to make one rule
+    set with the built-in rules; each run carries its own (Settings.rule_set, LintConfig.rules), and the
+    process-wide registry (RULES) keeps the built-in rules alone.
     """
     _said.clear()  # a new command: its notes are said once more
     conf = _config_file(args)
     say_deprecations()
     try:
-        RULES.set_user(own_rules(conf))
+        RULES.with_user(own_rules(conf))
     except ValueError as e:  # two of the file's own rules under one code or name
         raise CliError(f"{conf.get('source', 'config')}: {e}") from None
     return conf

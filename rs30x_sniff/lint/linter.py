@@ -14,7 +14,7 @@ from ..protocol.wire import (
     AT_DATA, BROADCAST_ID, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, RETURN_TEMPERATURE_LIMIT, SUM_SIZE, byte_time)
 from .batch import BlockLinter
 from .config import LintConfig
-from .registry import KINDS, RULES, WHEN, Finding, Rule, crowded
+from .registry import KINDS, WHEN, Finding, Rule, crowded
 from .state import Plan, Shadow
 
 if TYPE_CHECKING:  # names for the checker; no import at run time
@@ -42,7 +42,9 @@ class Linter:
     def __init__(self, config: LintConfig | None = None) -> None:
         c = self.config = config or LintConfig()
         codes = c.enabled_codes()
-        self.rules = [RULES[code] for code in codes]
+        rule_set = c.rules  # the run's: built-in rules and its user rules (LintConfig.rules)
+        self.rules = [rule_set[code] for code in codes]
+        self._names = {r.code: r.name for r in rule_set}
         self._sev = c.severities()
         self.findings: list[Finding] = []
         self.timed: bool | None = None
@@ -133,7 +135,7 @@ class Linter:
     def emit(self, code: str, rec: Record, message: str, sid: Any = _AUTO) -> Finding:
         """Report a finding of rule ``code`` on ``rec`` (appended to ``rec.findings``)."""
         ev = rec.event
-        f = Finding(code, RULES[code].name, self._sev[code], message, ev[OFFSET], ev[T_START],
+        f = Finding(code, self._names[code], self._sev[code], message, ev[OFFSET], ev[T_START],
                     rec.id if sid is _AUTO else sid, ev[RAW])
         rec.findings.append(f)
         self.findings.append(f)
@@ -142,7 +144,7 @@ class Linter:
 
     def emit_at(self, code: str, offset: int, t: float | None, message: str, sid: int | None = None) -> Finding:
         """Report a finding about a place in the stream rather than a record (the capture's own clock)."""
-        f = Finding(code, RULES[code].name, self._sev[code], message, offset, t, sid)
+        f = Finding(code, self._names[code], self._sev[code], message, offset, t, sid)
         self.findings.append(f)
         self._new.append(f)
         return f

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 from collections.abc import Callable, Iterable, Iterator
@@ -235,13 +234,14 @@ class Rule:
 
 
 class Registry:
-    """Every rule, by code and by name, iterated in code order: the built-in rules (:meth:`add`, by
-    ``@rule``) and the user rules of the configuration in effect (:meth:`add_user`, :meth:`set_user`,
-    :meth:`user_rules`), which every consumer of the registry then treats alike."""
+    """Every rule, by code and by name, iterated in code order. :data:`RULES` holds the built-in rules (added by
+    ``@rule``) and never a configuration's: a run's rule set is :meth:`with_user` (the built-in rules and that
+    run's user rules), carried by its LintConfig (``rules``), which every consumer then treats alike."""
 
-    def __init__(self) -> None:
-        self._by_code: dict[str, Rule] = {}
-        self._by_name: dict[str, Rule] = {}
+    def __init__(self, rules: Iterable[Rule] = ()) -> None:
+        rules = tuple(rules)  # already checked: those of another registry (with_user)
+        self._by_code: dict[str, Rule] = {r.code: r for r in rules}
+        self._by_name: dict[str, Rule] = {r.name: r for r in rules}
 
     def add(self, r: Rule) -> None:
         if not re.fullmatch(r"[FPMBSQ]\d{3}", r.code):
@@ -265,8 +265,19 @@ class Registry:
         self._by_name[r.name] = r
 
     # ---- user rules ----------------------------------------------------------------------------
+    def with_user(self, rules: Iterable[Rule]) -> Registry:
+        """The rule set of one run: this registry's rules and ``rules`` as its user rules, this registry
+        unchanged; ValueError on a bad user rule code or a code or name given twice."""
+        out = Registry(self)
+        for r in rules:
+            out.add_user(r)
+        return out
+
     def add_user(self, r: Rule) -> None:
-        """Register a user rule (code U and three digits; its name clashes with no rule's)."""
+        """Register a user rule (code U and three digits; its name clashes with no rule's), in a rule set of
+        one run (:meth:`with_user`), never in :data:`RULES`."""
+        if self is RULES:
+            raise ValueError(f"{r.code}: user rules go in a run's rule set (RULES.with_user), not in RULES")
         if not USER_CODE.fullmatch(r.code):
             raise ValueError(f"bad user rule code {r.code!r} (U and three digits)")
         self._put(r)
@@ -285,32 +296,6 @@ class Registry:
     def builtin(self) -> list[Rule]:
         """The built-in rules, in code order (what docs/rules.md lists)."""
         return [r for r in self if not r.is_user]
-
-    def set_user(self, rules: Iterable[Rule]) -> None:
-        """Make ``rules`` the user rules in effect, in place of any before (all or none: a rule that cannot
-        register leaves the ones before in place)."""
-        before = self.user()
-        for r in before:
-            self.remove_user(r.code)
-        try:
-            for r in rules:
-                self.add_user(r)
-        except ValueError:
-            for r in self.user():
-                self.remove_user(r.code)
-            for r in before:
-                self.add_user(r)
-            raise
-
-    @contextmanager
-    def user_rules(self, rules: Iterable[Rule]) -> Iterator[None]:
-        """``rules`` as the user rules in effect inside the block; those before are back after it."""
-        before = self.user()
-        self.set_user(rules)
-        try:
-            yield
-        finally:
-            self.set_user(before)
 
     def __iter__(self) -> Iterator[Rule]:
         return iter(sorted(self._by_code.values(), key=lambda r: (_ORDER.index(r.code[0]), r.code)))

@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterable, Mapping
 from urllib.parse import quote
 
 from ..version import __version__
-from .registry import RULES, SEVERITY_RANK, Finding
+from .registry import RULES, SEVERITY_RANK, Finding, Registry
 
 if TYPE_CHECKING:
     from .baseline import BaselineReport
@@ -44,6 +44,8 @@ class FileResult:
     # With --baseline: the findings the baseline held, moved out of ``findings`` (which keeps the new ones,
     # the only ones that count toward the exit code); SARIF still lists them, as "unchanged".
     absorbed: list[Finding] = field(default_factory=list)
+    # The rule set the capture was linted with (LintConfig.rules: the built-in rules and the run's user rules).
+    rule_set: Registry = field(default_factory=lambda: RULES, repr=False)
 
     def where(self, f: Finding) -> str:
         """``FILE:LINE:COL`` in a text capture, else ``FILE:OFFSET``."""
@@ -79,17 +81,18 @@ def write_text(results: list[FileResult], out: IO[str], fail_on: str = "error",
     total = sum(counts.values())
     if counts:
         out.write("\n")
-        w = max(len(RULES[c].name) for c in counts)
+        rules = _rules(results)
+        w = max(len(rules[c].name) for c in counts)
         out.write(f"{'count':>6}  code  {'name':<{w}}  severity\n")
         for code in sorted(counts, key=lambda c: (-SEVERITY_RANK[_severity(results, c)], c)):
-            out.write(f"{counts[code]:>6}  {code}  {RULES[code].name:<{w}}  {_severity(results, code)}\n")
+            out.write(f"{counts[code]:>6}  {code}  {rules[code].name:<{w}}  {_severity(results, code)}\n")
     by_sev = Counter(f.severity for r in results for f in r.findings)
     files = len(results)
     parts = ", ".join(f"{by_sev[s]} {s}{'s' if by_sev[s] != 1 else ''}"
                       for s in ("error", "warning", "info") if by_sev[s])
     out.write(f"\n{total} finding{'s' if total != 1 else ''}{f' ({parts})' if parts else ''} in {files} "
               f"file{'s' if files != 1 else ''}.\n")
-    order = RULES.codes()
+    order = _rules(results).codes()
     skipped = sorted({c for r in results for c in r.skipped}, key=order.index)
     if skipped:
         which = [r.path for r in results if r.skipped]
@@ -120,7 +123,12 @@ def _severity(results: list[FileResult], code: str) -> str:
         for f in r.findings:
             if f.code == code:
                 return f.severity
-    return RULES[code].severity
+    return _rules(results)[code].severity
+
+
+def _rules(results: list[FileResult]) -> Registry:
+    """The rule set the results were linted with (one run's: the first result's)."""
+    return results[0].rule_set if results else RULES
 
 
 def json_findings(results: list[FileResult]) -> list[dict]:
@@ -155,7 +163,7 @@ def write_junit(results: list[FileResult], out: IO[str], fail_on: str = "error",
             ET.SubElement(case, "error", message=r.error)
             tests += 1
         for code in r.rules:
-            rule = RULES[code]
+            rule = r.rule_set[code]
             case = ET.SubElement(suite, "testcase", classname=r.path, name=f"{code} {rule.name}")
             tests += 1
             found = by_code.get(code, [])
@@ -190,7 +198,7 @@ def sarif_log(results: list[FileResult], baseline: BaselineReport | None = None)
     """A SARIF 2.1.0 log: the registry as the driver's rules, one result per finding. With a baseline,
     each result has its ``baselineState`` (SARIF 2.1.0 3.27.24): "new", or "unchanged" for a finding the
     baseline absorbed; the absorbed count and the stale entries go in the run's property bag."""
-    rules = list(RULES)
+    rules = list(_rules(results))
     index = {r.code: k for k, r in enumerate(rules)}
     driver = {
         "name": "rs30x-sniff",
@@ -353,6 +361,7 @@ def write_step_summary(results: list[FileResult], out: IO[str], fail_on: str = "
     baseline the new and absorbed counts), what fails --fail-on, and the baseline's stale entries."""
     errors = list(errors)
     w = out.write
+    rule_set = _rules(results)
     new = [f for r in results for f in r.findings]
     absorbed = [f for r in results for f in r.absorbed] if baseline is not None else []
     by_sev = Counter(f.severity for f in new)
@@ -380,7 +389,7 @@ def write_step_summary(results: list[FileResult], out: IO[str], fail_on: str = "
         else:
             w("| code | rule | severity | new | absorbed |\n|---|---|---|---:|---:|\n")
         for code, sev in order:
-            name = RULES[code].name if code in RULES else ""
+            name = rule_set[code].name if code in rule_set else ""
             n, a = rows[(code, sev)]
             w(f"| {md_cell(code)} | {md_cell(name)} | {sev} | {n} |" + (f" {a} |" if baseline is not None else "")
               + "\n")
@@ -392,7 +401,7 @@ def write_step_summary(results: list[FileResult], out: IO[str], fail_on: str = "
         w(f"**{_plural(failing, 'finding')} at or above --fail-on {fail_on}.**\n")
     else:
         w(f"Nothing at or above --fail-on {fail_on}.\n")
-    order_codes = RULES.codes()
+    order_codes = rule_set.codes()
     skipped = sorted({c for r in results for c in r.skipped}, key=lambda c: order_codes.index(c)
                      if c in order_codes else len(order_codes))
     if skipped:

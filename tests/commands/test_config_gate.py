@@ -25,9 +25,8 @@ def expect(code: str = "U001", name: str = "legs-polled") -> str:
 @pytest.fixture(autouse=True)
 def _clean(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # no configuration above
-    before = RULES.user()
     yield
-    RULES.set_user(before)
+    assert not RULES.user()  # a command's user rules stay in its own rule set
 
 
 def run(capsys, *argv) -> tuple[int, str, str]:

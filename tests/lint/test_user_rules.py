@@ -16,7 +16,8 @@ from rs30x_sniff.commands.rules import markdown
 from rs30x_sniff.decode.blocks import Block
 from rs30x_sniff.decode.decoder import Decoder
 from rs30x_sniff.filters import parse_filter
-from rs30x_sniff.lint import batch
+from rs30x_sniff.lint import LintConfig, Linter, batch
+from rs30x_sniff.lint import config as config_module
 from rs30x_sniff.lint.config import ConfigError
 from rs30x_sniff.lint.registry import RULES, Rule
 from rs30x_sniff.settings import load_config, resolve
@@ -31,11 +32,10 @@ HOT = {"code": "U001", "name": "servo-too-hot", "severity": "error", "when": "pr
 
 @pytest.fixture(autouse=True)
 def _clean(tmp_path, monkeypatch):
-    """Each test in its own folder (no config above), and no user rule left in the registry after it."""
+    """Each test in its own folder (no config above); no user rule ever reaches the process-wide registry."""
     monkeypatch.chdir(tmp_path)
-    before = RULES.user()
     yield
-    RULES.set_user(before)
+    assert not RULES.user()
 
 
 def toml(tables: list[dict], **top) -> str:
@@ -105,9 +105,8 @@ def test_pyproject_table_and_selection_by_the_files_own_rules(capsys, overheat, 
     code, out, _ = lint(capsys, overheat, "--format", "json")
     found = json.loads(out)
     assert code == 1 and found and {f["code"] for f in found} == {"U001"}
-    # Loading a config does not leave its rules in the registry: the command puts them there.
-    assert "U001" in RULES
-    RULES.set_user(())
+    # Neither the command nor loading the config leaves its rules in the registry: they are the run's.
+    assert "U001" not in RULES
     conf = load_config(tmp_path / "pyproject.toml")
     assert "U001" not in RULES and [r.code for r in conf["rule"]] == ["U001"]
 
@@ -116,7 +115,6 @@ def test_a_selection_of_an_unknown_user_rule_is_an_error(capsys, overheat):
     open("rs30x-sniff.toml", "w").write(toml([HOT]))
     code, _, err = lint(capsys, overheat, "--select", "U002")
     assert code == 2 and "unknown rule 'U002'" in err and err.count("\n") == 1
-    RULES.set_user(())
     code, _, err = lint(capsys, overheat, "--isolated", "--select", "U001")
     assert code == 2 and "unknown rule 'U001'" in err
 
@@ -201,29 +199,51 @@ def test_rules_lists_and_explains_them_but_the_docs_do_not(capsys, hot_config):
 
 
 # ---- the registry's public API for them ---------------------------------------------------------------
-def test_user_rules_come_and_go_with_the_context():
+def test_a_runs_rule_set_holds_its_user_rules_and_leaves_the_registry_alone():
     (hot,) = compile_rules([HOT], "test")
     n = len(RULES)
-    with RULES.user_rules([hot]):
-        assert RULES["U001"] is hot and RULES.get("servo-too-hot") is hot and len(RULES) == n + 1
-        assert RULES.codes()[-1] == "U001" and RULES.match("U") == ["U001"]
-        assert hot not in RULES.builtin() and RULES.user() == [hot]
-        with RULES.user_rules([]):
-            assert "U001" not in RULES
-        assert "U001" in RULES
-    assert "U001" not in RULES and len(RULES) == n
+    rules = RULES.with_user([hot])
+    assert rules["U001"] is hot and rules.get("servo-too-hot") is hot and len(rules) == n + 1
+    assert rules.codes()[-1] == "U001" and rules.match("U") == ["U001"]
+    assert hot not in rules.builtin() and rules.user() == [hot] and rules.builtin() == RULES.builtin()
+    assert "U001" not in RULES and len(RULES) == n and RULES.with_user([]).codes() == RULES.codes()
 
 
-def test_add_user_refuses_what_would_clash():
+def test_with_user_refuses_what_would_clash():
     (hot,) = compile_rules([HOT], "test")
     with pytest.raises(ValueError, match="bad user rule code"):
-        RULES.add_user(Rule("F999", "x-y", "info", "s", "d", ("short",), print, column="silent"))
+        RULES.with_user([Rule("F999", "x-y", "info", "s", "d", ("short",), print, column="silent")])
     clash = Rule("U002", "checksum-mismatch", "info", "s", "d", ("short",), print, column="silent")
     with pytest.raises(ValueError, match="declared twice"):
-        RULES.set_user([hot, clash])
-    assert "U001" not in RULES  # all or none
-    RULES.remove_user("F001")
-    assert "F001" in RULES  # never a built-in rule
+        RULES.with_user([hot, clash])
+    with pytest.raises(ValueError, match="not in RULES"):
+        RULES.add_user(hot)
+    assert "U001" not in RULES
+    rules = RULES.with_user([hot])
+    rules.remove_user("F001")
+    assert "F001" in rules  # never a built-in rule
+
+
+def test_two_linters_with_different_user_rules_in_one_process():
+    """A library caller lints two captures with different user rules: neither leaks into the other, nor
+    into RULES, and neither needs restoring."""
+    hot, = compile_rules([HOT], "a")
+    far, = compile_rules([{"code": "U001", "name": "far-out", "when": "kind:return present_position>19.6"}], "b")
+    a = Linter(LintConfig(rules=RULES.with_user([hot])))
+    b = Linter(LintConfig(rules=RULES.with_user([far]), select=["U"]))
+    plain = Linter()
+    assert [r.code for r in b.rules] == ["U001"] and b.rules[0] is far
+    assert hot in a.rules and far not in a.rules and "U001" not in {r.code for r in plain.rules}
+    chunks = capture("P001", at=-1, cycles=300)
+    for lint in (a, b, plain):
+        dec = Decoder(None, lint, columnar=True)
+        dec.feed_many(chunks)
+        dec.close()
+    assert {f.name for f in b.findings} == {"far-out"}  # its U001, under its own name
+    assert all(f.code != "U001" for f in a.findings)  # no servo is hot in this capture
+    assert "U001" not in {f.code for f in plain.findings} and not RULES.user()
+    with pytest.raises(ConfigError, match="unknown rule 'U001'"):
+        LintConfig(select=["U001"]).enabled_codes()
 
 
 def test_fill_names_only_and_never_fails():
@@ -254,8 +274,8 @@ def test_record_and_columnar_paths_find_the_same(monkeypatch, which, anomaly):
     calls = []
     real = batch.BlockLinter.quiet
     monkeypatch.setattr(batch.BlockLinter, "quiet", lambda self, blk: calls.append(real(self, blk)) or calls[-1])
-    with RULES.user_rules(rules):
-        blocks, codes = compare(capture(anomaly, at=150, cycles=300), groups=(45,))
+    monkeypatch.setattr(config_module, "RULES", RULES.with_user(rules))  # the default LintConfig's rule set
+    blocks, codes = compare(capture(anomaly, at=150, cycles=300), groups=(45,))
     assert blocks and any(calls)  # the columns still carry the quiet stretches
     if which != "never-in-blocks":
         assert {r.code for r in rules} & codes, codes  # and the rules spoke
@@ -266,8 +286,8 @@ def test_a_block_with_a_match_goes_row_by_row_and_the_others_stay_on_columns(mon
     calls = []
     real = batch.BlockLinter.quiet
     monkeypatch.setattr(batch.BlockLinter, "quiet", lambda self, blk: calls.append(real(self, blk)) or calls[-1])
-    with RULES.user_rules([rule]):
-        _, codes = compare(capture("P001", at=-1, cycles=300), groups=(60,))
+    monkeypatch.setattr(config_module, "RULES", RULES.with_user([rule]))  # the default LintConfig's rule set
+    _, codes = compare(capture("P001", at=-1, cycles=300), groups=(60,))
     assert codes == {"U001"} and True in calls and False in calls
 
 
@@ -313,9 +333,9 @@ def test_the_settings_carry_the_rules(tmp_path):
     conf = load_config(path)
     s = resolve(config=conf)
     assert [r.code for r in s.user_rules] == ["U001"]
-    with RULES.user_rules(s.user_rules):
-        cfg = s.lint_config()
-        assert cfg.enabled_codes() == ["U001"] and cfg.severities()["U001"] == "warning"
+    cfg = s.lint_config()
+    assert cfg.enabled_codes() == ["U001"] and cfg.severities()["U001"] == "warning"
+    assert cfg.rules["U001"] is s.user_rules[0] and "U001" not in RULES
 
 
 def test_decode_lint_info_convert_and_the_monitor_agree_on_them(capsys, overheat, hot_config, tmp_path):
