@@ -74,7 +74,7 @@ class _Chain(io.RawIOBase):
     def readable(self) -> bool:
         return True
 
-    def readinto(self, b) -> int:  # type: ignore[no-untyped-def]
+    def readinto(self, b) -> int:
         if len(self._head):
             n = min(len(b), len(self._head))
             b[:n] = self._head[:n]
@@ -161,7 +161,7 @@ def _open(path: str) -> _Opened:
             f.close()
         raise CaptureError(f"{path}: cannot read: {e.strerror or e}") from None
     stream = io.BufferedReader(_Chain(head, f, owns), buffer_size=_READ_SIZE)
-    return _Opened(stream, head, ended, False, fd=fd)  # type: ignore[arg-type]
+    return _Opened(stream, head, ended, False, fd=fd)
 
 
 def _fileno(f: BinaryIO) -> int | None:
@@ -467,6 +467,7 @@ class CaptureReader:
                 self._gen = _read_binary(opened.stream)
             elif fmt not in FORMATS:
                 other = foreign.get(fmt)
+                assert other is not None  # _sniffed gives a registered format
                 if other.needs_seek and not opened.seekable:
                     opened.stream.close()
                     raise CaptureError(f"{path}: a {fmt} capture needs a seekable file, not a pipe "
@@ -621,6 +622,8 @@ class _Lines:
     (at most _MAX_LINE bytes), b"" at the end, and None when a stream has sent nothing for IDLE_WAIT
     (so what is pending can be handed on: a pipe streams line by line)."""
 
+    readline: Callable[[], bytes | None]  # set by __init__ for the kind of stream
+
     def __init__(self, opened: _Opened) -> None:
         self.opened = opened
         enc = opened.encoding
@@ -629,12 +632,12 @@ class _Lines:
             self._stream(opened, enc)
         elif enc in _READ_ENCODINGS or _LONE_CR.search(opened.head[:-1] if not opened.complete else opened.head):
             # Decoded with universal newlines; a comment's bytes that are not UTF-8 pass through as they were.
-            text = io.TextIOWrapper(f, encoding="utf-16" if enc in _READ_ENCODINGS else "utf-8-sig",  # type: ignore[arg-type]
+            text = io.TextIOWrapper(f, encoding="utf-16" if enc in _READ_ENCODINGS else "utf-8-sig",
                                     errors="replace" if enc in _READ_ENCODINGS else "surrogateescape", newline=None)
-            self.readline = lambda: text.readline(_MAX_LINE).encode("utf-8", "surrogateescape")  # type: ignore[method-assign]
+            self.readline = lambda: text.readline(_MAX_LINE).encode("utf-8", "surrogateescape")
             self._close = text.close
         else:
-            self.readline = lambda: f.readline(_MAX_LINE)  # type: ignore[method-assign]
+            self.readline = lambda: f.readline(_MAX_LINE)
             self._close = f.close
 
     def _stream(self, opened: _Opened, enc: str | None) -> None:
@@ -646,7 +649,7 @@ class _Lines:
         self._cr = False  # the last byte taken was a CR, whose LF may come in the next read
         self._eof = False
         self._close = opened.stream.close
-        self.readline = self._stream_line  # type: ignore[method-assign]
+        self.readline = self._stream_line
 
     def _feed(self, data: bytes, final: bool = False) -> None:
         if self._dec is not None:
@@ -855,8 +858,8 @@ def _bad_token(body: bytes) -> tuple[bytes, int]:
     for m in _TOKEN.finditer(body):
         if not _HEX_TOKEN.match(m.group()):
             return m.group(), m.start() + 1
-    m = _TOKEN.search(body)
-    return (m.group(), m.start() + 1) if m else (body, 1)
+    found = _TOKEN.search(body)
+    return (found.group(), found.start() + 1) if found else (body, 1)
 
 
 def _show(token: bytes) -> str:

@@ -10,7 +10,7 @@ import os
 import stat
 import struct
 import zlib
-from typing import BinaryIO
+from typing import Any, BinaryIO
 from collections.abc import Callable, Iterator
 
 import zstandard
@@ -67,11 +67,11 @@ class _Body:
 
     __slots__ = ("data", "pos")
 
-    def __init__(self, data: bytes | memoryview, pos: int = 0) -> None:
+    def __init__(self, data: bytes, pos: int = 0) -> None:
         self.data = data
         self.pos = pos
 
-    def take(self, n: int) -> bytes | memoryview:
+    def take(self, n: int) -> bytes:
         end = self.pos + n
         if n < 0 or end > len(self.data):
             raise _Bad(f"a field runs past the end of its record ({n} bytes)")
@@ -308,7 +308,7 @@ class McapRawReader:
                 raise _Bad(f"zstd: {e}") from None
         elif compression == "lz4":
             try:
-                import lz4.frame  # type: ignore[import-not-found]
+                import lz4.frame
             except ImportError:
                 raise CaptureError(f"{self.path}: the chunk at byte {pos} is lz4-compressed: "
                                    "install the lz4 package to read it") from None
@@ -671,8 +671,10 @@ def _gaps_of(records: Iterator[tuple[str, dict[str, str]]]) -> list[tuple[int | 
             continue
     out = []
     for g in one or listed:
-        back, lost, why, offset = g.get("back_at"), g.get("lost_at"), g.get("why"), g.get("offset")
-        if not (type(back) in (int, float) and math.isfinite(back)):
+        back: Any = g.get("back_at")  # a JSON value, of any type until checked
+        lost: Any = g.get("lost_at")
+        why, offset = g.get("why"), g.get("offset")
+        if not (type(back) in (int, float) and math.isfinite(back)):  # (a JSON true is no time)
             continue
         lost = float(lost) if type(lost) in (int, float) and math.isfinite(lost) else None
         gap = SourceGap(float(back), lost, why if isinstance(why, str) else "the source lost the line")
