@@ -55,17 +55,20 @@ class PortProcess:
         self.tap = tap
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(filter(None, (_PACKAGE_ROOT, env.get("PYTHONPATH"))))
-        self._proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
-                                      stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
+        proc = self._proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
+        to_child, from_child = proc.stdin, proc.stdout
+        assert to_child is not None and from_child is not None  # both piped
+        self._to_child, self._from_child = to_child, from_child
         args = {"port": tap.port, "baud": tap.baud, "read_timeout": tap.read_timeout,
                 # URL handlers registered here (serial.protocol_handler_packages) are found there too
                 "handlers": list(getattr(serial, "protocol_handler_packages", ())), "path": list(sys.path)}
         try:
-            pickle.dump(args, self._proc.stdin)
-            self._proc.stdin.flush()
+            pickle.dump(args, to_child)
+            to_child.flush()
         except OSError:
             pass  # the child is gone already: its first message says so
-        self.queue = PipeQueue(self._proc.stdout.fileno(), tap)
+        self.queue = PipeQueue(from_child.fileno(), tap)
         msg = self.queue.first(OPEN_TIMEOUT)
         if msg[0] != "open":
             self._reap()
@@ -80,7 +83,7 @@ class PortProcess:
     def stop(self, timeout: float) -> None:
         """Close the child's stdin (it reads what the OS holds, sends it and ends), and take its last chunks."""
         try:
-            self._proc.stdin.close()
+            self._to_child.close()
         except OSError:
             pass
         self.queue.finish(timeout)
@@ -93,7 +96,7 @@ class PortProcess:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
-        for f in (proc.stdin, proc.stdout):
+        for f in (self._to_child, self._from_child):
             try:
                 f.close()
             except OSError:

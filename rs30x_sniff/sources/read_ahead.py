@@ -16,7 +16,7 @@ import subprocess
 import sys
 from array import array
 from typing import Any, BinaryIO
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 
 from ..protocol.chunks import Chunk
 from .captures import CaptureError
@@ -44,12 +44,15 @@ class ReadAhead:
         # The child imports this very package, wherever it was imported from here.
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(filter(None, (_PACKAGE_ROOT, env.get("PYTHONPATH"))))
-        self._proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
-                                      stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
+        proc = self._proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
+        to_child, from_child = proc.stdin, proc.stdout
+        assert to_child is not None and from_child is not None  # both piped
+        self._from_child = from_child
         try:
             pickle.dump({"path": path, "fmt": fmt, "baud": baud, "time_ref": time_ref, "options": options},
-                        self._proc.stdin)
-            self._proc.stdin.close()
+                        to_child)
+            to_child.close()
         except OSError:
             pass  # the child is gone already: reading says so
         self._chunks = self._receive()
@@ -63,15 +66,15 @@ class ReadAhead:
     def close(self) -> None:
         self._chunks.close()
         proc = self._proc
-        proc.stdout.close()
+        self._from_child.close()
         if proc.poll() is None:
             proc.kill()
         proc.wait()
 
-    def _receive(self) -> Iterator[Chunk]:
+    def _receive(self) -> Generator[Chunk, None, None]:
         try:
             # One pickle.load per message: an Unpickler kept across messages would keep every one (its memo).
-            yield from receive(functools.partial(pickle.load, self._proc.stdout), self.path, self.warn)
+            yield from receive(functools.partial(pickle.load, self._from_child), self.path, self.warn)
         finally:
             if self._proc.poll() is None:
                 self._proc.kill()
