@@ -1,4 +1,4 @@
-"""`rs30x-sniff convert`: a capture of any format into a Foxglove-ready MCAP file or a pcapng for Wireshark, streamed."""
+"""`rs30x-sniff convert`: a capture of any format into a Foxglove-ready MCAP file or a pcapng for Wireshark."""
 
 from __future__ import annotations
 

@@ -10,8 +10,8 @@ from ..sinks.pipeline import columnar_for, drive
 from ..sinks.lines import JsonlSink, TextSink
 from .common import (CliError, capture_start_time, check_positive, is_live, live_sinks, make_linter, no_data,
                      open_input, settings_for, time_form)
-from .options import (SERVO_IDS, add_decode_options, add_lint_selection, add_live_options, add_time_format_option,
-                      servo_ids)
+from .options import (SERVO_IDS, add_decode_options, add_format_option, add_lint_selection, add_live_options,
+                      add_time_format_option, servo_ids)
 from ..sinks.outputs import output_stream
 from .outputs import add_output_options
 
@@ -24,7 +24,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="capture file (.bin/.raw, .hex, timestamped hex, .mcap), - for stdin, or a serial port")
     add_decode_options(p)
     add_live_options(p)
-    p.add_argument("--format", choices=("text", "jsonl"), default="text", help="output format (default text)")
+    add_format_option(p, ("text", "jsonl"), default="text",
+                      help="output format (default text)")
     p.add_argument("--id", type=servo_ids, action="append", default=None, metavar="IDS",
                    help=f"only events to or from these servos: an ID or a range (3, 1-6,9; {SERVO_IDS}); repeatable")
     p.add_argument("--filter", metavar="EXPR",

@@ -15,7 +15,7 @@ from ..sinks.pipeline import columnar_for, drive
 from ..sinks.stats import CaptureStats
 from .common import (CliError, config_layer, is_live, live_sinks, make_linter, open_input,
                      say_deprecations, settings_for)
-from .options import add_decode_options, add_lint_options
+from .options import add_decode_options, add_format_option, add_lint_options
 from ..sinks.outputs import STDOUT, check_output, output_stream
 from .outputs import add_output_options
 
@@ -33,10 +33,10 @@ def add_parser(sub: Any) -> None:  # argparse's subparsers action (no public nam
     p.add_argument("after", metavar="AFTER", help="the capture to compare with it")
     add_decode_options(p, channel=False)  # two captures of one bus: no port to time, no logic channel to pick
     add_lint_options(p)
-    p.add_argument("--format", choices=("text", "json", "markdown", "github"), default="text",
-                   help="output format (default text); github: the text with a workflow annotation per threshold "
-                        "crossed (an error with --fail-on-regress, else a warning), and the markdown table "
-                        "appended to the file GITHUB_STEP_SUMMARY names")
+    add_format_option(p, ("text", "json", "markdown", "github"), default="text",
+                      help="output format (default text); github: the text with a workflow annotation per threshold "
+                           "crossed (an error with --fail-on-regress, else a warning), and the markdown table "
+                           "appended to the file GITHUB_STEP_SUMMARY names")
     p.add_argument("--threshold", action="append", default=[], metavar="FIGURE=LIMIT",
                    help="a threshold as in [regress], e.g. latency_p95=+20%% or missing_replies=+0; "
                         "replaces the configuration's for that figure; repeatable")

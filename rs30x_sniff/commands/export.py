@@ -8,6 +8,7 @@ from collections.abc import Iterator
 
 from ..sources.captures import BINARY, HEX, MCAP, TIMESTAMPED, Chunk, detect_format, format_for_output, write_capture
 from ..sinks.tables import KINDS, table_format
+from .options import add_format_option
 from .common import CliError
 from ..sinks.outputs import STDOUT, check_output, output_path, write_stream
 
@@ -21,8 +22,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="capture to write (.bin/.raw binary, .hex hex text, .thex/.log timestamped); - for stdout")
     # The bytes as they were: nothing is decoded, so no model, baud rate or rule selection applies.
-    p.add_argument("--format", choices=(BINARY, HEX, TIMESTAMPED), default=None,
-                   help="output format (default: from OUT's extension, else hex)")
+    add_format_option(p, (BINARY, HEX, TIMESTAMPED), default=None,
+                      help="output format (default: from OUT's extension, else hex)")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     p.set_defaults(run=run)
 

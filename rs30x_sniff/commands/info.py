@@ -13,7 +13,7 @@ from ..protocol.wire import byte_time
 from ..sinks.summary import seconds_text, timer, what_happened
 from .common import (capture_start_time, check_positive, live_sinks, make_linter, no_data, open_input, settings_for,
                      time_form)
-from .options import add_decode_options, add_lint_options, add_live_options, add_time_format_option
+from .options import add_decode_options, add_format_option, add_lint_options, add_live_options, add_time_format_option
 from ..sinks.outputs import check_output, output_stream
 from .outputs import add_output_options
 
@@ -22,11 +22,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help="summarize a capture: duration, packets, polls, latencies, bus load",
                        description="Summarize a capture of any format: duration, bytes, packets by type, per-servo "
                                    "request and return counts, poll rates, reply latency, bus load, findings.")
-    p.add_argument("input", metavar="INPUT", help="capture file (.bin/.raw, .hex, timestamped hex, .mcap) or - for stdin")
+    p.add_argument("input", metavar="INPUT",
+                   help="capture file (.bin/.raw, .hex, timestamped hex, .mcap) or - for stdin")
     add_decode_options(p)
     add_live_options(p)
     add_lint_options(p)
-    p.add_argument("--format", choices=("text", "json"), default="text", help="output format (default text)")
+    add_format_option(p, ("text", "json"), default="text",
+                      help="output format (default text)")
     add_time_format_option(p)
     add_output_options(p)
     p.set_defaults(run=run)
@@ -44,7 +46,8 @@ def run(args: argparse.Namespace) -> int:
     stats.timing_unsupported = getattr(settings, "timing_unsupported", None)  # the times contradict the baud
     stats.stalls = getattr(source, "stalls", stats.stalls)  # a live reader that fell behind (its own list)
     # A file takes the columnar path (the same figures); a port, record by record.
-    drive(source, Decoder(opts, linter, columnar=columnar_for(source)), stats, *live_sinks(settings, source, args.input))
+    drive(source, Decoder(opts, linter, columnar=columnar_for(source)), stats,
+          *live_sinks(settings, source, args.input))
     no_data(args.input, stats, source)
     stats.wall_anchor = capture_start_time(source)  # wall-clock times beside capture times, where the log has them
     shown = settings.as_json()

@@ -26,7 +26,7 @@ from ..sinks.lines import FindingsSink, ProgressSink
 from ..sinks.stats import CaptureStats
 from .common import (CliError, check_positive, config_layer, is_live, lint_config, live_sinks, no_data, open_input,
                      settings_for)
-from .options import add_decode_options, add_lint_selection, add_live_options
+from .options import add_decode_options, add_format_option, add_lint_selection, add_live_options
 from ..sinks.outputs import check_output, output_stream
 from .outputs import add_output_options
 
@@ -46,7 +46,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="change a rule's severity (error, warning, info); repeatable")
     p.add_argument("--fail-on", choices=FAIL_ON, default=None,
                    help="lowest severity that makes the exit code 1 (default error)")
-    p.add_argument("--format", choices=FORMATS, default=None, help="report format (default text)")
+    add_format_option(p, FORMATS, default=None,
+                      help="report format (default text)")
     p.add_argument("-j", "--jobs", type=int, default=1, metavar="N", help="lint N files in parallel (default 1)")
     add_output_options(p)
     p.add_argument("--allow-empty", action="store_true",

@@ -19,8 +19,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("rules", help="list the lint rules, or show one rule's documentation",
                        description="List every lint rule, or print the documentation of one (by code or name).")
     p.add_argument("rule", nargs="?", metavar="CODE|NAME", help="a rule code (F001) or name (checksum-mismatch)")
-    p.add_argument("--format", choices=("text", "json", "markdown"), default="text",
-                   help="text (default), json, or markdown (what docs/rules.md holds)")
+    add_format_option(p, ("text", "json", "markdown"), default="text",
+                      help="text (default), json, or markdown (what docs/rules.md holds)")
     add_output_options(p)
     add_config_options(p)  # the config file's user rules ([[rule]]) are listed with the built-in ones
     p.set_defaults(run=run)

@@ -12,7 +12,7 @@ from ..protocol.memmap import default_registry
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
 from .common import CliError, make_linter, no_data, open_input, settings_for
-from .options import add_decode_options, add_lint_options
+from .options import add_decode_options, add_format_option, add_lint_options
 from ..sinks.outputs import STDOUT, check_output, output_path, report_end
 
 
@@ -30,8 +30,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="which table (`export --table KIND` is read as `table --of KIND`)")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="table to write (.csv, .parquet); - writes CSV (or --format parquet) to stdout")
-    p.add_argument("--format", choices=TABLE_FORMATS, default=None,
-                   help="table format (default: from OUT's extension)")
+    add_format_option(p, TABLE_FORMATS, default=None,
+                      help="table format (default: from OUT's extension)")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     add_decode_options(p)
     add_lint_options(p)
