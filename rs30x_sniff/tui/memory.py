@@ -26,9 +26,9 @@ def record_size(rec: Record) -> int:
     size = _SIZES.get(key)
     if size is None:
         size = _RECORD_BASE + sys.getsizeof(ev) + sys.getsizeof(ev.raw) + 8  # + the history list's slot
-        if t is ShortPacket or t is ReturnPacket:
+        if type(ev) is ShortPacket or type(ev) is ReturnPacket:  # (a new size: once per shape)
             size += sys.getsizeof(ev.data)
-        elif t is LongPacket:
+        elif type(ev) is LongPacket:
             recs = ev.records
             size += sys.getsizeof(recs) + sum(sys.getsizeof(r) + sys.getsizeof(r.data) for r in recs)
         if len(_SIZES) < 4096:

@@ -79,9 +79,10 @@ def block_messages(ch: Any, blk: Block, emit: Any) -> None:
     blob, lo, base = run.blob, blk.lo, run.base
     starts, ends = run.starts[lo:blk.hi].tolist(), run.ends[lo:blk.hi].tolist()
     kinds = blk.cols["kind"].tolist()
-    timed = blk.t0 is not None
-    t0 = blk.t0.tolist() if timed else None
-    lat = blk.latencies().tolist() if timed else None
+    c0, lats = blk.t0, blk.latencies()
+    timed = c0 is not None
+    t0: list[Any] = c0.tolist() if c0 is not None else []  # (read only when timed)
+    lat: list[Any] = lats.tolist() if lats is not None else []
     answered = blk.answered.tolist()
     packets = block_json_rows(blk, None, compact=True)
     time_of = ch.time_of
