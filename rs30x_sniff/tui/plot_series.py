@@ -54,14 +54,14 @@ class PlottedSeries:
         register = self.register
         first_seq = history.first_seq
         for seg, start in history.newest_first():
-            if type(seg) is not list:
+            if type(seg) is Block:  # (else a list of Records; Block is final: narrowed both ways)
                 hidden = max(0, first_seq - start)
                 wanted = [i for i in ids if i not in full]
-                for sid, (ts, vs) in block_points(seg, wanted, register, byte_seconds, hidden).items():
+                for sid, (bts, bvs) in block_points(seg, wanted, register, byte_seconds, hidden).items():
                     fts, fvs = found[sid]
                     need = points - len(fvs)
-                    fts += ts[::-1][:need].tolist()
-                    fvs += vs[::-1][:need].tolist()
+                    fts += bts[::-1][:need].tolist()
+                    fvs += bvs[::-1][:need].tolist()
                     if len(fvs) >= points:
                         full.add(sid)
                 if len(full) == len(ids):
