@@ -1,14 +1,17 @@
-"""Benchmark: the monitor's gc.freeze (MonitorApp._freeze, every FREEZE_ROWS rows) over an hour of live traffic.
+"""Benchmark: the monitor's gc.freeze (every FREEZE_ROWS rows, as it was) over an hour of live traffic, and without.
 
 The simulator's hexapod at 230400 baud (the bus about 83 % busy), made once for --make seconds and laid end to end
 (times shifted) up to --hours of capture, is replayed into the monitor as a port feeds it (a ReplaySource: paced,
 decoded record by record, the live path's batches), as fast as the monitor takes it, headless at 160x48. Each
-variant runs in a process of its own: `freeze` as shipped, `none` with FREEZE_ROWS never reached. Measured per
+variant runs in a process of its own: `none` as shipped (the monitor freezes nothing since this bench), `freeze` with
+the policy it measured and removed (after each FREEZE_ROWS rows the store takes, gc.collect() then gc.freeze()). Per
 variant: the process's CPU time, the cyclic collector's pauses (gc.callbacks: count, total and longest per
 generation, the freezes' own gc.collect included), objects left frozen, peak RSS and the rows seen.
 
 Run: .venv/bin/python bench/gc_freeze.py [--hours 1] [--make 300] [--variants freeze,none]
-Keep gc.freeze only if it measurably helps (CPU or pauses) over the hour.
+Keep gc.freeze only if it measurably helps (CPU or pauses) over the hour. Two runs on a shared 2-core machine (the
+variants' order swapped): freeze/none CPU 0.92 and 1.11 (the variant run second was the slower both times),
+collector time 1.51 and 1.34, pauses over 500 ms 31 against 9 (second run). It did not help, and went.
 """
 
 from __future__ import annotations
@@ -29,10 +32,10 @@ from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.sim.source import SimulatorSource
 from rs30x_sniff.sources.captures import write_capture
 from rs30x_sniff.sources.feeds import ReplaySource
-from rs30x_sniff.tui import app as app_module
 from rs30x_sniff.tui.app import make_app
 
 BAUD = 230400
+FREEZE_ROWS = 100_000  # the removed policy: rows between two gc.freeze
 
 
 def make_hour(path: str, hours: float, make: float) -> int:
@@ -67,8 +70,27 @@ class Pauses:
         self.all.append(took)
 
 
-async def watch(path: str, limit: float) -> dict:
+def freeze_every(store, rows: int) -> None:
+    """The policy the monitor had: after each ``rows`` rows the store took, a full collection, then gc.freeze."""
+    add = store.add
+    unfrozen = [0]
+
+    def adding(*args, **kw):
+        end = store.end_seq
+        add(*args, **kw)
+        unfrozen[0] += store.end_seq - end
+        if unfrozen[0] >= rows:
+            gc.collect()
+            gc.freeze()
+            unfrozen[0] = 0
+
+    store.add = adding
+
+
+async def watch(path: str, limit: float, freeze: bool) -> dict:
     app = make_app(ReplaySource(path, speed=1e9), DecodeOptions())
+    if freeze:
+        freeze_every(app.store, FREEZE_ROWS)
     pauses = Pauses()
     cpu0 = time.process_time()
     t0 = time.perf_counter()
@@ -104,9 +126,7 @@ def main() -> None:
     ap.add_argument("--path", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        if args.child == "none":
-            app_module.FREEZE_ROWS = float("inf")  # type: ignore[assignment] - never reached: no freeze
-        print(json.dumps(asyncio.run(watch(args.path, args.limit))))
+        print(json.dumps(asyncio.run(watch(args.path, args.limit, args.child == "freeze"))))
         return
     with tempfile.TemporaryDirectory() as tmp:
         path = str(Path(tmp) / "hour.thex")

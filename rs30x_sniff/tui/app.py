@@ -43,7 +43,6 @@ NARROW_WIDTH = 120    # columns under which the detail pane hides and the bottom
 WIDE_WIDTH = 160      # columns under which the findings and the plot take turns beside the servos
 SHORT_HEIGHT = 32     # rows under which the bottom panes get fewer rows
 BOTTOM_PANES = ("servos", "findings", "plot")
-FREEZE_ROWS = 100_000  # rows between two gc.freeze (MonitorApp._freeze)
 # The cyclic collector's thresholds while the monitor runs: a young collection every 50,000 allocations
 # rather than 700 (drawing a screen allocates tens of thousands of objects a second, nearly all freed by
 # reference counting before a collection would see them), a full one only after 100 of the middle
@@ -128,7 +127,6 @@ class MonitorApp(App):
         self.started = config.clock()
         self.done = False
         self.batches = 0
-        self._unfrozen = 0  # rows added since the last gc.freeze (_freeze)
         self._gc_thresholds: tuple[int, int, int] | None = None  # the process's, restored at unmount
         self._redraws = 0     # redraws of the panes for batches (_refresh_views)
         self._ticked_at = -1  # _redraws at the last tick
@@ -231,11 +229,9 @@ class MonitorApp(App):
             if self.times.note:
                 self.info.times, self.info.times_fallback = "since start (no wall clock)", True
                 self.notify(clean(self.times.note), timeout=6)
-        end = store.end_seq
+        # No gc.freeze of the store's rows: over an hour of the hexapod at 230400 baud it saved no CPU and made the
+        # collector's pauses longer in sum and more often over 0.5 s (bench/gc_freeze.py); GC_THRESHOLDS is enough.
         store.add(b.records, b.findings, b.servos, b.bytes_in, b.stats)
-        self._unfrozen += store.end_seq - end
-        if self._unfrozen >= FREEZE_ROWS:
-            self._freeze()
         self.batches += 1
         self.info.recording = b.recording
         if b.note:
@@ -254,20 +250,6 @@ class MonitorApp(App):
         if store.plot_id is None and store.servos:
             store.set_plot(min(store.servos))
         self._refresh_views(new_findings=bool(b.findings))
-
-    def _freeze(self) -> None:
-        """Put what lives now out of the cyclic collector's reach (gc.freeze), after a collection.
-
-        The store's records live long and hold no reference cycles (a reply points back by weak reference):
-        frozen, they cost no full collection over the whole history; evicted ones are still freed by
-        reference counting. Not at every batch: a frozen object that later becomes garbage of a cycle is
-        never freed, and Textual's drawn lines (Strips, whose caches refer to themselves) are such garbage
-        once dropped. Frozen at every batch, some 9,000 objects a second were kept for ever (the hexapod at
-        230400 baud); frozen every FREEZE_ROWS rows, after a collection, a few thousand every minute or
-        two. The collector's own thresholds (GC_THRESHOLDS) keep the young collections few meanwhile."""
-        gc.collect()
-        gc.freeze()
-        self._unfrozen = 0
 
     def _refresh_views(self, new_findings: bool = False) -> None:
         timeline = self.timeline

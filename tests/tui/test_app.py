@@ -506,20 +506,6 @@ async def test_the_collector_thresholds_hold_while_the_monitor_runs_and_are_rest
     assert gc.get_threshold() == before
 
 
-async def test_rows_are_frozen_out_of_the_collector_every_freeze_rows_not_every_batch(monkeypatch):
-    from rs30x_sniff.tui import app as app_module
-
-    frozen: list[int] = []
-    monkeypatch.setattr(app_module.gc, "freeze", lambda: frozen.append(app.store.end_seq))
-    monkeypatch.setattr(app_module, "FREEZE_ROWS", 15)
-    chunks = [(encode_short(1, 0, 30, bytes((i, 0))), i * 0.01) for i in range(60)]
-    app = make_app(GatedSource(chunks, threading.Event()), DecodeOptions(), clock=FrozenClock(), post_interval=0)
-    async with app.run_test(size=SIZE) as pilot:
-        await wait_done(pilot, app)
-    assert app.store.end_seq == 60 and app.batches > len(frozen) >= 3
-    assert all(b - a >= 15 for a, b in zip([0, *frozen], frozen))
-
-
 async def test_the_timeline_grows_without_a_layout_and_its_scrollbar_and_scroll_keep_up():
     chunks = [(encode_short(1, 0, 30, bytes((i % 256, 0))), i * 0.01) for i in range(200)]
     gate = threading.Event()
