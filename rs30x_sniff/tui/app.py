@@ -230,7 +230,7 @@ class MonitorApp(App):
                 self.info.times, self.info.times_fallback = "since start (no wall clock)", True
                 self.notify(clean(self.times.note), timeout=6)
         # No gc.freeze of the store's rows: over an hour of the hexapod at 230400 baud it saved no CPU and made the
-        # collector's pauses longer in sum and more often over 0.5 s (bench/gc_freeze.py); GC_THRESHOLDS is enough.
+        # collector's pauses longer in sum and more often over 0.5 s (bench/gc_freeze.py): GC_THRESHOLDS alone rules it.
         store.add(b.records, b.findings, b.servos, b.bytes_in, b.stats)
         self.batches += 1
         self.info.recording = b.recording
