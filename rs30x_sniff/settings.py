@@ -202,8 +202,9 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
         if key in DURATIONS and isinstance(value, str):  # "50ms": language.py's grammar, as on the command line
             try:
                 value = parse_duration(value)
-            except LanguageError as e:
-                raise SettingsError(f"{_label(key, value, where)}: {e}") from None
+            except LanguageError as e:  # its text begins with the value, which the label says already
+                why = str(e).removeprefix(value.strip() + ": ")
+                raise SettingsError(f"{_label(key, value, where)}: {why}") from None
         problem = spec.check(value)
         if problem:
             raise SettingsError(f"{_label(key, value, where)}: {problem}")

@@ -220,7 +220,7 @@ def test_config_found_upwards_and_own_file_wins(capsys, tmp_path, monkeypatch):
     ('[tool.rs30x-sniff]\nslect = ["F"]\n', "[tool.rs30x-sniff]: unknown key 'slect'"),
     ('[tool.rs30x-sniff]\nselect = ["F999"]\n', "select: unknown rule 'F999'"),
     ('[tool.rs30x-sniff]\nseverity = { P009 = "loud" }\n', "severity.P009: level must be one of"),
-    ('[tool.rs30x-sniff]\nreply-timeout = "fast"\n', "reply-timeout = 'fast': must be a number"),
+    ('[tool.rs30x-sniff]\nreply-timeout = "fast"\n', "reply-timeout = 'fast': expected a duration such as 50ms"),
     ('[tool.rs30x-sniff]\nmodels = { 3 = "RS999" }\n', "unknown model 'RS999'"),
     ('[tool.rs30x-sniff\n', "not valid TOML"),
 ])
