@@ -20,7 +20,7 @@ from rs30x_sniff import cli
 from rs30x_sniff.sinks import outputs
 from rs30x_sniff.sinks.mcap import writer as mcap_sink
 from rs30x_sniff.settings import KEYS
-from tests.e2e.helpers import Pty
+from tests.e2e.helpers import Pty, wait_opened
 
 ROOT = Path(__file__).resolve().parents[2]
 SESSION = ROOT / "captures" / "session-mixed.thex"
@@ -88,7 +88,7 @@ def test_record_streams_mcap_to_stdout(tmp_path):
         proc = subprocess.Popen([sys.executable, "-m", "rs30x_sniff", "record", pty.path, "-o", "-", "--duration",
                                  "2.5", "--no-lint"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 env={**os.environ, "PYTHONPATH": str(ROOT)})
-        time.sleep(1.0)
+        wait_opened(pty.path, proc)
         sent = pty.write_sim("hexapod", duration=0.6)
         out, err = proc.communicate(timeout=30)
     finally:
