@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections import deque
-from typing import Any, Protocol, TypeVar, final
+from typing import Any, Protocol, TypeVar, cast, final
 from collections.abc import Callable, Collection, Iterable, Mapping
 from weakref import ref
 
@@ -12,7 +12,7 @@ import numpy as np
 from .frame_runs import LONG, RETURN, SHORT
 from ..protocol.events import (
     ADDRESS, CAPTURE_START, CHECKSUM_OK, DATA, FLAG, ID, LONG_ADDRESS, LONG_CHECKSUM_OK, LONG_LENGTH, LONG_RECORDS,
-    REASON, T_END, T_START, Ack, AnyEvent, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket)
+    REASON, T_END, T_START, Ack, AnyEvent, Garbage, LongPacket, Nack, Packet, ReturnPacket, ShortPacket)
 from ..protocol.memmap import Field, Model, ModelRegistry, default_registry
 from ..protocol.wire import AT_DATA, BROADCAST_ID, FLAG_WANTS_REPLY, LONG_PACKET_ID, SUM_SIZE
 
@@ -224,7 +224,8 @@ class Record:
             return []
         if isinstance(lay, list):
             return [x for (sub, d, vid) in lay for x in sub.fields(d, sub.values(d), vid)]
-        return lay.fields(data, lay.values(data) if values is None else values, self.event.id)
+        # a layout comes only with a packet's data, and every packet names a servo (LongPacket's id is 0)
+        return lay.fields(data, lay.values(data) if values is None else values, cast(Packet, self.event).id)
 
     def data_layout(self):
         """(layout, data) for the packet's data; for a long packet to servos of mixed models, a list."""
@@ -260,7 +261,7 @@ class Record:
             return []
         if isinstance(lay, list):
             return [x for sub, d, vid in lay for x in sub.named_values(d, sub.values(d), vid)]
-        return lay.named_values(data, self.values, self.event.id)
+        return lay.named_values(data, self.values, cast(Packet, self.event).id)  # a layout means a packet
 
     @property
     def read_names(self) -> list[str]:
@@ -269,6 +270,7 @@ class Record:
         if type(ev) is ShortPacket:
             rr = ev.read_range
             if rr is not None:
+                assert self.model is not None, "a short packet's record carries its servo's model (feed_into)"
                 return self.model.names_in(*rr)
         return []
 

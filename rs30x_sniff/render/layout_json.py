@@ -11,9 +11,10 @@ looked up by its raw value (:func:`value_text`). The templates are kept in the l
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Any, cast
 
 from ..decode.pairing import Record
+from ..protocol.events import Packet
 from ..protocol.codegen import SERVO, percent_function
 from ..protocol.memmap import ByRaw, Layout, Register
 from ..protocol.wire import AT_ADDRESS, AT_COUNT, AT_DATA, AT_LENGTH, FRAME_OVERHEAD, SUM_SIZE
@@ -167,4 +168,4 @@ def record_fields_json(rec: Record, only: set[int] | None = None, compact: bool 
     if isinstance(lay, list):
         parts = [fields_json(sub, d, sub.values(d), vid, only, compact) for sub, d, vid in lay]
         return ("," if compact else ", ").join(p for p in parts if p)
-    return fields_json(lay, data, rec.values, rec.event.id, only, compact)
+    return fields_json(lay, data, rec.values, cast(Packet, rec.event).id, only, compact)  # a layout means a packet

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
+from typing import cast
 import numpy as np
 
 from ..decode.blocks import Block
@@ -62,7 +63,9 @@ class Stats:
         missing = 0
         first_t = self.first_t
         last_t = None
-        seg_t, closed, prev_t = self.segment_t, self.closed_span, self.last_t
+        # segment_t and last_t are None only while first_t is, and the loop reads them only after it set
+        # first_t: typed as floats here rather than tested on every record
+        seg_t, closed, prev_t = cast(float, self.segment_t), self.closed_span, cast(float, self.last_t)
         for rec in records:
             ev = rec.event
             kinds[ev.kind] += 1
@@ -95,10 +98,11 @@ class Stats:
         t0 = blk.t0
         if t0 is not None:
             t = float(t0[0])
-            if self.first_t is None:
+            last, seg = self.last_t, self.segment_t
+            if self.first_t is None or last is None or seg is None:  # all three are set together
                 self.first_t = self.segment_t = t
-            elif t < self.last_t - SEAM_BACK_S or t - self.last_t > SEAM_GAP_S:  # a Block never spans a seam
-                self.closed_span += max(0.0, self.last_t - self.segment_t)
+            elif t < last - SEAM_BACK_S or t - last > SEAM_GAP_S:  # a Block never spans a seam
+                self.closed_span += max(0.0, last - seg)
                 self.segment_t = t
             self.last_t = float(t0[-1])
             run = blk.run

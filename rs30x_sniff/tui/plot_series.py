@@ -69,7 +69,8 @@ class PlottedSeries:
                 continue
             for rec in reversed(seg):
                 ev = rec.event
-                for sid in ids if type(ev) is LongPacket else ((ev.id,) if getattr(ev, "id", None) in found else ()):
+                one: int = getattr(ev, "id", -1)  # -1: no servo (ACK, NACK, garbage), never a key of found
+                for sid in ids if type(ev) is LongPacket else ((one,) if one in found else ()):
                     if sid in full:
                         continue
                     v = register_value(rec, sid, register)
@@ -100,11 +101,11 @@ class PlottedSeries:
                         ts.append(ev.offset * byte_seconds if t is None else t)
                         vs.append(float(v))
             else:
-                sid = getattr(ev, "id", None)
-                if sid in series:
-                    v = register_value(rec, sid, register)
+                one = getattr(ev, "id", -1)  # -1: no servo, never a key of series
+                if one in series:
+                    v = register_value(rec, one, register)
                     if isinstance(v, (int, float)):
-                        ts, vs = series[sid]
+                        ts, vs = series[one]
                         t = ev.t_start
                         ts.append(ev.offset * byte_seconds if t is None else t)
                         vs.append(float(v))

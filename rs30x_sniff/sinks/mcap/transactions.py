@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
-from ...protocol.events import ShortPacket
+from ...protocol.events import Packet, ShortPacket
 
 if TYPE_CHECKING:  # names for the checker; no import at run time
     from ...decode.pairing import Record
@@ -12,7 +12,7 @@ if TYPE_CHECKING:  # names for the checker; no import at run time
 
 def transaction_json(rec: Record) -> dict[str, Any]:
     """A request that expects a reply, with its reply and latency (the /rs30x/transactions object)."""
-    ev = rec.event
+    ev = cast(Packet, rec.event)  # a request is a short or long packet
     reply = rec.reply
     rev = reply.event if reply is not None else None
     return {
