@@ -6,6 +6,7 @@ from bisect import bisect_right
 from dataclasses import dataclass
 from functools import reduce
 from operator import xor
+from typing import cast
 
 import numpy as np
 
@@ -162,7 +163,7 @@ class FrameDecoder:
         """The seam a chunk stamped ``t`` opens, if any (the previous chunk had a time)."""
         if self._source_gap is not None:
             return SEAM_SOURCE
-        if t < self._chunk_t - SEAM_BACK_S:
+        if t < cast(float, self._chunk_t) - SEAM_BACK_S:  # callers test _chunk_t first
             return SEAM_RESTART
         if self._last_t is not None and t - self._last_t > SEAM_GAP_S:
             return SEAM_GAP
@@ -278,12 +279,14 @@ class FrameDecoder:
         if t is not None and self._last_t is not None:
             earliest = self._last_t + self.byte_time
             if t < earliest - self.byte_time / 4:  # a quarter byte of slack for rounded timestamps
+                # the three clocks are set together (below and in feed_many): typed here, not tested
+                chunk_t, start_t = cast(float, self._chunk_t), cast(float, self._start_t)
                 # Backwards: stamped before the previous chunk's own stamp (not its corrected time).
-                kind = TIME_BACKWARDS if t < self._chunk_t else TIME_TOO_CLOSE
+                kind = TIME_BACKWARDS if t < chunk_t else TIME_TOO_CLOSE
                 # Held at the previous chunk's start, not pushed past its last byte: at a wrong baud rate
                 # every chunk comes "too close", and pushing each one on would run the clock ahead of the
                 # capture without bound (a 6 s recording stamped as 31.8 s). Latencies never go below 0.
-                placed = self._start_t if t < self._start_t else t
+                placed = start_t if t < start_t else t
                 fault = self.time_faults.get(kind)
                 if fault is None:
                     self.time_faults[kind] = TimeFault(kind, start, t, earliest, placed)

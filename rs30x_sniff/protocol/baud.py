@@ -101,7 +101,7 @@ def estimate_baud(chunks: Iterable[tuple[bytes, float | None]], rates: Iterable[
 
 def contradicts(estimate: BaudEstimate | None, baud: int, min_score: float = 0.2) -> bool:
     """Whether a confident estimate names another rate than ``baud`` (the one the capture is decoded at)."""
-    return bool(estimate) and estimate.baud != baud and estimate.score >= min_score
+    return estimate is not None and bool(estimate) and estimate.baud != baud and estimate.score >= min_score
 
 
 # ---- rates the timestamps rule out ------------------------------------------------------------

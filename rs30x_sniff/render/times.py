@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, cast
 from collections.abc import Callable, Iterable
 
 import numpy as np
@@ -116,13 +116,15 @@ class TimeForm:
     def value(self, t: float | None, prev: float | None = None) -> float | str | None:
         """The shown time of an event at ``t`` (``prev``: the previous event's, for delta), as :func:`time_text`
         writes it. Call :meth:`start` first."""
+        # After start, origin is set, and wall too where absolute or epoch is shown (start falls back to
+        # relative without it): casts, not tests, on this per-line path.
         shown = self.shown
         if shown == RELATIVE:
-            return None if t is None else t - self.origin
+            return None if t is None else t - cast(float, self.origin)
         if shown == EPOCH:
-            return None if t is None else self.wall + t
+            return None if t is None else cast(float, self.wall) + t
         if shown == ABSOLUTE:
-            return NO_TIME_WIDE if t is None else wall_text(self.wall + t)
+            return NO_TIME_WIDE if t is None else wall_text(cast(float, self.wall) + t)
         return delta_text(t, prev, self.first)
 
     def values(self, t0: np.ndarray, prev: float | None = None) -> list | None:
@@ -143,12 +145,12 @@ class TimeForm:
     def seconds(self, t: float) -> str:
         """A summary's time (info: "at ...", "from ..."), to two places: seconds since the start, the date and
         time of day, or epoch seconds; delta is a line's form, so a summary shows seconds since the start."""
-        shown = self.shown
-        if shown == ABSOLUTE:
-            return wall_text(self.wall + t, 2)
-        if shown == EPOCH:
-            return f"{self.wall + t:.2f} s"
-        return f"{t - self.origin:.2f} s"
+        shown, wall, origin = self.shown, self.wall, self.origin
+        if shown == ABSOLUTE or shown == EPOCH:
+            assert wall is not None, "start() shows absolute or epoch times only with a wall clock"
+            return wall_text(wall + t, 2) if shown == ABSOLUTE else f"{wall + t:.2f} s"
+        assert origin is not None, "seconds() is called after start()"
+        return f"{t - origin:.2f} s"
 
 
 NO_TIME_WIDE = f"{'-':>{ABSOLUTE_WIDTH}}"

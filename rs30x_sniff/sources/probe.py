@@ -98,7 +98,7 @@ def _timestamps_layer(path: str, time_unit: str | None = None) -> dict[str, Any]
 
     sample = read_capture(path, TIMESTAMPED, warn=None, options={"time_unit": time_unit, "locate": False})
     try:
-        chunks = [c for c in itertools.islice(sample, TIMESTAMP_SAMPLE) if c[1] is not None and c[0]]
+        chunks = [(d, t) for d, t in itertools.islice(sample, TIMESTAMP_SAMPLE) if t is not None and d]
     except CaptureError:
         return {}  # a bad line: the reading command reports it where it is
     finally:
