@@ -25,10 +25,10 @@ import time
 from array import array
 from collections import deque
 from itertools import accumulate
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, cast
 
 from .captures import CaptureError
-from .serial_tap import LOST, STOP_SIGNALS, SerialTap, TapEnd
+from .serial_tap import LOST, STOP_SIGNALS, Chunk, SerialTap, TapEnd, TapQueue
 
 _PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 # The child sends what it stamped at most this often on a busy bus (one wake-up of the parent per batch,
@@ -112,12 +112,12 @@ class PipeQueue:
     def __init__(self, fd: int, tap: SerialTap) -> None:
         self._fd = fd
         self._tap = tap
-        self._items: deque = deque()
+        self._items: deque[Chunk | TapEnd] = deque()
         self._buf = bytearray()
         self._eof = False
         self.ended = False  # the child's end (or EOF) is read: nothing more comes
 
-    def put(self, item: object) -> None:
+    def put(self, item: Chunk | TapEnd) -> None:
         self._items.append(item)
 
     def first(self, timeout: float) -> tuple:
@@ -191,7 +191,7 @@ class PipeQueue:
             self.ended = True
             self._items.append(end)
 
-    def get(self, timeout: float | None = None) -> object:
+    def get(self, timeout: float | None = None) -> Chunk | TapEnd:
         items = self._items
         if not items:
             end = None if timeout is None else time.monotonic() + timeout
@@ -205,7 +205,7 @@ class PipeQueue:
                 self._take(left)
         return items.popleft()
 
-    def get_nowait(self) -> object:
+    def get_nowait(self) -> Chunk | TapEnd:
         return self.get(0)
 
     def empty(self) -> bool:
@@ -213,7 +213,7 @@ class PipeQueue:
             self._take(0)
         return not self._items
 
-    def take_all(self) -> list:
+    def take_all(self) -> list[Chunk | TapEnd]:
         self._take(0)
         items = self._items
         return [items.popleft() for _ in range(len(items))]
@@ -301,7 +301,7 @@ def serve(args: dict[str, Any], stdin: BinaryIO, out: BinaryIO) -> None:
         return
     _send(out, ("open", tap.wall_start_ns, tap.start_ns))
     sender = _Sender(out, tap)
-    tap.queue = sender
+    tap.queue = cast(TapQueue, sender)  # in the child only the reader's put is called
 
     def watch() -> None:
         try:

@@ -12,10 +12,17 @@ import threading
 import time
 from collections import deque
 from dataclasses import dataclass
+from types import FrameType
+from typing import TYPE_CHECKING, Any, Protocol, final
 from collections.abc import Callable, Iterator
 
 from ..protocol.wire import BAUD_RATES, byte_time
 from .captures import CaptureError
+
+if TYPE_CHECKING:
+    from serial import SerialBase
+
+    from .port_process import PortProcess
 
 Chunk = tuple[bytes, float]
 
@@ -69,12 +76,24 @@ def is_port(path: str) -> bool:
     return stat.S_ISCHR(st.st_mode) and os.major(st.st_rdev) != 1
 
 
+@final  # the live source tells it from a chunk by `type(item) is TapEnd`
 @dataclass(frozen=True, slots=True)
 class TapEnd:
     """The last item of a tap's queue: why its reader ended."""
 
     reason: str
     message: str
+
+
+class TapQueue(Protocol):
+    """The tap's queue as its reader puts to it and the live source takes from it: a ChunkQueue on a thread,
+    a PipeQueue from a child process (port_process.py)."""
+
+    def put(self, item: Chunk | TapEnd) -> None: ...
+    def get(self, timeout: float | None = None) -> Chunk | TapEnd: ...
+    def get_nowait(self) -> Chunk | TapEnd: ...
+    def empty(self) -> bool: ...
+    def take_all(self) -> list[Chunk | TapEnd]: ...
 
 
 class ChunkQueue:
@@ -86,21 +105,21 @@ class ChunkQueue:
     empties it."""
 
     def __init__(self) -> None:
-        self._items: deque = deque()
+        self._items: deque[Chunk | TapEnd] = deque()
         self._ready = threading.Event()
 
-    def put(self, item: object) -> None:
+    def put(self, item: Chunk | TapEnd) -> None:
         self._items.append(item)
         if not self._ready.is_set():
             self._ready.set()
 
-    def get_nowait(self) -> object:
+    def get_nowait(self) -> Chunk | TapEnd:
         try:
             return self._items.popleft()
         except IndexError:
             raise queue.Empty from None
 
-    def get(self, timeout: float | None = None) -> object:
+    def get(self, timeout: float | None = None) -> Chunk | TapEnd:
         end = None if timeout is None else time.monotonic() + timeout
         while True:
             try:
@@ -118,7 +137,7 @@ class ChunkQueue:
     def empty(self) -> bool:
         return not self._items
 
-    def take_all(self) -> list:
+    def take_all(self) -> list[Chunk | TapEnd]:
         items = self._items
         return [items.popleft() for _ in range(len(items))]
 
@@ -155,15 +174,15 @@ class SerialTap:
         self.clock = clock
         # Not SimpleQueue: CPython 3.11's SimpleQueue.get(timeout) can block for good when a signal (Ctrl-C)
         # interrupts it, and the main thread waits on this queue with signals live.
-        self.queue = ChunkQueue()
+        self.queue: TapQueue = ChunkQueue()
         self.bytes_read = 0
         self.start_ns = 0
         self.wall_start_ns = 0
-        self._serial = None
+        self._serial: SerialBase | None = None
         self._thread: threading.Thread | None = None
         # Read and stamped by a child process (port_process.py): the decoding in this one never delays a stamp.
         self.process = process
-        self._child = None
+        self._child: PortProcess | None = None
         self._stop = threading.Event()
         self._next_t = 0.0  # earliest start time of the next chunk (end of the previous one)
         self._last_t = 0.0  # the previous chunk's time: a stalled chunk's bound
@@ -230,6 +249,7 @@ class SerialTap:
     def run(self) -> None:
         """Read the open port until a stop or a failure, stamping each chunk into :attr:`queue`, then put a TapEnd."""
         ser = self._serial
+        assert ser is not None, "run() reads the port open_port() opened"
         put = self.queue.put
         if hasattr(signal, "pthread_sigmask") and threading.current_thread() is not threading.main_thread():
             # Ctrl-C and SIGTERM go to the main thread, whose handler stops the capture: delivered
@@ -370,7 +390,7 @@ class LiveSource:
         self.reason: str | None = None
         self.message = ""
         self._stop_signal: str | None = None
-        self._saved: dict[int, object] = {}
+        self._saved: dict[int, Callable[[int, FrameType | None], Any] | int | None] = {}
         self._deadline: float | None = None
         self._started = False
 
@@ -510,7 +530,7 @@ class LiveSource:
         finally:
             self.close()
 
-    def chunks(self, idle: float = 0.1) -> Iterator[Chunk]:
+    def chunks(self, idle: float = 0.1) -> Iterator[tuple[bytes, float | None]]:
         """Like iterating, but an empty chunk ``(b"", None)`` after each ``idle`` seconds without bytes,
         so a drive loop can refresh a status line or flush a file while the bus is quiet, and after each
         batch (``batched``): what came in one gather period is decoded as one group (Pipeline)."""
