@@ -93,6 +93,7 @@ class Register:
         if self.table is not None:
             return self.table.get(raw_value)
         scale = self.scale
+        value: float
         if scale == 1:
             value = raw_value
         elif (divisor := self.divisor) is not None:
@@ -174,8 +175,8 @@ class Register:
                     return k
             raise ValueError(f"{self.label}: no code for {value}")
         if self.enum is not None:
-            for k, v in self.enum.items():
-                if v == value:
+            for k, label in self.enum.items():
+                if label == value:
                     return k
             return int(value)
         return round((value - self.offset) / self.scale)
@@ -226,6 +227,7 @@ class Model:
     _by_address: dict[int, Register] = field(default_factory=dict, repr=False)
     _by_name: dict[str, Register] = field(default_factory=dict, repr=False)
     _layouts: dict[tuple, Layout] = field(default_factory=dict, repr=False)
+    _names: dict[tuple[int, int], tuple[str, ...]] = field(default_factory=dict, repr=False)  # names_in's
     # Line and message templates other modules compile for this model's packets (render's text and
     # JSON, the MCAP transactions), by a key they choose that starts with their tag; filled by keep.
     cache: dict[Hashable, Any] = field(default_factory=dict, repr=False)
@@ -287,10 +289,10 @@ class Model:
 
     def names_in(self, address: int, length: int) -> list[str]:
         """Register labels a read of ``length`` bytes at ``address`` covers."""
-        key = (address, length, "names")
-        names = self._layouts.get(key)
+        key = (address, length)
+        names = self._names.get(key)
         if names is None:
-            names = self._layouts[key] = tuple(reg.label for _, _, reg, _ in self.layout(address, length).parts)
+            names = self._names[key] = tuple(reg.label for _, _, reg, _ in self.layout(address, length).parts)
         return list(names)
 
 
@@ -309,7 +311,7 @@ class Layout:
     __slots__ = ("parts", "size", "records", "values", "unpack_raw", "_named", "cache")
 
     def __init__(self, model: Model, address: int, length: int, records: int = 0) -> None:
-        parts = []
+        parts: list[tuple[int, int, Register, str | None]] = []
         a, end = address, address + length
         while a < end:
             reg = model.register_at(a)
