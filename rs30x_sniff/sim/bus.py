@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from collections.abc import Iterable
+from typing import cast
 
 from ..protocol.events import LongPacket, ShortPacket
 from ..decode.framing import FrameDecoder
@@ -98,7 +99,7 @@ class SimBus:
         for ev in self._rx.feed(data, start):
             if type(ev) is not ShortPacket and type(ev) is not LongPacket:
                 continue
-            done = ev.t_end
+            done = cast(float, ev.t_end)  # every chunk fed here has its time, so every frame its end
             for servo in self.servos:
                 if servo.baud != self.baud:
                     continue  # a servo at another rate sees only framing errors

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import random
 from dataclasses import dataclass, field
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 
 from ..protocol.wire import (
     BAUD_RATES, FLAG_REBOOT, FLAG_WRITE_FLASH, RETURN_ACK, RETURN_MODE_RANGES, encode_command, encode_long,
@@ -78,7 +78,7 @@ def scenario(name: str, summary: str, duration: float, expects: tuple[str, ...] 
 
 
 def run(name: str, *, baud: int = 115200, seed: int = 0, duration: float | None = None,
-        bus: SimBus | None = None) -> Iterator[Chunk]:
+        bus: SimBus | None = None) -> Generator[Chunk, None, None]:
     """The capture of a scenario as ``(bytes, t)`` chunks (t in seconds from 0), lazily."""
     sc = get(name)
     if baud not in BAUD_RATES:

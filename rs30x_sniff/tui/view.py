@@ -39,7 +39,9 @@ class FilteredView:
         history = self.history
         start = max(self.scan_seq, history.first_seq)
         stop = min(history.end_seq, start + budget)
-        matches, seqs = self.filter.matches, self.seqs
+        flt, seqs = self.filter, self.seqs
+        assert flt is not None and seqs is not None, "a scan runs only under a filter (begin)"
+        matches = flt.matches
         for seq, recs in history.rows(start, stop):
             for k, rec in enumerate(recs):
                 if matches(rec):
@@ -57,7 +59,9 @@ class FilteredView:
 
     def add(self, seq: int, records: Iterable[Record]) -> None:
         """New rows from ``seq`` on (the scan, when running, reaches them later)."""
-        matches, seqs = self.filter.matches, self.seqs
+        flt, seqs = self.filter, self.seqs
+        assert flt is not None and seqs is not None, "called only when matching_new_rows (a filter is set)"
+        matches = flt.matches
         for k, rec in enumerate(records):
             if matches(rec):
                 seqs.append(seq + k)
