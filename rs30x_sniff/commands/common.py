@@ -7,13 +7,13 @@ import dataclasses
 import os
 import sys
 from typing import Any
-from collections.abc import Iterator
 
 from .. import language
 from ..errors import CliError
 from ..sources import probe
-from ..sources.captures import BINARY, HEX, MCAP, TIMESTAMPED, CaptureError, Chunk, detect_format
+from ..sources.captures import BINARY, HEX, MCAP, TIMESTAMPED, CaptureError, detect_format
 from ..sources.inputs import read_input
+from ..sources.protocol import Source
 from ..protocol.wire import DEFAULT_BAUD
 from ..sinks.baud_watch import BaudWatchWarning
 from ..sinks.pipeline import Sink
@@ -262,7 +262,7 @@ def check_positive(option: str, value: float | None) -> None:
 
 # ---- inputs ----------------------------------------------------------------------------------------
 def open_input(path: str, fmt: str | None, settings: Settings, *, duration: float | None = None,
-               locate: bool = False) -> Iterator[Chunk]:
+               locate: bool = False) -> Source:
     """Chunks from a capture file (or '-' for stdin), or live from a serial port, as ``settings`` say.
 
     A port (a character device such as /dev/ttyUSB0, or a pyserial URL such as socket://host:port)
