@@ -57,7 +57,7 @@ from __future__ import annotations
 import calendar
 import re
 from datetime import datetime
-from typing import BinaryIO
+from typing import BinaryIO, cast
 from collections.abc import Callable, Iterator
 
 from ..protocol.chunks import HOST, SERVO, Marked
@@ -303,7 +303,7 @@ def _read_spy(stream: BinaryIO, ctx: ReadContext) -> Iterator[Chunk]:
         data = _spy_data(body)
         if data is None:
             raise _error(path, lineno, "not a spy:// hex dump row (offset, 16 bytes, characters)", line)
-        r = _SPY_ROW.fullmatch(rest)
+        r = cast("re.Match[bytes]", _SPY_ROW.fullmatch(rest))  # _spy_data matched this same row
         off = int(r.group(1), 16)
         if off == 0:
             yield from done()
@@ -676,7 +676,7 @@ def _read_slsnif(stream: BinaryIO, ctx: ReadContext) -> Iterator[Chunk]:
         if kind is None:
             raise _error(path, lineno, "not a slsnif line ('Host   --> ' or 'Device --> ' and bytes)", line)
         if kind == "data":
-            m = _SLS_DATA.fullmatch(line)
+            m = cast("re.Match[bytes]", _SLS_DATA.fullmatch(line))  # _sls_line_kind matched it: "data"
             data = _sls_bytes(m.group(2))
             if data is None:
                 raise _error(path, lineno, "not slsnif bytes ('c (xx) ' with -x, 'c (ddd) ' without)", line)
