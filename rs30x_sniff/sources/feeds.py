@@ -101,8 +101,8 @@ class FileSource:
         # here as in every other command, so the monitor's latencies are info's.
         # ``options`` go to another tool's reader (a logic capture's channel and rate).
         ahead = self.reads_ahead and _big_file(path)
-        self._it = read_input(path, fmt, baud=baud, time_ref=time_ref,
-                              warn=None if ahead else self.warnings.append, options=options)
+        self._it: Iterator[Chunk] = read_input(path, fmt, baud=baud, time_ref=time_ref,
+                                               warn=None if ahead else self.warnings.append, options=options)
         self._first = next(self._it, None)  # reads the head now, so a bad file fails before the screen starts
         if ahead:
             # The child reads it all again (the same reader: the same chunks and warnings, given to the

@@ -8,14 +8,14 @@ from collections.abc import Callable
 from .timebase import FIRST, SAMPLE_CHUNKS, TimedSource, TimeRef, judge
 from . import foreign
 from .captures import MCAP, TIMESTAMPED, read_capture, regular_file, stderr_warning
-from .protocol import Source
+from .protocol import ChunkReader
 
 RECORDED = TimeRef(FIRST, "each chunk's first byte, as the log records it")
 
 
 def read_input(path: str, fmt: str | None = None, *, baud: int, time_ref: str | None = None,
                warn: Callable[[str], None] | None = stderr_warning,
-               options: dict | None = None) -> Source:
+               options: dict | None = None) -> ChunkReader:
     """The chunks of a capture file (or ``-``/a pipe), their times meaning each chunk's first byte.
 
     Timestamped hex from another tool's logger is often stamped at arrival (the end of the read):

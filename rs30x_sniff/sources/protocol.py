@@ -36,3 +36,10 @@ class Source(Pacing, Protocol):
     (rs30x_sniff.protocol.chunks), and how they come."""
 
     def __iter__(self) -> Iterator[Chunk]: ...
+
+
+class ChunkReader(Source, Protocol):
+    """A capture being read (rs30x_sniff.sources.inputs.read_input): a Source that is its own iterator, so
+    ``next()`` takes its head before the rest is read."""
+
+    def __next__(self) -> Chunk: ...
