@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from typing import IO
+from collections.abc import Iterable
 
 from ..sources.captures import FORMATS, MCAP, format_for_output, write_capture
 from ..protocol.wire import BAUD_RATES, DEFAULT_BAUD
@@ -64,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
     check_positive("--duration", args.duration)
     if not args.output and not args.port:
         raise CliError("say where the bus goes: -o FILE, --port PORT, or both")
-    chunks = scenarios.run(args.scenario, baud=args.baud, seed=args.seed, duration=args.duration)
+    chunks: Iterable[tuple[bytes, float]] = scenarios.run(args.scenario, baud=args.baud, seed=args.seed,
+                                                          duration=args.duration)
     if args.output:
         fmt = format_for_output(args.output, args.format)
         if args.port:
