@@ -414,9 +414,9 @@ def write_step_summary(results: list[FileResult], out: IO[str], fail_on: str = "
             w(f"\n{_plural(len(baseline.stale), 'baseline entry', 'baseline entries')} no longer seen (stale; "
               f"--write-baseline to drop them):\n\n")
             w("| code | servo | message | count before |\n|---|---:|---|---:|\n")
-            for e in baseline.stale:
-                sid = str(e.id) if e.id is not None else "bus"
-                w(f"| {md_cell(e.code)} | {sid} | {md_cell(e.message)} | {e.count} |\n")
+            for entry in baseline.stale:  # not ``e``: the errors' loop above holds strings in it
+                sid = str(entry.id) if entry.id is not None else "bus"
+                w(f"| {md_cell(entry.code)} | {sid} | {md_cell(entry.message)} | {entry.count} |\n")
 
 
 WRITERS = {"text": write_text, "json": write_json, "junit": write_junit, "sarif": write_sarif,
