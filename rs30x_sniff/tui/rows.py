@@ -102,10 +102,10 @@ def row_pieces(rec: Record, prev_t: float | None, compact: bool = False,
                times: TimeForm | None = None) -> list[tuple[str, str]]:
     """row_text's pieces as (text, style) pairs: the timeline draws them as segments without a Text."""
     ev = rec.event
-    out = []
+    out: list[tuple[str, str]] = []
     add = out.append
     sev = worst_severity(rec)
-    add((SEVERITY_MARKS.get(sev, " ") if sev else " ", SEVERITY_STYLES.get(sev, "")))
+    add((SEVERITY_MARKS.get(sev, " "), SEVERITY_STYLES.get(sev, "")) if sev else (" ", ""))
     t = ev.t_start
     if t is not None:
         add((" " + time_cell(t, prev_t, times, compact), "grey70"))
