@@ -6,8 +6,8 @@ import math
 import operator
 import re
 from dataclasses import dataclass
-from typing import Any
-from collections.abc import Callable
+from typing import Any, Protocol, cast
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -47,10 +47,36 @@ FindingPredicate = Callable[[Any], bool]
 # A term's column form: (maybe, surely) over a Block's rows (rs30x_sniff.decode.blocks), two boolean arrays:
 # the rows whose records the term may match (never missing one), and those it surely matches. A term
 # without one is read as maybe everywhere, surely nowhere. The predicates carry it as ``.column``, with
-# ``.kinds`` (the event kinds a record it matches can have; absent: any) and ``.timed`` (it reads times).
+# ``.kinds`` (the event kinds a record it matches can have; None: any) and ``.timed`` (it reads times).
 # A column form with ``.narrows`` set also takes ``among`` (a boolean mask of rows still in question) and
 # need only be right on those: a register's bytes are then read for the rows the earlier terms left.
 ColumnTerm = Callable[[Any], "tuple[np.ndarray, np.ndarray]"]
+
+
+class ColumnForm(Protocol):
+    """A term's column form as the terms carry it: a function of a Block, marked whether it narrows."""
+
+    narrows: bool
+
+    def __call__(self, blk: Any, /) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+class NarrowingColumnForm(ColumnForm, Protocol):
+    """A column form with ``narrows`` set: it also takes ``among``, the rows still in question."""
+
+    def __call__(self, blk: Any, /, among: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+class Term(Protocol):
+    """A parsed term: a test of a record that carries its column form, its event kinds and whether it reads
+    times. The terms are plain functions given these attributes by :func:`_with` (a call of a function
+    is cheaper than one of an object's ``__call__``, and a filter calls its terms once a record)."""
+
+    column: ColumnForm | None
+    kinds: frozenset[str] | None
+    timed: bool
+
+    def __call__(self, rec: Record, /) -> bool: ...
 
 
 @dataclass(frozen=True)
@@ -58,7 +84,7 @@ class Filter:
     """A parsed filter: every term must match (terms prefixed with ``-`` or ``!`` must not)."""
 
     text: str
-    terms: tuple[Predicate, ...]
+    terms: tuple[Term, ...]
     uses_text: bool = False  # free-text terms need the rendered summary (slower)
     # The terms as tests of a lint finding shown apart from its record; None when a term cannot judge
     # one (kind, reg, latency ask for packets of a sort, and such a finding is not one).
@@ -93,9 +119,10 @@ class Filter:
         that :meth:`matches`; rows it cannot rule out on the columns count as may-match too)."""
         maybe = np.ones(len(blk), dtype=bool)
         for term in self.terms:
-            col = getattr(term, "column", None)
+            col = term.column
             if col is not None:
-                maybe &= (col(blk, among=maybe) if getattr(col, "narrows", False) else col(blk))[0]
+                # narrows says the form takes ``among`` (a flag the type checker cannot read: cast).
+                maybe &= (cast(NarrowingColumnForm, col)(blk, among=maybe) if col.narrows else col(blk))[0]
                 if not maybe.any():  # the terms are all required: none left, none to ask the rest about
                     break
         return maybe
@@ -108,7 +135,7 @@ def parse_filter(text: str, registry: ModelRegistry | None = None) -> Filter | N
         return None
     registry = registry or default_registry()
     known = _register_names(registry)
-    terms: list[Predicate] = []
+    terms: list[Term] = []
     finding_terms: list[FindingPredicate] | None = []
     uses_text = uses_time = uses_findings = False
     kinds: frozenset[str] | None = None
@@ -142,13 +169,13 @@ def parse_filter(text: str, registry: ModelRegistry | None = None) -> Filter | N
         else:
             pred, fpred = _text(word)
             uses_text = True
-        uses_time = uses_time or getattr(pred, "timed", False)
+        uses_time = uses_time or pred.timed
         uses_findings = uses_findings or key == "sev"
         if negate:
             pred = _negate(pred)
-            fpred = None if fpred is None else _negate(fpred)
+            fpred = None if fpred is None else _negate_finding(fpred)
         else:
-            k = getattr(pred, "kinds", None)
+            k = pred.kinds
             if k is not None:
                 kinds = k if kinds is None else kinds & k
         terms.append(pred)
@@ -160,29 +187,37 @@ def parse_filter(text: str, registry: ModelRegistry | None = None) -> Filter | N
                   kinds, uses_time, uses_findings)
 
 
-def _negate(pred: Callable[[Any], bool]) -> Callable[[Any], bool]:
-    def negated(x: Any) -> bool:
-        return not pred(x)
+def _negate(pred: Term) -> Term:
+    def negated(rec: Record) -> bool:
+        return not pred(rec)
 
-    col = getattr(pred, "column", None)
+    col = pred.column
+    column: ColumnTerm | None = None
     if col is not None:
         def column(blk: Any) -> tuple[np.ndarray, np.ndarray]:
             maybe, surely = col(blk)
             return ~surely, ~maybe
-        negated.column = column  # type: ignore[attr-defined]
-    negated.timed = getattr(pred, "timed", False)  # type: ignore[attr-defined]
-    return negated
+    # A negated term matches records of any kind (the ones its term leaves out).
+    return _with(negated, column, timed=pred.timed)
 
 
-def _with(pred: Callable[[Any], bool], column: ColumnTerm | None = None, kinds: Any = None,
-          timed: bool = False) -> Callable[[Any], bool]:
-    """``pred`` with its column form, the event kinds it can match and whether it reads times."""
+def _negate_finding(fpred: FindingPredicate) -> FindingPredicate:
+    return lambda f: not fpred(f)
+
+
+def _with(pred: Predicate, column: ColumnTerm | None = None, kinds: Iterable[str] | None = None,
+          timed: bool = False, narrows: bool = False) -> Term:
+    """``pred`` as a term: with its column form (``narrows``: the form takes ``among``), the event kinds
+    it can match and whether it reads times."""
+    term = cast(Term, pred)  # the attributes that make a function a Term are set here
+    form = None
     if column is not None:
-        pred.column = column  # type: ignore[attr-defined]
-    if kinds is not None:
-        pred.kinds = frozenset(kinds)  # type: ignore[attr-defined]
-    pred.timed = timed  # type: ignore[attr-defined]
-    return pred
+        form = cast(ColumnForm, column)  # likewise, narrows
+        form.narrows = narrows
+    term.column = form
+    term.kinds = None if kinds is None else frozenset(kinds)
+    term.timed = timed
+    return term
 
 
 # ---- column forms: what a Block's columns tell of its rows ---------------------------------------
@@ -217,7 +252,7 @@ def _hint(name: str, known: frozenset[str]) -> str:
 
 
 def _keyed(key: str, op: str, value: str,
-           registry: ModelRegistry) -> tuple[Predicate, FindingPredicate | None]:
+           registry: ModelRegistry) -> tuple[Term, FindingPredicate | None]:
     if not value:
         raise FilterError(f"{key}{op} needs a value")
     if key == "sev":
@@ -271,7 +306,7 @@ def _duration(term: str, value: str) -> float:
 
 
 # ---- id ---------------------------------------------------------------------------------------
-def _ids(value: str) -> tuple[Predicate, FindingPredicate]:
+def _ids(value: str) -> tuple[Term, FindingPredicate]:
     try:
         frozen = frozenset(parse_id_range(value))  # 0-255: a long packet's 0 and the broadcast 255 too
     except LanguageError as e:
@@ -303,7 +338,7 @@ def _ids(value: str) -> tuple[Predicate, FindingPredicate]:
 
 
 # ---- kind -------------------------------------------------------------------------------------
-def _kinds(value: str) -> Predicate:
+def _kinds(value: str) -> Term:
     kinds, ops = set(), set()
     for part in value.lower().split(","):
         if part in EVENT_KINDS:
@@ -342,7 +377,7 @@ def _kinds(value: str) -> Predicate:
 
 
 # ---- reg --------------------------------------------------------------------------------------
-def _registers(value: str, registry: ModelRegistry) -> Predicate:
+def _registers(value: str, registry: ModelRegistry) -> Term:
     names = [n for n in value.split(",") if n]
     known = _register_names(registry)
     for n in names:
@@ -362,19 +397,20 @@ def _registers(value: str, registry: ModelRegistry) -> Predicate:
 
     def match(rec: Record) -> bool:
         # By address ranges rather than decoded fields, so filtering a long history decodes nothing.
+        # (type(ev) tested in each branch, not once into a name: the type checker narrows ev by the
+        # test itself, and a specialised type() call costs next to nothing.)
         ev = rec.event
-        t = type(ev)
         model = rec.model
         if model is None:
             return False
-        if t is ShortPacket:
+        if type(ev) is ShortPacket:
             if ev.data and covers(model, ev.address, len(ev.data)):
                 return True
             rr = ev.read_range
             return rr is not None and covers(model, *rr)
-        if t is ReturnPacket:
+        if type(ev) is ReturnPacket:
             return covers(model, ev.address, len(ev.data))
-        if t is LongPacket:
+        if type(ev) is LongPacket:
             return ev.length > 1 and covers(model, ev.address, ev.length - 1)
         return False
 
@@ -447,7 +483,7 @@ def _raw_test(term: str, reg: Register, op: str, value: str) -> Callable[[int], 
     return lambda raw: test(convert(raw))
 
 
-def _compare_register(term: str, name: str, op: str, value: str, registry: ModelRegistry) -> Predicate:
+def _compare_register(term: str, name: str, op: str, value: str, registry: ModelRegistry) -> Term:
     known = _register_names(registry)
     if name not in known:
         raise FilterError(f"{term}: no such register{_hint(name, known)}")
@@ -505,14 +541,16 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
 
     def match(rec: Record) -> bool:
         ev = rec.event
-        t = type(ev)
-        if t is not ReturnPacket and t is not ShortPacket and t is not LongPacket:
+        if type(ev) is ReturnPacket or type(ev) is ShortPacket:  # (tests the type checker narrows ev by)
+            model = rec.model
+            if model is None or not ev.checksum_ok:
+                return False  # bytes that failed their checksum are no servo's values
+            return bool(ev.data) and carries(spec_for(model), ev.address, ev.data)
+        if type(ev) is not LongPacket:
             return False
         model = rec.model
         if model is None or not ev.checksum_ok:
-            return False  # bytes that failed their checksum are no servo's values
-        if t is not LongPacket:
-            return bool(ev.data) and carries(spec_for(model), ev.address, ev.data)
+            return False
         vm = rec.vid_models
         address = ev.address
         if vm is None:
@@ -579,12 +617,11 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
                 maybe[lr] = surely[lr] = hit
         return maybe, surely
 
-    column.narrows = True  # type: ignore[attr-defined]
-    return _with(match, column, ("short", "long", "return"))
+    return _with(match, column, ("short", "long", "return"), narrows=True)
 
 
 # ---- latency ----------------------------------------------------------------------------------
-def _latency(op: str, value: str) -> Predicate:
+def _latency(op: str, value: str) -> Term:
     term = f"latency{op}{value}"
     if op not in COMPARISONS:
         raise FilterError(f"{term}: latency compares with {' '.join(COMPARISONS)} (latency>1ms)")
@@ -618,7 +655,7 @@ def _column_test(op: str, values: np.ndarray, x: float) -> tuple[np.ndarray, np.
 
 
 # ---- t ----------------------------------------------------------------------------------------
-def _time(op: str, value: str) -> tuple[Predicate, FindingPredicate]:
+def _time(op: str, value: str) -> tuple[Term, FindingPredicate]:
     term = f"t{op}{value}"
     if op in (":", "="):
         lo_text, sep, hi_text = value.partition("-")
@@ -650,7 +687,7 @@ def _time(op: str, value: str) -> tuple[Predicate, FindingPredicate]:
 
 
 # ---- sev --------------------------------------------------------------------------------------
-def _severity(op: str, value: str) -> tuple[Predicate, FindingPredicate]:
+def _severity(op: str, value: str) -> tuple[Term, FindingPredicate]:
     v = value.lower()
     aliases = {"warn": "warning", "err": "error", "any": "info"}
     v = aliases.get(v, v)
@@ -665,7 +702,7 @@ def _severity(op: str, value: str) -> tuple[Predicate, FindingPredicate]:
     def match(rec: Record) -> bool:
         return any(test(SEVERITY_RANK.get(f.severity, 0)) for f in rec.findings)
 
-    return match, lambda f: test(SEVERITY_RANK.get(f.severity, 0))
+    return _with(match), lambda f: test(SEVERITY_RANK.get(f.severity, 0))
 
 
 # ---- free text --------------------------------------------------------------------------------
@@ -678,6 +715,7 @@ def record_text(rec: Record) -> str:
     return text.lower()
 
 
-def _text(word: str) -> tuple[Predicate, FindingPredicate]:
+def _text(word: str) -> tuple[Term, FindingPredicate]:
     needle = word.lower()
-    return (lambda rec: needle in record_text(rec)), (lambda f: needle in f"{f.code} {f.name} {f.message}".lower())
+    return (_with(lambda rec: needle in record_text(rec)),
+            (lambda f: needle in f"{f.code} {f.name} {f.message}".lower()))
