@@ -644,7 +644,8 @@ class FrameDecoder:
         self._start = i + covered
         times = self._run_times(base, starts, ends) if self.runs else None
         if times is not None:
-            out.append(FrameRun(base, blob, starts, ends, *times))
+            # Run mode only: its callers (feed_many's run readers) take FrameRuns among the events.
+            cast("list[AnyEvent | FrameRun]", out).append(FrameRun(base, blob, starts, ends, *times))
             s = int(starts[-1])
             self._ack_pending = (blob[s] == _FA and blob[s + AT_ID] != LONG_PACKET_ID
                                  and FLAG_WANTS_ACK[blob[s + AT_FLAG]])

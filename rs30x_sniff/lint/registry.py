@@ -393,7 +393,7 @@ def rule(code: str, name: str, severity: str, summary: str, doc: str, *, kinds: 
 
             return register
 
-        fn.on = on
+        fn.on = on  # type: ignore[attr-defined]  # a function takes attributes; the docstring above promises .on
         return fn
 
     return deco

@@ -11,7 +11,7 @@ import xml.etree.ElementTree as ET
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, TYPE_CHECKING
+from typing import IO, TYPE_CHECKING, Any
 from collections.abc import Callable, Iterable, Mapping
 from urllib.parse import quote
 
@@ -239,7 +239,7 @@ def sarif_log(results: list[FileResult], baseline: BaselineReport | None = None)
             if baseline is not None:
                 result["baselineState"] = state
             out.append(result)
-    invocation = {"executionSuccessful": not any(r.error for r in results)}
+    invocation: dict[str, Any] = {"executionSuccessful": not any(r.error for r in results)}
     notes = [{"level": "error", "message": {"text": r.error}} for r in results if r.error]
     if notes:
         invocation["toolExecutionNotifications"] = notes

@@ -11,7 +11,7 @@ which of those are there at all (its pairing, its times), which in a Block's row
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -212,10 +212,10 @@ def record_json_line(rec: Record, only: set[int] | None = None, compact: bool = 
             vals.append(repr(t1))
         elif name == "raw":
             vals.append(raw.hex())
-        elif name == "reply_to":
-            vals.append(str(request.offset))
-        elif name == "reply":
-            vals.append(str(reply.offset))
+        elif name == "reply_to":  # in the template only when there is a request (its key says)
+            vals.append(str(cast("Record", request).offset))
+        elif name == "reply":  # likewise only with a reply
+            vals.append(str(cast("Record", reply).offset))
         elif name == "latency_s":
             vals.append(repr(latency))
         else:  # fields

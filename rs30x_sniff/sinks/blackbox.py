@@ -118,7 +118,9 @@ class BlackBox(Sink[Record | Block]):
                  save: Callable[[list, Window, str], None], *, max_per_hour: int | None = None,
                  now: Callable[[], float] | None = None, say: Callable[[str], None] | None = None) -> None:
         self.triggers = triggers
-        self.on_records = [t for t in triggers if not t.on_findings]
+        # A trigger not on findings is a filter (parse_trigger makes a code or a filter): kept with it, typed.
+        self.on_records: list[tuple[Trigger, Filter]] = [(t, t.filter) for t in triggers
+                                                         if not t.on_findings and t.filter is not None]
         self.on_findings = [t for t in triggers if t.on_findings]
         self.pre, self.post = pre, post
         self.save = save
@@ -176,8 +178,8 @@ class BlackBox(Sink[Record | Block]):
             if rec.t is not None:
                 self.seen_t = rec.t
             if self.on_records and rec.t is not None:
-                for trig in self.on_records:
-                    if trig.filter.matches(rec):
+                for trig, filt in self.on_records:
+                    if filt.matches(rec):
                         self.fire(rec.t, trig)
                         break
         if self.on_findings and step.findings:
@@ -192,13 +194,13 @@ class BlackBox(Sink[Record | Block]):
         self._close_if_past()
 
     def _block(self, blk: Block) -> None:
-        for trig in self.on_records:
-            maybe = trig.filter.may_match(blk)
+        for trig, filt in self.on_records:
+            maybe = filt.may_match(blk)
             if not maybe.any():
                 continue
             for k in maybe.nonzero()[0].tolist():
                 rec = blk.fresh_record(k)
-                if rec.t is not None and trig.filter.matches(rec):
+                if rec.t is not None and filt.matches(rec):
                     self.fire(rec.t, trig)
 
     def fire(self, t: float, trig: Trigger) -> None:

@@ -75,8 +75,8 @@ class LatencyHistogram:
         if unsupported:
             return {"count": 0, "p50": None, "p95": None, "max": None, "unmeasured": self.count + unmeasured,
                     "absent": unsupported}
-        out = {"count": self.count, "p50": self.percentile(50), "p95": self.percentile(95), "max": self.max,
-               "unmeasured": unmeasured}
+        out: dict[str, Any] = {"count": self.count, "p50": self.percentile(50), "p95": self.percentile(95),
+                               "max": self.max, "unmeasured": unmeasured}
         if unmeasured:
             one = unmeasured == 1
             out["absent"] = (f"{unmeasured} repl{'y' if one else 'ies'} timed sooner after {'its' if one else 'their'} "

@@ -15,7 +15,7 @@ import pickle
 import subprocess
 import sys
 from array import array
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, cast
 from collections.abc import Callable, Generator, Iterator
 
 from ..protocol.chunks import Chunk
@@ -140,8 +140,9 @@ def send_all(out: BinaryIO, args: dict[str, Any]) -> None:
             send(("data", b"".join(datas), array("I", map(len, datas)).tobytes(), None))
         elif None in times:
             send(("chunks", list(zip(datas, times))))
-        else:
-            send(("data", b"".join(datas), array("I", map(len, datas)).tobytes(), array("d", times).tobytes()))
+        else:  # no None among the times (checked above)
+            stamps = array("d", cast("list[float]", times)).tobytes()
+            send(("data", b"".join(datas), array("I", map(len, datas)).tobytes(), stamps))
         datas.clear()
         times.clear()
         size = 0

@@ -50,7 +50,7 @@ import os
 import re
 from datetime import datetime, timedelta, timezone, UTC
 from typing import Any, BinaryIO
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 from ..protocol.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO, Marked
 from .timebase import FIRST
@@ -277,7 +277,7 @@ class _Values:
 
     def __init__(self) -> None:
         self.radix: str | None = None
-        self.parse = None
+        self.parse: Callable[[str], int] | None = None
         self.table: dict[str, int] = {}  # the radix's usual spellings, looked up before parsing
 
     def decide(self, cell: str) -> bool:
@@ -365,7 +365,9 @@ def _valued(values: _Values, pending: list[tuple], path: str, row: tuple) -> Ite
             return
         v = values.table.get(cell)
         if v is None:
-            v = values.parse(cell)
+            parse = values.parse
+            assert parse is not None  # the radix is decided (above), so its parser is set
+            v = parse(cell)
     if pending:
         yield from _decided(pending, values, path)
         pending.clear()
@@ -373,9 +375,11 @@ def _valued(values: _Values, pending: list[tuple], path: str, row: tuple) -> Ite
 
 
 def _decided(pending: list[tuple], values: _Values, path: str) -> Iterator[Row]:
+    parse = values.parse
+    assert parse is not None  # called once the radix is decided
     for t, cell, name, err, dur, line in pending:
         try:
-            yield t, values.parse(cell), name, err, dur, line
+            yield t, parse(cell), name, err, dur, line
         except _BadValue as e:
             raise CaptureError(f"{path}:{line}: {e}", line=line) from None
 
@@ -466,6 +470,7 @@ class _Senders:
             yield row[0], row[1], self.map.get(name), row[3], row[4]
         if self.map is None:
             self._set(self._by_content(final=True) or {})
+        assert self.map is not None  # _set just gave it one (empty at worst)
         for r in buf:
             yield r[0], r[1], self.map.get(r[2]), r[3], r[4]
 

@@ -207,8 +207,8 @@ def _fit(pairs: list[tuple[int, int, float]], scale: float, step: float, rates: 
         for side in (0, 1):
             close = 0
             lengths: set[int] = set()
-            for pair in pairs:
-                n, d = pair[side], pair[2] * scale
+            for n1, n2, d0 in pairs:
+                n, d = (n2 if side else n1), d0 * scale
                 gap = d - n * bt
                 if -(OVERLAP_TOLERANCE * n * bt + step) <= gap <= slack:
                     close += 1

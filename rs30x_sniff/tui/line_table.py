@@ -285,6 +285,7 @@ class LineTable(SettingsPerRender, ScrollView, can_focus=True):
         cell padded, its style carrying its column (as the table's meta does), the rest of the line in the
         row's style, the cursor's colour over a cell's own."""
         width, scroll_x, base, cursor_style, header_style, widths = frame
+        texts: Sequence[str]
         if cells is None:
             row_style = header_style
             texts = self.headings

@@ -46,7 +46,7 @@ def _named_parts(layout: Layout | MixedParts, raw: bytes) -> Iterator[tuple[int,
     """(servo, its named parts as _named_plan gives them, the raw values they index) of each servo whose registers
     the packet ``raw`` names, in field order; a long packet to servos of mixed models by each record's layout."""
     data = raw[AT_DATA:-SUM_SIZE]
-    if type(layout) is tuple:
+    if isinstance(layout, tuple):  # MixedParts (a Layout is no tuple)
         for sub, a, b, tid in layout:
             parts = _named_plan(sub)[0][1]
             if parts:
