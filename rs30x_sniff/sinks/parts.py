@@ -72,7 +72,7 @@ def retire(paths: list[Path], keep: Keep, now: float, reserve: int = 0,
     """Delete the oldest of ``paths`` (oldest first) while they hold more than ``keep.bytes`` with ``reserve``
     bytes more to come, or are older than ``keep.seconds`` by their last write (epoch ``now``); the ones
     deleted (or already gone). The newest is never older than its last write, and what is kept is a suffix."""
-    sizes = []
+    sizes: list[os.stat_result | None] = []  # None: already gone
     for p in paths:
         try:
             sizes.append(p.stat())

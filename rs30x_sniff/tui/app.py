@@ -204,7 +204,8 @@ class MonitorApp(App):
         is no screen to restore, and Textual waits for ever on writes it cannot make: the recording is finished,
         then the process ends at once, exit 0."""
         try:
-            os.write(sys.__stdout__.fileno(), b"\x1b[0m")  # a reset of attributes: harmless on a live terminal
+            if sys.__stdout__ is not None:  # None: started without one, nothing to reset
+                os.write(sys.__stdout__.fileno(), b"\x1b[0m")  # a reset of attributes: harmless on a live terminal
         except (OSError, AttributeError, ValueError):
             self.feeder.stop()
             for _ in range(100):

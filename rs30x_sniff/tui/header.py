@@ -81,6 +81,8 @@ def _fit(fields: list[_Field], width: int | None) -> list[_Field]:
     """The fields that fit in ``width`` cells with their separators: the highest ranks are left out
     first; then the fields of rank 0, which always show, have their names shortened."""
     fields = list(fields)
+    if width is None:
+        return fields
 
     def over() -> int:
         return sum(f.width for f in fields) + cell_len(_SEP[0]) * (len(fields) - 1) - width

@@ -224,6 +224,7 @@ class Timeline(SettingsPerRender, ScrollView, can_focus=True):
         key = (seq, len(rec.findings), cursor, rec.latency, rec.status, look[:2], look[3:])
         cached = self._cache.get(key)
         if cached is None:
+            assert seq is not None  # a record was found under it (above)
             prev = store.get(seq - 1)
             pieces = row_pieces(rec, prev.event.t_start if prev is not None else None, compact, self.times)
             style = cursor_style if cursor else base
