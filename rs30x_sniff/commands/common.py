@@ -61,7 +61,7 @@ def command_line_layer(args: argparse.Namespace) -> dict[str, Any]:
         v = _split(getattr(args, key, None))
         if v is not None and (key == "select" or v):
             out[key] = v
-    sev = {}
+    sev: dict[str, str] = {}
     for spec in getattr(args, "severity", None) or []:
         key, eq, level = spec.partition("=")
         if not eq:
@@ -226,6 +226,7 @@ def _scan(port: str, settings: Settings) -> Settings:
     result = scan(port_reader(port))  # each rate of table 4.7 in SCAN_ORDER, listened to for SCAN_DWELL
     if not result:
         raise CliError(f"{port}: {result.describe()}")
+    assert result.baud is not None  # a result that holds (above) has found its rate
     print(f"rs30x-sniff: {port}: {result.describe()}", file=sys.stderr)
     return dataclasses.replace(settings, baud=result.baud,
                                origin={**settings.origin, "baud": f"--baud auto ({result.score:.1f} frames/s)"})

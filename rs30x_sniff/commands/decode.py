@@ -51,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
     chunks = open_input(args.input, args.input_format, settings, duration=args.duration)
     ids = {sid for given in args.id for sid in given} if args.id else None
     with output_stream(args.output, force=args.force, inputs=(args.input,)) as out:
+        sink: JsonlSink | TextSink
         if args.format == "jsonl":
             sink = JsonlSink(out, ids=ids, filter=flt, flush=is_live(chunks))
         else:

@@ -8,7 +8,7 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from collections.abc import Callable
 
 from ..sources.captures import CaptureError
@@ -17,7 +17,11 @@ from ..lint.config import FAIL_ON, FORMATS
 from ..lint.linter import Linter
 from ..lint.report import FileResult, append_step_summary, fails, write_report, write_step_summary
 from ..protocol.memmap import ModelError
-from ..decode.decoder import Decoder
+from ..decode.decoder import Decoder, Sink
+
+if TYPE_CHECKING:
+    from ..decode.blocks import Block
+    from ..decode.pairing import Record
 from ..sinks.pipeline import columnar_for, drive
 from ..settings import Settings
 from ..expect import evaluate
@@ -70,7 +74,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     cfg = lint_config(settings)
     linter = Linter(cfg)
     found = FindingsSink()
-    sinks = [found] if progress is None else [found, ProgressSink(progress)]
+    sinks: list[Sink[Record | Block]] = [found] if progress is None else [found, ProgressSink(progress)]
     # Figure checks ([[expect]]) need info's figures: CaptureStats runs as one more sink, only for them.
     enabled, severities = set(cfg.enabled_codes()), cfg.severities()
     checks = [replace(c, severity=severities[c.code]) for c in settings.expects if c.code in enabled]

@@ -410,8 +410,9 @@ def _samples_per_bit(rows: list[_Row]) -> float | None:
     spacings, each off by under a sample either way, average to the true bit time."""
     if not rows:
         return None
-    rough = sum(r.es - r.ss for r in rows) / (8 * len(rows))  # type: ignore[operator]
-    steps = [b.ss - a.ss for a, b in zip(rows, rows[1:])]   # type: ignore[operator]
+    # The caller passes rows whose sample ends are read (ss not None; _parse_line reads ss and es together).
+    rough = sum(r.es - r.ss for r in rows) / (8 * len(rows))  # type: ignore[operator, misc]  # see above
+    steps = [b.ss - a.ss for a, b in zip(rows, rows[1:])]   # type: ignore[operator]  # see above
     # 5 % apart: a byte after one idle bit (11 bits) is not taken for back to back.
     close = [d for d in steps if abs(d - BITS_PER_BYTE * rough) <= 0.05 * BITS_PER_BYTE * rough]
     if len(close) >= 8:

@@ -519,8 +519,10 @@ class _SdkFile:
             if self.position == 0:
                 data = self._own_header(bytes(data))
             view = memoryview(data)
+            file = self.file
+            assert file is not None  # the SDK writes before it closes (release)
             while view:  # an unbuffered file may take part of a write
-                n = self.file.write(view)
+                n = file.write(view)
                 n = len(view) if n is None else n
                 if n <= 0:
                     raise OSError(errno.EIO, "the file took none of the bytes written")
