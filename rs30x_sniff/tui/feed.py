@@ -108,6 +108,7 @@ class _Collect(Sink[Record | Block]):
             x = rest[i]
             n = len(x) if type(x) is Block else 1
             if rows + n > limit:
+                assert type(x) is Block  # a Record (n 1) always fits: rows < limit
                 head, tail = split_block(x, limit - rows)
                 items += head
                 rows += sum(len(h) if type(h) is Block else 1 for h in head)

@@ -140,7 +140,7 @@ class Store:
 
     def _drop(self, seg: Segment) -> None:
         """The memory figure without rows that leave the history (a segment, or Records cut from one)."""
-        if type(seg) is list:
+        if isinstance(seg, list):  # Records cut from a segment (a Block is no list)
             self.held_bytes.drop_records(seg)
         else:
             self.held_bytes.drop_block(seg)
