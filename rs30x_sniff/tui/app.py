@@ -11,7 +11,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 from collections.abc import Callable, Iterable
 
 from textual import on
@@ -305,7 +305,7 @@ class MonitorApp(App):
 
     @on(ServosPane.Highlighted, "#servos")
     def _on_servo_highlighted(self, event: ServosPane.Highlighted) -> None:
-        sid = event.key
+        sid = cast("int | None", event.key)  # the servos pane's rows are keyed by servo ID
         if sid != self.store.plot_id:
             self.store.set_plot(sid)
             self.plot.update_from(self.store)

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any
-from collections.abc import Callable
+from typing import Any, cast
+from collections.abc import Callable, Hashable
 
 from rich.style import Style
 from rich.text import Text
@@ -62,7 +62,7 @@ class ServosPane(LineTable):
 
     @property
     def cursor_id(self) -> int | None:
-        return self.cursor_key
+        return cast("int | None", self.cursor_key)  # this table's rows are keyed by servo ID
 
     def get_cell(self, sid: int | str, column: str) -> Text:
         """The cell of servo ``sid`` in ``column`` as shown: its text, and its style while it flashes."""
@@ -70,7 +70,7 @@ class ServosPane(LineTable):
         col = COLUMNS.index(column)
         return Text(self._shown[sid][col], self.cell_style(sid, col) or "")
 
-    def cell_style(self, key: int, col: int) -> Style | None:
+    def cell_style(self, key: Hashable, col: int) -> Style | None:  # key: a servo ID
         return FLASH_STYLE if (key, col) in self._changed else None
 
     def reset(self) -> None:
