@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import textwrap
 from itertools import islice
-from typing import Any
+from typing import Any, cast
 
 from rich.cells import cell_len
 from rich.style import Style
@@ -75,7 +75,7 @@ class FindingsPane(LineTable):
 
     def on_line_table_chosen(self, event: LineTable.Chosen) -> None:
         event.stop()
-        f = self._shown.get(event.key)
+        f = self._shown.get(cast(int, event.key))  # this table's rows are keyed by finding ordinal (_shown)
         if f is not None:
             self.post_message(self.JumpTo(f))
 
