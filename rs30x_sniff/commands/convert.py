@@ -129,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
     settings = settings_for(args, args.input)
     linter = make_linter(args, settings)
     src = open_input(args.input, args.input_format, settings)  # no line index: diagnostics carry offsets
-    first, chunks = peek(src)
+    first, chunks = peek(iter(src))  # a capture being read is its own iterator: the same chunks
     if first is None:
         raise CliError(f"{args.input}: no data (the capture is empty): nothing to convert")
     if start_time is None:

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import cast
 
 from ..sources.captures import HEX, TIMESTAMPED
+from ..sources.protocol import TextCapture
 from ..sinks.tables import (
     CSV, KINDS, PARQUET, SINKS, TABLE_FORMATS, MissingPyarrow, open_table, require_pyarrow, table_format)
 from ..protocol.memmap import default_registry
@@ -61,7 +63,8 @@ def run(args: argparse.Namespace) -> int:
     if args.of == "states":
         kw.update(registry=opts.registry or default_registry(), models=dict(settings.models))
     elif args.of == "findings" and getattr(chunks, "format", None) in (HEX, TIMESTAMPED):
-        kw["locate"] = chunks.locate  # text captures: where each finding's byte is written
+        # text captures: where each finding's byte is written (a hex capture is a TextCapture by its format)
+        kw["locate"] = cast(TextCapture, chunks).locate
 
     if args.output == STDOUT and fmt == CSV:  # streamed; Parquet to stdout is made whole, then copied
         sink = SINKS[args.of](open_table(STDOUT, CSV, sys.stdout), **kw)

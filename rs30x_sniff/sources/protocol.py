@@ -38,6 +38,14 @@ class Source(Pacing, Protocol):
     def __iter__(self) -> Iterator[Chunk]: ...
 
 
+class TextCapture(Source, Protocol):
+    """A hex or timestamped-hex capture read with its line index (read_input(..., locate=True))."""
+
+    def locate(self, offset: int) -> tuple[int, int] | None:
+        """The line and column where the byte at stream ``offset`` is written, or None."""
+        ...
+
+
 class ChunkReader(Source, Protocol):
     """A capture being read (rs30x_sniff.sources.inputs.read_input): a Source that is its own iterator, so
     ``next()`` takes its head before the rest is read."""

@@ -430,7 +430,8 @@ def _annotation_chunks(rows: Iterator[_Row], samplerate: float | None, bit: floa
     per_byte = (bit or 0.0) * BITS_PER_BYTE
 
     def start_of(r: _Row) -> float:
-        return r.ss - bit if bit is not None else 0.0  # the data span begins one bit after the start bit
+        # The data span begins one bit after the start bit; a row without sample numbers has no start (and no t).
+        return r.ss - bit if bit is not None and r.ss is not None else 0.0
 
     def emit(r: _Row, error: str | None) -> Iterator[Any]:
         nonlocal run, run_t, run_ss

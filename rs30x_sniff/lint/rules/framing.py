@@ -199,7 +199,7 @@ def _wrong_baud_message(nbytes: int, span: float | None, baud: int, estimate: Ba
     if estimate is None:
         return said_as(where + "is the bus at another rate? The bytes alone cannot tell which; "
                        "try --baud auto on a port, or the other rates of table 4.7 ({rates})", params, shown)
-    if estimate.baud is not None and estimate.baud != baud:
+    if estimate.baud is not None and estimate.baud != baud and estimate.per_byte is not None:
         # The rate the times give names the fault (the bus is at that rate): it stays in the key.
         return said_as(where + "the timestamps put bytes {per_byte} us apart, a byte time of {line} bit/s: "
                        "try --baud {line}", {**params, "per_byte": Measured(estimate.per_byte, DURATION),
