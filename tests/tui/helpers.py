@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -52,10 +53,12 @@ class GatedSource:
 
     def __init__(self, chunks, gate, stops=(), rearm: bool = False):
         self._chunks, self.gate, self.stops, self.rearm = chunks, gate, set(stops), rearm
+        self.reached = threading.Event()  # set when the reader waits at a stop: all before it were read
 
     def chunks(self, stop):
         for i, c in enumerate(self._chunks):
             if i in self.stops:
+                self.reached.set()
                 self.gate.wait(5)
                 if self.rearm:
                     self.gate.clear()

@@ -72,9 +72,11 @@ def test_recording_writes_an_mcap_of_what_follows(tmp_path):
     out = tmp_path / "rec.mcap"
     batches = []
     # The recording starts before chunk 10 is read.
-    feeder = Feeder(GatedSource(chunks, go, (10,)), DecodeOptions(), batches.append, interval=0)
+    source = GatedSource(chunks, go, (10,))
+    feeder = Feeder(source, DecodeOptions(), batches.append, interval=0)
     th = threading.Thread(target=feeder.run)
     th.start()
+    assert source.reached.wait(5)  # the reader has taken chunks 0-9 (a loaded machine starts threads late)
     feeder.start_recording(str(out))
     go.set()
     th.join(5)
