@@ -32,14 +32,10 @@ class LanguageError(ValueError):
 deprecation_notes: list[str] = []
 
 
-def _note(text: str) -> None:
-    if text not in deprecation_notes:
-        deprecation_notes.append(text)
-
-
 def note(text: str) -> None:
     """Keep ``text`` among the deprecation notes (once): for the modules that read an old spelling."""
-    _note(text)
+    if text not in deprecation_notes:
+        deprecation_notes.append(text)
 
 
 def unit_scale(unit: str) -> float | None:
@@ -48,7 +44,7 @@ def unit_scale(unit: str) -> float | None:
     scale = TIME_UNITS.get(unit)
     if scale is None and unit in DEPRECATED_TIME_UNITS:
         scale, instead = DEPRECATED_TIME_UNITS[unit]
-        _note(f"the unit {unit!r} is read as {instead!r} (minutes); write {instead!r}: {unit!r} will be refused in "
+        note(f"the unit {unit!r} is read as {instead!r} (minutes); write {instead!r}: {unit!r} will be refused in "
               "the next release")
     return scale
 
