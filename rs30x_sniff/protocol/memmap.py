@@ -6,18 +6,20 @@ import os
 import re
 import struct
 import tomllib
-from collections.abc import Hashable
-from dataclasses import dataclass, field
+from collections.abc import Hashable, Mapping
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 from ..schemas import memory_map_schema
 from ..schemas.check import first_failure
 from .codegen import values_function
-from .wire import MAX_READ_ADDRESS
+from .wire import MAX_READ_ADDRESS, RETURN_FLAG_BITS, RETURN_MODE_MASK, RETURN_MODE_TABLE
 
 DEFAULT_MODEL = "RS303MR"
+UNKNOWN = "unknown"  # a map's word for a model fact no source gives (model_number, top_speed_s_per_60deg)
 # A map is data, never code: its names become filter terms, JSON keys, MCAP fields and the field names of
 # generated plug-ins (sigrok, Logic 2, Wireshark), so they are checked as the map loads, by its schema
 # (schemas/memory_map.json): a register is a snake_case word that is neither a filter key nor the label of an
@@ -54,6 +56,8 @@ class Register:
     table: dict[int, float] | None = None
     format: str | None = None
     description: str = ""
+    source: str = ""           # where its facts come from when not the model's main source: a source key or a citation
+    note: str = ""             # what the sources leave open: a conflict between them, "reserved per one header"
     # What other modules make from this register once and keep with it, by a key they choose (a tuple
     # or string starting with their tag): render's text and JSON of each raw value, the monitor's plot
     # values. Not part of the register's value: no init, repr or comparison.
@@ -210,6 +214,42 @@ class Field:
         return None if self.partial else self.register.unit
 
 
+@dataclass(frozen=True, slots=True)
+class Source:
+    """One source a map's facts come from (``[[source]]``): a key registers cite it by, its title, where it is."""
+
+    key: str
+    title: str
+    where: str = ""
+
+
+OVER_TEMPERATURE_RECOVERIES = ("reboot", "torque-enable")
+
+
+def _manual_return_flags() -> Mapping[int, str]:
+    return MappingProxyType(dict(RETURN_FLAG_BITS))
+
+
+def _no_areas() -> Mapping[int, tuple[int, int]]:
+    return MappingProxyType({})
+
+
+@dataclass(frozen=True, slots=True)
+class Behaviour:
+    """How a model acts beyond its registers (``[behaviour]``); the defaults are the RS303MR manual's."""
+
+    flash_and_reboot_together: bool = False       # flag 0x60 in one packet (the RS303MR manual: send them apart)
+    invalid_baud_code_gives: int | None = None     # the rate an undefined baud code falls back to; None: unsaid
+    over_temperature_recovery: str = "reboot"      # "reboot" | "torque-enable": what clears a temperature stop
+    torque_off_only: tuple[str, ...] = ()          # registers a write changes only while torque is off
+    # Return-packet status bit -> flag name (table 4.4 for the RS303MR).
+    return_flags: Mapping[int, str] = field(default_factory=_manual_return_flags)
+    # Return modes beyond table 4.3 -> (first address, byte count), as wire.Expect.range says a range.
+    return_areas: Mapping[int, tuple[int, int]] = field(default_factory=_no_areas)
+    voltage_accuracy_v: float | None = None        # +- volts of present_voltage; None: unsaid
+    source: str = ""                               # where these facts come from (a source key or a citation)
+
+
 @dataclass(slots=True, eq=False)
 class Model:
     """A servo model's memory map, loaded from one ``decoders/*.toml`` file.
@@ -219,11 +259,14 @@ class Model:
     """
 
     name: str
-    model_number: int
-    top_speed_s_per_60deg: float
+    model_number: int | None            # None: no source gives it (RS405CB/RS406CB); known by --model only
+    top_speed_s_per_60deg: float | None  # None: no source gives it
     readable_to: int
     registers: tuple[Register, ...]
-    source: str = ""
+    source: str = ""                    # the file it was loaded from
+    sources: tuple[Source, ...] = ()    # where its facts come from ([[source]])
+    behaviour: Behaviour = field(default_factory=Behaviour)
+    also_named: tuple[str, ...] = ()    # other models sharing this map, each a Model of its own name
     _by_address: dict[int, Register] = field(default_factory=dict, repr=False)
     _by_name: dict[str, Register] = field(default_factory=dict, repr=False)
     _layouts: dict[tuple, Layout] = field(default_factory=dict, repr=False)
@@ -240,6 +283,12 @@ class Model:
             cache.clear()
         cache[key] = value
         return value
+
+    def renamed(self, name: str) -> Model:
+        """This map under another model's name (one of ``also_named``): the same registers and behaviour,
+        caches of its own (what other modules keep for a model may hold its name)."""
+        return replace(self, name=name, also_named=(), _by_address={}, _by_name={}, _layouts={}, _names={},
+                       cache={})
 
     def __post_init__(self) -> None:
         for reg in self.registers:
@@ -432,6 +481,8 @@ def _where(doc: dict[str, Any], path: tuple[str | int, ...]) -> str:
         reg = doc["register"][path[1]]
         head = f"register[{path[1]}]" + (f" ({_label(reg)})" if isinstance(reg, dict) else "")
         return ".".join((head, *map(str, path[2:])))
+    if len(path) >= 2 and path[0] == "source" and isinstance(path[1], int):
+        return ".".join((f"source[{path[1]}]", *map(str, path[2:])))
     return ".".join(map(str, path))
 
 
@@ -448,12 +499,62 @@ def parse_model(doc: dict[str, Any], source: str = "<memory map>") -> Model:
             raise _fail(source, _where(doc, path), _within_size(doc["register"][path[1]], str(path[2])))
         raise _fail(source, _where(doc, path), failure.message)
     head = doc["model"]
+    sources = _sources(source, doc.get("source", []))
     names: dict[str, str] = {}
     owner: dict[int, str] = {}
     regs = [_register(source, n, r, names, owner) for n, r in enumerate(doc.get("register", []))]
     regs.sort(key=lambda reg: reg.address)
-    return Model(head["name"], head["model_number"], float(head["top_speed_s_per_60deg"]),
-                 head.get("readable_to", MAX_READ_ADDRESS), tuple(regs), source)
+    number, speed = head["model_number"], head["top_speed_s_per_60deg"]
+    also = tuple(head.get("also_named", ()))
+    for n, other in enumerate(also):
+        if other.upper() == head["name"].upper() or other.upper() in (o.upper() for o in also[:n]):
+            raise _fail(source, f"model.also_named.{n}", f"{other!r} is named already")
+    return Model(head["name"], None if number == UNKNOWN else number, None if speed == UNKNOWN else float(speed),
+                 head.get("readable_to", MAX_READ_ADDRESS), tuple(regs), source, sources,
+                 _behaviour(source, doc.get("behaviour", {}), names), also)
+
+
+def _sources(source: str, tables: list[dict[str, Any]]) -> tuple[Source, ...]:
+    """The [[source]] tables: each key given once, every text one printable line."""
+    out: list[Source] = []
+    for n, t in enumerate(tables):
+        for key in ("key", "title", "where"):
+            if key in t:
+                _printable(source, f"source[{n}].{key}", t[key])
+        if any(s.key == t["key"] for s in out):
+            raise _fail(source, f"source[{n}].key", f"{t['key']!r} is given already")
+        out.append(Source(t["key"], t["title"], t.get("where", "")))
+    return tuple(out)
+
+
+def _behaviour(source: str, t: dict[str, Any], names: dict[str, str]) -> Behaviour:
+    """The [behaviour] table the schema passed: register names that exist, one bit per flag, modes beyond
+    table 4.3."""
+    if "source" in t:
+        _printable(source, "behaviour.source", t["source"])
+    off = tuple(t.get("torque_off_only", ()))
+    for n, name in enumerate(off):
+        if name not in names:
+            raise _fail(source, f"behaviour.torque_off_only.{n}", f"{name!r} names no register of this map")
+    flags = None
+    if "return_flags" in t:
+        flags = _int_keys(source, "behaviour.return_flags", t["return_flags"])
+        for bit in flags:
+            if not (0 < bit < 256 and bit & (bit - 1) == 0):
+                raise _fail(source, f"behaviour.return_flags.{bit:#x}", "must be one bit of the flag byte (0x01-0x80)")
+    areas: dict[int, tuple[int, int]] = {}
+    for mode, (first, last) in _int_keys(source, "behaviour.return_areas", t.get("return_areas", {})).items():
+        where = f"behaviour.return_areas.{mode:#x}"
+        if not 0 <= mode <= RETURN_MODE_MASK or mode in RETURN_MODE_TABLE:
+            raise _fail(source, where, "must be a return mode 0x0-0xF that table 4.3 does not define")
+        if not 0 <= first <= last <= MAX_READ_ADDRESS:
+            raise _fail(source, where, f"must be [first, last] addresses with 0 <= first <= last <= {MAX_READ_ADDRESS}")
+        areas[mode] = (first, last - first + 1)
+    return Behaviour(
+        t.get("flash_and_reboot_together", False), t.get("invalid_baud_code_gives"),
+        t.get("over_temperature_recovery", "reboot"), off,
+        _manual_return_flags() if flags is None else MappingProxyType(flags), MappingProxyType(areas),
+        t.get("voltage_accuracy_v"), t.get("source", ""))
 
 
 _WITHIN_SIZE = {"range": "must be [min, max] with {lo} <= min <= max <= {hi}",
@@ -502,9 +603,12 @@ def _register(source: str, n: int, r: dict[str, Any], names: dict[str, str], own
     table = _int_keys(source, f"{where}.table", r["table"]) if "table" in r else None
     for raw, text in (enum or {}).items():
         _printable(source, f"{where}.enum.{raw}", text)
+    for key in ("source", "note"):
+        if key in r:
+            _printable(source, f"{where}.{key}", r[key])
     return Register(name, address, size, signed, r.get("scale", 1), r.get("offset", 0), r.get("unit"), access,
                     r.get("area", "ram"), default, rng, r.get("mode", "both"), enum, table, r.get("format"),
-                    r.get("description", ""))
+                    r.get("description", ""), r.get("source", ""), r.get("note", ""))
 
 
 def load_model(path: str | Path) -> Model:
@@ -536,8 +640,16 @@ class ModelRegistry:
     def __init__(self, models: list[Model]) -> None:
         if not models:
             raise ModelError("no memory maps found (looked for decoders/*.toml)")
-        self.models = {m.name.upper(): m for m in models}
-        self.by_number = {m.model_number: m for m in models}
+        # A map shared by several models (also_named) is a Model of each name, so --model and the output
+        # say the one the user has.
+        # say the one the user has (a map of that name of its own comes first).
+        self.models: dict[str, Model] = {m.name.upper(): m for m in models}
+        for m in models:
+            for other in m.also_named:
+                if other.upper() not in self.models:
+                    self.models[other.upper()] = m.renamed(other)
+        # A model no source gives a number for (None) is known by --model or the configuration only.
+        self.by_number: dict[int, Model] = {m.model_number: m for m in models if m.model_number is not None}
 
     def get(self, name: str) -> Model:
         try:

@@ -244,7 +244,9 @@ class Servo:
         # Beyond an angle limit the servo stops at the limit (No. 8-11).
         goal = min(max(self.raw("goal_position"), lo), hi)
         goal_time = self.raw("goal_time") * 0.01
-        top = 60.0 / self.model.top_speed_s_per_60deg  # deg/s; never faster than that (No. 32/33)
+        # deg/s; never faster than that (No. 32/33). A model no source gives a top speed for moves as the
+        # RS303MR does (0.11 s per 60 deg): the simulator needs some speed, the maps say none.
+        top = 60.0 / (self.model.top_speed_s_per_60deg or 0.11)
         dur = max(goal_time, abs(goal - self.pos) / 10.0 / top)
         self._move = (t, self.pos, float(goal), dur)
         self._timed_move = goal_time > 0

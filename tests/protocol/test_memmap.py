@@ -153,3 +153,93 @@ def test_the_reserved_names_are_the_filter_keys():
 def test_the_bundled_maps_pass_the_checks():
     reg = default_registry()
     assert {"RS303MR", "RS304MD"} <= set(reg.models)
+
+
+# ---- what a map says beyond its registers (issue 34): sources, behaviour, unknowns, shared maps -------------
+def test_a_map_without_behaviour_acts_as_the_rs303mr_manual_says():
+    from rs30x_sniff.protocol.memmap import Behaviour
+    from rs30x_sniff.protocol.wire import RETURN_FLAG_BITS
+
+    m = parse_model(__import__("tomllib").loads(GOOD), "x.toml")
+    assert m.behaviour == Behaviour() and m.sources == () and m.also_named == ()
+    b = m.behaviour
+    assert (b.flash_and_reboot_together, b.invalid_baud_code_gives, b.over_temperature_recovery) == (False, None, "reboot")
+    assert dict(b.return_flags) == RETURN_FLAG_BITS and dict(b.return_areas) == {} and b.torque_off_only == ()
+    # The bundled maps say so explicitly, with the manual's voltage accuracy.
+    for name in ("RS303MR", "RS304MD"):
+        got = default_registry().get(name).behaviour
+        assert (got.flash_and_reboot_together, got.over_temperature_recovery, got.voltage_accuracy_v) == (
+            False, "reboot", 0.3)
+        assert dict(got.return_flags) == RETURN_FLAG_BITS
+
+
+BEHAVIOUR = GOOD.replace("[[register]]", """[[source]]
+key = "manual"
+title = "A manual"
+where = "p.12"
+[behaviour]
+flash_and_reboot_together = true
+invalid_baud_code_gives = 115200
+over_temperature_recovery = "torque-enable"
+torque_off_only = ["a"]
+return_flags = { 0x80 = "temperature_limit", 0x02 = "received_packet_error" }
+return_areas = { 0x0D = [60, 127] }
+voltage_accuracy_v = 0.5
+[[register]]""", 1) + 'source = "manual"\nnote = "the sources disagree"\n'
+
+
+def test_behaviour_sources_and_notes_load():
+    import tomllib
+
+    from rs30x_sniff.protocol.memmap import Source
+
+    m = parse_model(tomllib.loads(BEHAVIOUR), "x.toml")
+    b = m.behaviour
+    assert (b.flash_and_reboot_together, b.invalid_baud_code_gives, b.over_temperature_recovery) == (
+        True, 115200, "torque-enable")
+    assert b.torque_off_only == ("a",) and b.voltage_accuracy_v == 0.5
+    assert dict(b.return_flags) == {0x80: "temperature_limit", 0x02: "received_packet_error"}
+    assert dict(b.return_areas) == {0x0D: (60, 68)}  # (first address, byte count), as wire.Expect.range
+    assert m.sources == (Source("manual", "A manual", "p.12"),)
+    assert (m.register("a").source, m.register("a").note) == ("manual", "the sources disagree")
+
+
+@pytest.mark.parametrize("edit,said", [
+    (lambda t: t.replace('torque_off_only = ["a"]', 'torque_off_only = ["a", "servo_id"]'),
+     "behaviour.torque_off_only.1: 'servo_id' names no register of this map"),
+    (lambda t: t.replace("0x02 = ", "0x03 = "), "behaviour.return_flags.0x3: must be one bit"),
+    (lambda t: t.replace("0x0D = [60, 127]", "0x03 = [60, 127]"), "behaviour.return_areas.0x3: must be a return mode"),
+    (lambda t: t.replace("0x0D = [60, 127]", "0x0D = [127, 60]"), "behaviour.return_areas.0xd: must be [first, last]"),
+    (lambda t: t.replace('"torque-enable"', '"power-cycle"'), "behaviour.over_temperature_recovery: must be one of"),
+    (lambda t: t.replace('key = "manual"', 'key = "Manual Book"'), "source[0].key: 'Manual Book' is no source key"),
+    (lambda t: t.replace('title = "A manual"\n', ""), "source[0].title: missing"),
+    (lambda t: t.replace('where = "p.12"', 'where = "p.\\u000712"'), "source[0].where: holds the control character"),
+    (lambda t: t.replace('note = "the sources disagree"', 'note = "a\\nb"'), "register[0] (a).note: holds the control"),
+    (lambda t: t.replace("model_number = 1", 'model_number = "none"'), "model.model_number: must be an integer"),
+    (lambda t: t.replace("[model]", '[model]\nalso_named = ["X1"]'), "model.also_named.0: 'X1' is named already"),
+])
+def test_behaviour_mistakes_are_one_line(tmp_path, edit, said):
+    path = tmp_path / "x.toml"
+    path.write_text(edit(BEHAVIOUR))
+    with pytest.raises(ModelError) as e:
+        load_model(path)
+    text = str(e.value)
+    assert text.startswith(f"{path}: {said}") and "\n" not in text, text
+
+
+def test_an_unknown_model_number_is_none_and_never_learned(tmp_path):
+    import tomllib
+
+    from rs30x_sniff.protocol.memmap import ModelRegistry
+
+    text = GOOD.replace("model_number = 1", 'model_number = "unknown"').replace(
+        "top_speed_s_per_60deg = 0.1", 'top_speed_s_per_60deg = "unknown"').replace(
+        "[model]", '[model]\nalso_named = ["X2"]')
+    m = parse_model(tomllib.loads(text), "x.toml")
+    assert (m.model_number, m.top_speed_s_per_60deg, m.also_named) == (None, None, ("X2",))
+    reg = ModelRegistry([default_registry().get("RS303MR"), m])
+    assert None not in reg.by_number and set(reg.by_number) == {0x3030}
+    x2 = reg.get("x2")
+    assert x2.name == "X2" and x2 is not m and x2.registers is m.registers and x2.behaviour is m.behaviour
+    assert x2.model_number is None and x2.also_named == ()
+    assert reg.get("X1") is m

@@ -24,16 +24,21 @@ _TOML_TYPES = jsonschema.Draft202012Validator.TYPE_CHECKER.redefine(
     "integer", lambda checker, v: isinstance(v, int) and not isinstance(v, bool))
 Reference = jsonschema.validators.extend(jsonschema.Draft202012Validator, type_checker=_TOML_TYPES)
 
-MODEL_KEYS = ["name", "model_number", "top_speed_s_per_60deg", "readable_to", "vendor"]
+MODEL_KEYS = ["name", "model_number", "top_speed_s_per_60deg", "readable_to", "also_named", "vendor"]
 REGISTER_KEYS = ["name", "address", "size", "signed", "scale", "offset", "unit", "access", "area", "default",
-                 "range", "mode", "enum", "table", "format", "description", "colour"]
+                 "range", "mode", "enum", "table", "format", "description", "source", "note", "colour"]
+BEHAVIOUR_KEYS = ["flash_and_reboot_together", "invalid_baud_code_gives", "over_temperature_recovery",
+                  "torque_off_only", "return_flags", "return_areas", "voltage_accuracy_v", "source", "colour"]
+SOURCE_KEYS = ["key", "title", "where", "colour"]
 # Text without a final newline: ECMA-262's $ (JSON Schema's) ends the text, Python's re.search (jsonschema's)
 # also matches before a final newline; the checker holds to ECMA's (test_a_name_with_a_final_newline_is_refused).
 TEXT = st.text(st.characters(blacklist_characters="\n"), max_size=8) | st.sampled_from(
-    ["hex", "read", "reserved", "ram", "pwm", "deg", "id", "reserved_4", "a", "RS1", "é" * 600])
+    ["hex", "read", "reserved", "ram", "pwm", "deg", "id", "reserved_4", "a", "RS1", "é" * 600, "unknown",
+     "reboot", "torque-enable", "servo_id", "manual"])
 SCALAR = st.none() | st.booleans() | st.integers(-70000, 70000) | st.floats(-300, 300) | TEXT
-VALUE = SCALAR | st.lists(SCALAR, max_size=3) | st.dictionaries(st.sampled_from(["0", "1", "0x10", "x"]), SCALAR,
-                                                                  max_size=2)
+VALUE = SCALAR | st.lists(SCALAR, max_size=3) | st.dictionaries(
+    st.sampled_from(["0", "1", "0x10", "0x0D", "x"]), SCALAR | st.lists(st.integers(-1, 300), max_size=3),
+    max_size=2)
 
 
 @st.composite
@@ -41,8 +46,13 @@ def edited_maps(draw) -> dict:
     """A bundled map with a few keys set to any value, or taken out (None)."""
     doc = copy.deepcopy(BUNDLED)
     for _ in range(draw(st.integers(1, 3))):
-        if draw(st.booleans()) and draw(st.booleans()):
+        where = draw(st.sampled_from(["model", "behaviour", "source"] + ["register"] * 5))
+        if where == "model":
             table, key = doc["model"], draw(st.sampled_from(MODEL_KEYS))
+        elif where == "behaviour":
+            table, key = doc.setdefault("behaviour", {}), draw(st.sampled_from(BEHAVIOUR_KEYS))
+        elif where == "source" and doc.get("source"):
+            table, key = draw(st.sampled_from(doc["source"])), draw(st.sampled_from(SOURCE_KEYS))
         else:
             table = draw(st.sampled_from(doc["register"]))
             key = draw(st.sampled_from(REGISTER_KEYS))
@@ -82,7 +92,8 @@ def test_a_bad_map_is_one_line_naming_the_file_and_key(doc):
         text = str(e)
         assert text.startswith("maps/x.toml: ") and "\n" not in text, text
         where = text.split(": ")[1]
-        assert where.split(".")[0].split(" ")[0].split("[")[0] in ("model", "register", "colour", "vendor"), text
+        assert where.split(".")[0].split(" ")[0].split("[")[0] in (
+            "model", "register", "behaviour", "source", "colour", "vendor"), text
     else:
         assert first_failure(doc, memory_map_schema()) is None
 

@@ -127,7 +127,12 @@ def _known_models() -> str:
         # A broken map (on RS30X_DECODERS, say) is the command's to report, in one line, when it loads
         # the maps: the rules are declared when the package is imported, before any command runs.
         return "the memory maps that load"
-    return ", ".join(f"0x{n:04X} {m.name}" for n, m in sorted(registry.by_number.items()))
+    known = [f"0x{n:04X} {m.name}" for n, m in sorted(registry.by_number.items())]
+    # A model no source gives a number for (RS405CB, RS406CB) is never learned from the bus: only named.
+    named = [m.name for m in registry.models.values() if m.model_number is None]
+    if named:
+        known.append(f"{', '.join(named)} by --model only")
+    return ", ".join(known)
 
 
 def _unknown_model_number_columns(named, view) -> bool:
@@ -145,8 +150,9 @@ per servo.
 ## Why it matters
 The sniffer picks each servo's memory map from its model number. An unknown one (0x300C is common in
 the field) is decoded as another model, so the registers where the models differ, the top speed
-(Q007) and the settable ranges (M003) may be wrong for that servo. Pass `--model` for its ID, or add
-a memory map for the model under decoders/.
+(Q007) and the settable ranges (M003) may be wrong for that servo. Pass `--model` for its ID (a model
+whose number no source gives, such as the RS405CB, is known this way only), or add a memory map for
+the model under decoders/.
 
 ## Example
 {example(encode_read(1, 0x00, 2), encode_return(1, 0x00, bytes.fromhex("0C30")), note="a servo answers model number 0x300C:")}

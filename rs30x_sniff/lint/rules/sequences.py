@@ -375,7 +375,7 @@ def _goal_time_too_fast_columns(view) -> bool:
     for t in view.targets:
         plan = t.plan
         g = plan.index.get("goal_position")
-        if g is None:
+        if g is None or plan.model.top_speed_s_per_60deg is None:  # no source gives the model's top speed
             continue
         goal, ids = view.written(t, g), t.ids
         order = t.rows.astype(np.int64) * 512  # checked before the row's writes apply (its sub-order 0)
@@ -414,6 +414,8 @@ def goal_time_too_fast(lint, rec, plan, targets):
     j = idx.get("goal_time")
     g = idx["goal_position"]
     ts = plan.model.top_speed_s_per_60deg
+    if ts is None:
+        return  # no source gives the model's top speed: nothing to hold the move to
     for sid, raws, sh in targets:
         pos = sh.pos
         if pos is None:
