@@ -129,6 +129,16 @@ class BlockView:
             fn = self.made["before", attr] = _before(self.sets[attr], self.shadows(attr))
         return fn(order, ids)
 
+    def before_rows(self, attr: str, rows: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """As :meth:`before` at the start of each of ``rows`` (sub-order 0: before the row's own writes apply),
+        as a Block rows x servos matrix filled forward: no sort. The general path where a row sets ``attr``
+        twice for one servo (a long packet naming a VID twice) or the matrix would be large."""
+        fn = self.made.get(("before_rows", attr))
+        if fn is None:
+            fn = self.made["before_rows", attr] = _before_rows(self.sets[attr], self.shadows(attr), len(self.kind))
+        out = fn(rows, ids)
+        return self.before(attr, rows.astype(np.int64) * 512, ids) if out is None else out
+
     def when_quiet(self, fn: Callable[[], None]) -> None:
         """Call ``fn`` once the Block is accepted as quiet (a rule's memory moved past its rows)."""
         self.on_accept.append(fn)
@@ -385,6 +395,79 @@ def _last_per_servo(sets) -> dict[int, int]:
     ids, vals = ids[k], vals[k]
     last = np.flatnonzero(np.append(ids[1:] != ids[:-1], True))
     return dict(zip(ids[last].tolist(), vals[last].tolist()))
+
+
+MATRIX_CELLS = 1 << 22  # _before_rows' largest matrix (32 MiB of int64 per array)
+
+
+def _before_rows(sets, column: np.ndarray, n_rows: int):
+    """A function of (rows, servo ids): for each, the value set last in a row before that row, from ``sets`` or
+    else ``column`` (the value before the Block); None when it cannot say (see BlockView.before_rows).
+
+    No sort: the rows asked about cut the Block into spans (span k: after the k-th row asked about, up to and
+    with the next), each set falls in one span (a set at row r has an order key of r * 512 and more, so it is
+    before the start of any later row), and a spans x servos matrix holds each servo's last set per span (the
+    largest order key), filled forward over the spans."""
+    s_order, s_ids, s_vals = _concat(sets)
+
+    def before(rows: np.ndarray, ids: np.ndarray) -> np.ndarray | None:
+        if not len(s_order):
+            return column[ids]
+        grid = _grid(rows, ids)
+        seen = np.zeros(256, dtype=bool)
+        if grid is None:
+            seen[ids] = True
+            width = int(np.count_nonzero(seen))
+            col = np.cumsum(seen) - 1  # servo id -> its column
+        else:  # the same servos row after row (a long packet's VIDs): the answer is the matrix itself
+            first = ids[:grid]
+            width, col = grid, np.zeros(256, dtype=np.int64)
+            seen[first] = True
+            col[first] = np.arange(grid)
+        asked = np.zeros(n_rows, dtype=bool)
+        asked[rows] = True
+        span = np.cumsum(asked)  # row -> the rows asked about up to and with it: the span a set there falls in
+        spans = int(span[-1]) + 1
+        if spans * width > MATRIX_CELLS:
+            return None
+        mine = seen[s_ids]
+        order = s_order[mine]
+        cell = span[order >> 9] * width + col[s_ids[mine]]
+        last = np.full(spans * width, -1, dtype=np.int64)
+        np.maximum.at(last, cell, order)
+        won = order == last[cell]
+        filled = last >= 0
+        if np.count_nonzero(won) != np.count_nonzero(filled):
+            return None  # two values set at one point (a return holding goal and present position): general path
+        vals = np.empty(spans * width, dtype=np.int64)
+        vals[cell[won]] = s_vals[mine][won]
+        where = np.where(filled, np.arange(spans * width), -1).reshape(spans, width)
+        np.maximum.accumulate(where, axis=0, out=where)  # each servo's latest span with a set, up to each span
+        if grid is None:
+            at = where.ravel()[(span[rows] - 1) * width + col[ids]]  # the spans before the row's own
+        else:
+            at = where[:-1].ravel()  # span k - 1 before the k-th row asked about, in the order asked
+        found = at >= 0
+        out = column[ids]
+        out[found] = vals[at[found]]
+        return out
+
+    return before
+
+
+def _grid(rows: np.ndarray, ids: np.ndarray) -> int | None:
+    """How many servos each row asks about, when ``rows`` and ``ids`` are a rows x servos matrix (the same
+    distinct servos in the same order, row after row, rows increasing), else None."""
+    if not len(rows):
+        return None
+    width = int(np.searchsorted(rows, rows[0], side="right"))
+    if len(rows) % width or len(np.unique(ids[:width])) != width:
+        return None
+    by_row = rows.reshape(-1, width)
+    if not ((by_row == by_row[:, :1]).all() and (ids.reshape(-1, width) == ids[:width]).all()
+            and (np.diff(by_row[:, 0]) > 0).all()):
+        return None
+    return width
 
 
 def _before(sets, column: np.ndarray):

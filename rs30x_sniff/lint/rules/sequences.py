@@ -378,13 +378,12 @@ def _goal_time_too_fast_columns(view) -> bool:
         if g is None or plan.model.top_speed_s_per_60deg is None:  # no source gives the model's top speed
             continue
         goal, ids = view.written(t, g), t.ids
-        order = t.rows.astype(np.int64) * 512  # checked before the row's writes apply (its sub-order 0)
-        pos = view.before("pos", order, ids)
+        pos = view.before_rows("pos", t.rows, ids)  # checked before the row's writes apply (its sub-order 0)
         j = plan.index.get("goal_time")
         if j is not None:
             gt = view.written(t, j)
         else:
-            gt = view.before("goal_time", order, ids)
+            gt = view.before_rows("goal_time", t.rows, ids)
             gt = np.where(gt == UNKNOWN, 0, gt)
         known = (pos != UNKNOWN) & (gt != 0)
         if (known & too_fast(np.abs(goal - pos), plan.model.top_speed_s_per_60deg, gt)).any():
