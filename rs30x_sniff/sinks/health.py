@@ -235,10 +235,41 @@ class HealthRecorder:
         if blk.vid_models is None:
             self._buffer_rows(blk, rows, self.long_writes, None)
             return
-        made = blk.made_rows  # servos of mixed models: each packet on its own, as the record form does
-        for k in rows.tolist():
-            rec = made.get(k) or blk.fresh_record(k)
-            self.long_written(rec, rec.event)
+        self._mixed_long_rows(blk, rows)
+
+    def _mixed_long_rows(self, blk: Block, rows: np.ndarray) -> None:
+        """Long packets to servos of mixed models (``rows``), as :meth:`long_written` takes each record in its
+        own servo's model: by shape (address, Length, data length), then by record place and VID (the same
+        servo in every packet, as a rule), each register's column taken at once."""
+        cols, run, vid_models = blk.cols, blk.run, blk.vid_models
+        assert vid_models is not None
+        a, starts = run.bytes_array, run.starts[rows + blk.lo] + AT_DATA
+        length = cols["length"][rows].astype(np.int64)
+        dl = cols["data_len"][rows].astype(np.int64)
+        keys = (cols["address"][rows].astype(np.int64) * 256 + length) * (1 << 20) + dl
+        takes = []  # (first row, record place, VID, register, its column)
+        for key in np.unique(keys[length > 0]).tolist():
+            mine = np.flatnonzero(keys == key)
+            rest, n = divmod(key, 1 << 20)
+            address, ln = rest >> 8, rest & 255
+            for k in range(-(-n // ln)):
+                size = min(ln - 1, n - k * ln - 1)  # the record's data, the last one cut short
+                if size <= 0:
+                    continue
+                at = starts[mine] + k * ln
+                vids = a[at]
+                one = vids.min() == vids.max()
+                for vid in ([int(vids[0])] if one else np.unique(vids).tolist()):
+                    where = _where(vid_models[vid], WRITTEN, address, size)
+                    if not where:
+                        continue
+                    sub = at if one else at[vids == vid]
+                    first = int(mine[0]) if one else int(mine[np.argmax(vids == vid)])
+                    for reg, off in where:
+                        takes.append((first, k, vid, reg, reg.raw_column(a, sub + 1 + off)))
+        takes.sort(key=lambda x: x[:2])  # servos made in the order their records came
+        for _, _, vid, reg, col in takes:
+            _take(self.servo(vid), reg, col)
 
     def _buffer_rows(self, blk: Block, rows: np.ndarray, bufs: dict, present: bool | None) -> None:
         """Rows of the Block into ``bufs``, as returned() / written() / long_written() put them
