@@ -37,9 +37,12 @@ def register_data(reg: Any) -> dict[str, Any]:
     }
 
 
-def model_data(model: Model) -> dict[str, Any]:
+def model_data(model: Model, also_named: list[str] | None = None) -> dict[str, Any]:
+    """One model as plain data. ``model_number`` is None for a model no return names (RS405CB, RS406CB: known
+    only when the user names it); ``also_named`` lists the other names of the same map (RS406CB for RS405CB)."""
     return {
         "name": model.name,
+        "also_named": list(also_named or ()),
         "model_number": model.model_number,
         "readable_to": model.readable_to,
         "registers": [register_data(r) for r in model.registers],
@@ -77,11 +80,22 @@ def plugin_maps(registry: ModelRegistry | None = None) -> dict[str, Any]:
     """Every model the registry holds ($RS30X_DECODERS included), the default first, and the protocol."""
     registry = registry or default_registry()
     default = registry.default
-    models = [default, *(m for m in registry.models.values() if m is not default)]
+    # One entry per model the registry holds (RS406CB, which shares RS405CB's map, is a model of its own);
+    # a name the registry gives a model besides its own (its key) is an alias of it, never a second copy.
+    models: list[Model] = [default]
+    aliases: dict[int, list[str]] = {id(default): []}
+    for key, m in registry.models.items():
+        if id(m) not in aliases:
+            models.append(m)
+            aliases[id(m)] = []
+        names = aliases[id(m)]
+        for name in (key, *getattr(m, "also_named", ())):
+            if name.upper() != m.name.upper() and name.upper() not in (n.upper() for n in names):
+                names.append(name)
     return {
         "generator": f"rs30x-sniff {__version__}",
         "default_model": default.name,
-        "models": [model_data(m) for m in models],
+        "models": [model_data(m, aliases[id(m)]) for m in models],
         "protocol": protocol_data(),
     }
 

@@ -11,7 +11,12 @@ which the test tests/plugins/test_pycore.py holds it equal to:
 - fields (rs30x_sniff/protocol/memmap.py): registers by address, 2-byte registers little-endian, scale, offset,
   enum labels and tables; one byte of a 2-byte register is a "low"/"high" part with its raw value;
 - models (rs30x_sniff/decode/pairing.py): every servo is decoded as the default model until a return of its
-  model number (addresses 0-1, table 4.5) names another map; a servo_id write moves what was learned.
+  model number (addresses 0-1, table 4.5) names another map; a servo_id write moves what was learned. A map with
+  no model number (RS405CB, RS406CB) is used only when the user names it;
+- missing replies (rs30x_sniff/decode/pairing.py, BusTracker): a short request whose return mode asks for a
+  reply (table 4.3) that gets none before the next request, before the reply timeout runs out or before the
+  capture ends past it: ``Core.take_no_replies`` hands such requests out (``status`` "missing": decode's
+  NO-REPLY).
 
 Positions are whatever the host tool counts in (sample numbers, seconds): the core only compares them.
 """
@@ -71,6 +76,8 @@ class Frame(object):
         self.fields = []                      # dicts: id, address, name, label, raw, value, unit, start, end
         self.flags = []                       # the flag byte's meanings by name
         self.warnings = []                    # short words: "bad checksum", "truncated", ...
+        self.status = None                    # a request that asked for a reply: "waiting", "answered",
+                                              # "missing" (NO-REPLY) or "unknown" (the capture ended first)
 
     def as_dict(self):
         d = dict(self.__dict__)
@@ -200,6 +207,7 @@ class Framer(object):
         self.last_end = None
         self.final = False        # nothing more comes (the end of input, or flagged bytes next)
         self.hard = False         # the line has gone idle after the last byte (idle())
+        self.seams = []           # (offset of a new segment's first byte, end of the last byte before it)
 
     @property
     def offset(self):
@@ -220,6 +228,7 @@ class Framer(object):
                 or (self.seam_back is not None and start < self.last_start - self.seam_back)):
             return []
         out = self._parse(final=True, ended=True)
+        self.seams.append((self.offset, self.last_end))
         self.last_start = self.last_end = None
         self.lead = True
         self.seg_start = self.offset
@@ -455,10 +464,16 @@ class Core(object):
 
     def __init__(self, maps, model=None, gap=None, seam=None, seam_back=None, reply_timeout=None):
         self.protocol = maps["protocol"]
-        self.maps = dict((m["name"].upper(), MemoryMap(m)) for m in maps["models"])
+        self.maps = {}
+        for m in maps["models"]:
+            self.maps.setdefault(m["name"].upper(), MemoryMap(m))
+        for m in maps["models"]:  # another name of a map, unless a model of that name has a map of its own
+            for name in m.get("also_named") or ():
+                self.maps.setdefault(name.upper(), self.maps[m["name"].upper()])
         self.by_number = {}
         for m in maps["models"]:  # the first map of a model number wins (as in our registry)
-            self.by_number.setdefault(m["model_number"], self.maps[m["name"].upper()])
+            if m["model_number"] is not None:  # a model without one is known only by its name
+                self.by_number.setdefault(m["model_number"], self.maps[m["name"].upper()])
         name = (model or maps["default_model"]).upper()
         if name not in self.maps:
             raise ValueError("unknown model %r (known: %s)" % (model, ", ".join(sorted(self.maps))))
@@ -468,6 +483,11 @@ class Core(object):
         self.learned = {}   # servo ID -> MemoryMap told by its model number
         self.servos = {}    # servo ID -> MemoryMap, for every servo a checksum-valid packet named
         self.request = None  # the last request, while an ACK/NACK may answer it
+        self.waiting = None  # the request whose reply is due (pairing.BusTracker's pending request)
+        self.no_replies = []  # requests found missing their reply, not yet taken
+        self.last_end = None  # the end of the last frame's last byte
+        wanting = [mode for mode, row in self.protocol["return_modes"].items() if row["expect"] != "none"]
+        self.wants_reply = set(int(mode) for mode in wanting)  # return modes that ask for a reply (table 4.3)
         self._id_address = self.default.by_name["servo_id"]["address"] if "servo_id" in self.default.by_name else 4
 
     # ---- input ----
@@ -480,12 +500,22 @@ class Core(object):
         return self._frames(self.framer.put_flagged(byte, start, end, reason))
 
     def idle(self, at):
-        """The line has been idle until ``at``: frames the gap ends."""
-        return self._frames(self.framer.idle(at))
+        """The line has been idle until ``at``: frames the gap ends (and a reply that is now overdue is
+        missing: see take_no_replies)."""
+        frames = self._frames(self.framer.idle(at))
+        self.idle_until(at)
+        return frames
 
     def flush(self):
         """End of input: whatever is pending."""
-        return self._frames(self.framer.close())
+        frames = self._frames(self.framer.close())
+        self._end_segment(self.framer.last_end if self.framer.last_end is not None else self.last_end)
+        return frames
+
+    def take_no_replies(self):
+        """The requests found missing their reply since the last call (decode's NO-REPLY), oldest first."""
+        out, self.no_replies = self.no_replies, []
+        return out
 
     # ---- frames ----
     def model_of(self, servo_id):
@@ -496,7 +526,60 @@ class Core(object):
             self.servos[servo_id] = self.model_of(servo_id)
 
     def _frames(self, events):
-        return [self._frame(*ev) for ev in events]
+        frames = []
+        for ev in events:
+            f = self._frame(*ev)
+            self._pair(f)
+            frames.append(f)
+        return frames
+
+    def idle_until(self, at):
+        """The line has been quiet until ``at``: a reply due longer ago than the reply timeout is missing."""
+        w = self.waiting
+        if (w is not None and self.reply_timeout is not None and at is not None and w.end is not None
+                and at - w.end > self.reply_timeout):
+            self._missing(w)
+
+    # ---- replies (rs30x_sniff.decode.pairing.BusTracker.feed_into) ----
+    def _pair(self, f):
+        seams = self.framer.seams
+        while seams and seams[0][0] <= f.offset:
+            self._end_segment(seams.pop(0)[1])  # nothing is paired across a seam of the clock
+        w = self.waiting
+        if (w is not None and self.reply_timeout is not None and f.start is not None and w.end is not None
+                and f.start - w.end > self.reply_timeout):
+            self._missing(w)
+            w = None
+        if f.kind in ("return", "ack", "nack"):
+            if w is not None:
+                w.status = "answered"
+                self.waiting = None
+        elif f.kind in ("short", "long"):
+            if w is not None:
+                self._missing(w)  # another request: the servo will not answer this one
+            if f.kind == "short" and f.flag & self.protocol["return_mode_mask"] in self.wants_reply:
+                f.status = "waiting"
+                self.waiting = f
+        if f.end is not None:
+            self.last_end = f.end
+
+    def _missing(self, request):
+        request.status = "missing"
+        self.no_replies.append(request)
+        self.waiting = None
+
+    def _end_segment(self, end):
+        """The capture (or a time segment) ended at ``end``: a reply still due is missing if the reply timeout
+        ran out before then, else unknown (it may have come after the capture)."""
+        w = self.waiting
+        if w is None:
+            return
+        timeout = self.reply_timeout
+        if timeout is not None and end is not None and w.end is not None and end - w.end > timeout:
+            self._missing(w)
+        else:
+            w.status = "unknown"
+            self.waiting = None
 
     def _frame(self, kind, offset, raw, positions, detail):
         p = self.protocol

@@ -78,7 +78,11 @@ One dict per frame (the core's Frame.as_dict()), positions in samples:
 Binary output 'frames': the same dicts as JSON, one line each.
 '''
 
+# Every model a user may name: each map's own name, then the other names of a
+# map (a model that shares another's registers), once each.
 MODELS = tuple(model['name'] for model in MAPS['models'])
+MODELS += tuple(sorted(set(name for model in MAPS['models']
+    for name in model.get('also_named') or () if name not in MODELS)))
 PROTOCOL = MAPS['protocol']
 
 # The uart's two lines (its <rxtx>).
@@ -90,8 +94,17 @@ TX = 1
 SEAM_S = 10.0
 REPLY_TIMEOUT_S = 0.05
 
+# PulseView 0.4 colours an annotation by its row and its class's index: one
+# hue per row, stepped round a ring of 16 by the index. Classes that must look
+# apart within a row are therefore 4 or more apart: a bad sum (10) from a
+# good one (6), an error (11) from a warning (7); a note (8: the edge of the
+# capture, a fact rather than a fault) and a missing reply (9) lie between.
 class Ann:
-    REQUEST, RETURN, ACK, NACK, HEADER, REGISTER, CHECKSUM, WARNING = range(8)
+    (REQUEST, RETURN, ACK, NACK, HEADER, REGISTER, CHECKSUM, WARNING, NOTE,
+     NO_REPLY, BAD_SUM, ERROR) = range(12)
+
+# Garbage whose reason is the edge of the capture, not a fault of the bus.
+EDGE_REASONS = ('capture-start', 'capture-end')
 
 PACKET_CLASS = {
     'short': Ann.REQUEST,
@@ -126,11 +139,17 @@ class Decoder(srd.Decoder):
         ('register', 'Register'),
         ('checksum', 'Checksum'),
         ('warning', 'Warning'),
+        ('note', 'Note (the edge of the capture)'),
+        ('no-reply', 'No reply'),
+        ('bad-sum', 'Bad checksum'),
+        ('error', 'Error'),
     )
     annotation_rows = (
         ('packets', 'Packets', (Ann.REQUEST, Ann.RETURN, Ann.ACK, Ann.NACK)),
-        ('fields', 'Fields', (Ann.HEADER, Ann.REGISTER, Ann.CHECKSUM)),
-        ('warnings', 'Warnings', (Ann.WARNING,)),
+        ('fields', 'Fields', (Ann.HEADER, Ann.REGISTER, Ann.CHECKSUM,
+            Ann.BAD_SUM)),
+        ('warnings', 'Warnings', (Ann.NOTE, Ann.WARNING, Ann.NO_REPLY,
+            Ann.ERROR)),
     )
     binary = (
         ('frames', 'Frames (JSON lines)'),
@@ -196,6 +215,14 @@ class Decoder(srd.Decoder):
     def show(self, rxtx, frames):
         for frame in frames:
             self.show_frame(rxtx, frame)
+        core = self.cores[rxtx]
+        if core is not None:
+            # Requests that asked for a reply and got none (decode's NO-REPLY):
+            # the next request came first, or the line stayed silent past
+            # the reply timeout.
+            for request in core.take_no_replies():
+                self.putann(request.start, request.end, Ann.NO_REPLY,
+                    no_reply_texts(request))
 
     def show_frame(self, rxtx, frame):
         ss, es = frame.start, frame.end
@@ -207,12 +234,13 @@ class Decoder(srd.Decoder):
                 self.putann(field['start'], field['end'], Ann.REGISTER, field_texts(field))
             self.show_checksum(frame)
         else:
-            self.putann(ss, es, Ann.WARNING, garbage_texts(frame))
+            cls = Ann.NOTE if frame.reason in EDGE_REASONS else Ann.ERROR
+            self.putann(ss, es, cls, garbage_texts(frame))
         for warning in frame.warnings:
             if warning == 'bad checksum':
-                self.putann(ss, es, Ann.WARNING, ['Bad checksum', 'Bad sum', 'Sum'])
+                self.putann(ss, es, Ann.ERROR, ['Bad checksum', 'Bad sum', '!'])
             elif frame.kind != 'garbage':
-                self.putann(ss, es, Ann.WARNING, [warning])
+                self.putann(ss, es, Ann.WARNING, warning_texts(frame, warning))
         record = frame.as_dict()
         record['line'] = rxtx
         self.put(ss, es, self.out_python, record)
@@ -226,9 +254,15 @@ class Decoder(srd.Decoder):
         total = frame.raw[-1]
         if frame.checksum_ok:
             texts = ['Checksum: %02X' % total, 'Sum %02X' % total, 'S']
-        else:
-            texts = ['Checksum: %02X (bad)' % total, 'Sum %02X bad' % total, 'S!']
-        self.putann(pos[-1][0], pos[-1][1], Ann.CHECKSUM, texts)
+            self.putann(pos[-1][0], pos[-1][1], Ann.CHECKSUM, texts)
+            return
+        # The Sum is the XOR of ID..data ("Format of Packets").
+        due = 0
+        for b in frame.raw[2:-1]:
+            due ^= b
+        texts = ['Checksum: %02X (bad, should be %02X)' % (total, due),
+                 'Sum %02X bad' % total, 'Bad', '!']
+        self.putann(pos[-1][0], pos[-1][1], Ann.BAD_SUM, texts)
 
     def show_header(self, frame):
         # A packet's header bytes (manual, "Format of Packets"): header, ID,
@@ -268,9 +302,40 @@ def value_text(field):
     return text
 
 def field_texts(field):
+    # Longest first: PulseView shows the longest that fits, and elides the
+    # last one only when none does (a value, then the value without its unit).
     name = field['name'] or field.get('label') or 'address %d' % field['address']
     value = value_text(field)
-    return ['%s: %s (ID %d)' % (name, value, field['id']), '%s: %s' % (name, value), value]
+    texts = ['%s: %s (ID %d)' % (name, value, field['id']), '%s: %s' % (name, value), value]
+    unit = field['unit']
+    if unit and value.endswith(' ' + unit):
+        value = value[:-len(unit) - 1]
+        texts.append(value)
+    # The same number without its trailing zeros (7.40 -> 7.4, 90.0 -> 90):
+    # narrower, and still exact.
+    if '.' in value and value.replace('.', '', 1).lstrip('-').isdigit():
+        short = value.rstrip('0').rstrip('.')
+        if short != value:
+            texts.append(short)
+    return texts
+
+def words(name):
+    # A name of the maps or the core (temperature_alarm) as people write it.
+    return name.replace('_', ' ').replace('-', ' ')
+
+def warning_texts(frame, warning):
+    label = words(warning)
+    if warning == 'unsolicited':
+        what = frame.kind.upper()
+        return ['%s that no request asked for' % what, 'Unsolicited %s' % what, 'Unsolicited', '!']
+    texts = [label[:1].upper() + label[1:]]
+    if frame.id is not None:
+        texts.insert(0, '%s (ID %d)' % (texts[0], frame.id))
+    return texts + ['!']
+
+def no_reply_texts(request):
+    return ['No reply from ID %d (NO-REPLY)' % request.id, 'No reply from ID %d' % request.id,
+            'No reply', 'NR']
 
 def packet_texts(frame):
     bad = '' if frame.checksum_ok is not False else ' (bad checksum)'
@@ -298,7 +363,8 @@ def packet_texts(frame):
 def garbage_texts(frame):
     reason = ' (%s)' % frame.reason if frame.reason else ''
     return ['Garbage: %d bytes %s%s' % (len(frame.raw), frame.raw.hex().upper(), reason),
-            'Garbage: %d bytes' % len(frame.raw), 'G']
+            'Garbage: %d bytes%s' % (len(frame.raw), reason), 'Garbage: %d bytes' % len(frame.raw),
+            'Garbage', 'G']
 """
 
 
@@ -335,7 +401,10 @@ Options: `model` (the memory map that names the registers until a servo's model 
 `gap` (idle byte times that end a frame, default 20; the byte time is measured from the uart's frames).
 
 Rows: Packets (request, return, ACK, NACK), Fields (header bytes, registers with scaled values and units,
-checksum), Warnings (bad checksum, cut frames, garbage, framing errors, return flags). Binary output
+checksum; a bad one in a class of its own, `bad-sum`), Warnings (`error`: a bad checksum, cut frames, garbage,
+framing errors; `warning`: the return flags a servo sets, an unsolicited ACK/NACK; `no-reply`: a request whose
+reply never came, as `rs30x-sniff decode` says NO-REPLY; `note`: bytes cut by the capture's start or end). In
+PulseView each class of a row has its own colour. Binary output
 `frames`: one JSON object per frame; a decoder stacked on this one gets the same dict as Python output.
 With both uart lines (rx and tx) each line is framed on its own; the frame's `line` says which.
 

@@ -48,7 +48,7 @@ def core_frames(path: Path, maps: dict) -> list:
     core = pycore.Core(maps, s.default_model, gap=opts.gap_bytes * bt if timed else None,
                        seam=SEAM_GAP_S if timed else None, seam_back=SEAM_BACK_S if timed else None,
                        reply_timeout=opts.reply_timeout if timed else None)
-    frames, offset = [], 0
+    frames, offset, missing = [], 0, []
     for chunk in chunks:
         data, t = chunk
         error = marks(chunk)[1]
@@ -56,8 +56,12 @@ def core_frames(path: Path, maps: dict) -> list:
             start = t + k * bt if t is not None else offset
             end = start + (bt if t is not None else 1)
             frames += core.feed(b, start, end) if error is None else core.feed_flagged(b, start, end, error)
+            missing += core.take_no_replies()
             offset += 1
-    return frames + core.flush()
+    frames += core.flush()
+    missing += core.take_no_replies()
+    assert missing == [f for f in frames if f.status == "missing"]  # handed out once each, in order
+    return frames
 
 
 def value(v):
@@ -70,7 +74,8 @@ def as_jsonl(f: pycore.Frame) -> dict:
          "flag": f.flag, "address": f.address, "length": f.length, "count": f.count, "flags": f.flags,
          "model": f.model,
          "fields": [{"id": x["id"], "address": x["address"], "name": x["name"], "raw": x["raw"],
-                     "value": value(x["value"]), "unit": x["unit"], **({"partial": x["partial"]} if x["partial"] else {})}
+                     "value": value(x["value"]), "unit": x["unit"],
+                     **({"partial": x["partial"]} if x["partial"] else {})}
                     for x in f.fields]}
     if f.kind == "garbage":
         d["reason"] = f.reason
@@ -90,11 +95,15 @@ def maps() -> dict:
 
 def check_same(path: Path, maps: dict) -> None:
     frames = core_frames(path, maps)
-    want = [expected(ev) for ev in jsonl(path)]
+    events = jsonl(path)
+    want = [expected(ev) for ev in events]
     got = [as_jsonl(f) for f in frames]
     for k, (g, w) in enumerate(zip(got, want)):
         assert g == w, f"{path.name}: event {k} differs"
     assert len(got) == len(want), f"{path.name}: {len(got)} frames, decode has {len(want)}"
+    # decode's NO-REPLY (status "missing") on the same requests
+    assert [f.offset for f in frames if f.status == "missing"] == \
+           [ev["offset"] for ev in events if ev.get("status") == "missing"], path.name
 
 
 @pytest.mark.parametrize("path", CAPTURES, ids=lambda p: p.name)
@@ -121,6 +130,8 @@ def test_the_corpus_has_what_the_comparison_needs(scenario_files: list[Path]) ->
     assert {"short", "long", "return", "ack", "nack", "garbage"} <= kinds
     assert {"noise", "truncated", "capture-end"} <= reasons
     assert {"RS303MR", "RS304MD"} <= models and bad
+    missing = [p for p in [*CAPTURES, *scenario_files] if any(ev.get("status") == "missing" for ev in jsonl(p))]
+    assert len(missing) >= 3  # NO-REPLY is compared on more than one capture
 
 
 # ---- random input -----------------------------------------------------------------------------------
@@ -179,7 +190,8 @@ def test_random_input_agrees_with_our_framer_with_or_without_idle_calls(data: by
         t += BT * (1.0 if rnd.random() < 0.8 else rnd.choice([5.0, 21.5, 40.0]))
         starts.append(t)
     # idle(at) before a byte, at some moment of the silence before it (past the previous byte's end)
-    idles = [None if k == 0 or rnd.random() < 0.5 else starts[k - 1] + BT + rnd.random() * (starts[k] - starts[k - 1] - BT)
+    idles = [None if k == 0 or rnd.random() < 0.5
+             else starts[k - 1] + BT + rnd.random() * (starts[k] - starts[k - 1] - BT)
              for k in range(len(data))]
     plain = timed_feed(pycore.Core(maps, gap=20 * BT), data, starts, [None] * len(data))
     idled = timed_feed(pycore.Core(maps, gap=20 * BT), data, starts, idles)

@@ -207,7 +207,7 @@ def test_packets_row_has_a_packet_per_event_where_it_lies(plugin, everything, de
 def test_warnings_row_shows_bad_sums_and_garbage(plugin, everything, decoded):
     sr, _ = everything
     _, theirs = decoded
-    rows = annotations(sr, plugin, "warning")
+    rows = annotations(sr, plugin, "note:warning:no-reply:error")
     bad_sums = sum(1 for e in theirs if e["checksum_ok"] is False and e["type"] != "garbage")
     garbage = sum(1 for e in theirs if e["type"] == "garbage")
     assert bad_sums and garbage

@@ -28,6 +28,7 @@ needs_tshark = pytest.mark.skipif(TSHARK is None, reason="tshark is not installe
 def write_plugin(folder: Path, maps: dict) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     for rel, text in generate(maps).items():
+        (folder / rel).parent.mkdir(parents=True, exist_ok=True)
         (folder / rel).write_text(text, encoding="utf-8")
     return folder / "rs30x.lua"
 
