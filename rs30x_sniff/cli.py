@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import errno
 import importlib
-import importlib.util
 import math
 import os
 import re
@@ -16,16 +15,32 @@ from collections.abc import Mapping
 from typing import Any, NoReturn
 
 from . import language
+from .errors import CliError
 from .version import __version__
-from .commands.common import CliError, say_deprecations
-from .commands.options import duration
-from .sources.captures import CaptureError
-from .protocol.memmap import ModelError
 
-# Subcommands, in the order `--help` lists them; each is a module rs30x_sniff.commands.<name>
-# with add_parser(subparsers) and run(args) -> exit code.
-COMMANDS = ("decode", "lint", "rules", "info", "diff", "convert", "export", "table", "record", "simulate", "monitor",
-            "serve", "plugin")
+# Subcommands, in the order `--help` lists them, with the one line `--help` gives each; each is a module
+# rs30x_sniff.commands.<name> with add_parser(subparsers) and run(args) -> exit code. A command line imports the
+# module of its own command only (issue 35: start-up), so the top-level --help reads these lines here; each equals
+# the help= of its module's add_parser (tests/commands/test_startup.py).
+SUMMARIES = {
+    "decode": "decode a capture into named, scaled fields",
+    "lint": "check captures against the rule catalog (exit 1 on findings)",
+    "rules": "list the lint rules, or show one rule's documentation",
+    "info": "summarize a capture: duration, packets, polls, latencies, bus load",
+    "diff": "compare two captures: poll rates, latencies, missing replies, findings, load",
+    "convert": "convert a capture into an MCAP log for Foxglove or a pcapng for Wireshark",
+    "export": "write the raw bytes of an MCAP log back out as a capture",
+    "table": "servo states, transactions or findings as CSV or Parquet",
+    "record": "record a serial port to MCAP (a passive tap; never writes to the port)",
+    "simulate": "a simulated servo bus: scenarios to a capture file or a port",
+    "monitor": "watch the bus in a terminal UI",
+    "serve": "stream the bus live to Foxglove (WebSocket server)",
+    "plugin": "write a plug-in for sigrok/PulseView, Saleae Logic 2 or Wireshark",
+}
+COMMANDS = tuple(SUMMARIES)
+# BLAS thread pools numpy would start at import: a command never multiplies large matrices, and the idle pool's
+# threads cost 70-80 ms of CPU at start-up on another core (issue 35). Set unless the user set them.
+ONE_THREAD = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 # The largest value of each command-only numeric option, checked for every command here (the settings'
@@ -42,14 +57,18 @@ OPTION_MAX: dict[str, float] = {
     "--seed": 2**64 - 1,        # the simulator's random seed
     "--baud": 1_000_000,        # simulate: bit/s (it takes the rates of table 4.7 only)
 }
-NUMBERS = (int, float, duration)  # the types of a number option (--baud's own type also takes "auto")
+NUMBERS = (int, float)  # and options.duration: the types of a number option (--baud's own type also takes "auto")
 ERROR = "rs30x-sniff: error: "  # the one prefix of an error line, argparse's own included
 # Older spellings of a command, read as the one command they name (README.md, "One grammar"): `export --table KIND` is
 # `table --of KIND`.
 ALIASES = {("export", "--table"): ("table", "--of")}
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The whole parser, every command's module imported; given the command line ``argv``, a parser for it:
+    the module of its command only (none for --help or --version), every other command a name and its line
+    (SUMMARIES) for the top-level --help and the list of choices."""
+    chosen = None if argv is None else chosen_command(argv)
     parser = CommandParser(
         prog="rs30x-sniff",
         description="Protocol analyzer and bus logger for the Futaba RS30x (RS303MR/RS304MD) servo bus.",
@@ -58,11 +77,24 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=CommandParser)
     for name in COMMANDS:
         modname = f"{__package__}.commands.{name}"
-        if importlib.util.find_spec(modname) is None:
-            continue
-        importlib.import_module(modname).add_parser(sub)
+        if argv is not None and name != chosen:
+            sub.add_parser(name, help=SUMMARIES[name])  # never parsed: the command line names another
+        elif spec_of(modname) is not None:
+            importlib.import_module(modname).add_parser(sub)
     parser.commands = sub.choices  # name -> CommandParser
     return parser
+
+
+def spec_of(module: str) -> object:
+    """importlib's spec of ``module``, None where it is missing (importlib.util: imported for a command only)."""
+    import importlib.util
+    return importlib.util.find_spec(module)
+
+
+def chosen_command(argv: list[str]) -> str | None:
+    """The command ``argv`` names: its first word that is no option (the top level's own options take no value)."""
+    word = next((a for a in argv if not a.startswith("-")), None)
+    return word if word in SUMMARIES else None
 
 
 class CommandParser(argparse.ArgumentParser):
@@ -78,7 +110,7 @@ class CommandParser(argparse.ArgumentParser):
 
     def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
         action = super().add_argument(*args, **kwargs)
-        if kwargs.get("type") in NUMBERS and args and str(args[0]).startswith("-"):
+        if is_number(kwargs.get("type")) and args and str(args[0]).startswith("-"):
             self.numbers.append((args[-1], action.dest))
         return action
 
@@ -90,6 +122,31 @@ class CommandParser(argparse.ArgumentParser):
         command = self.prog.removeprefix("rs30x-sniff").strip()
         where = f"{command}: " if command else ""
         self.exit(2, f"{ERROR}{where}{message} (see {self.prog} --help)\n")
+
+
+def is_number(kind: object) -> bool:
+    """Whether an option's type reads a number (NUMBERS, or a duration)."""
+    if kind is None:
+        return False
+    from .commands.options import duration  # here: the command's module has imported it already
+    return kind in NUMBERS or kind is duration
+
+
+def user_errors() -> tuple[type[Exception], ...]:
+    """The errors :func:`main` says in one line: CliError, and a capture's or a memory map's error where its
+    module is loaded (one that was never imported raised nothing), so that --help loads neither."""
+    found: list[type[Exception]] = [CliError]
+    for module, name in (("rs30x_sniff.sources.base", "CaptureError"), ("rs30x_sniff.protocol.memmap", "ModelError")):
+        loaded = sys.modules.get(module)
+        if loaded is not None:
+            found.append(getattr(loaded, name))
+    return tuple(found)
+
+
+def one_thread_blas() -> None:
+    """ONE_THREAD set to 1 where the user set nothing, before numpy is imported (build_parser imports it)."""
+    for name in ONE_THREAD:
+        os.environ.setdefault(name, "1")
 
 
 def check_bounds(command: CommandParser, args: argparse.Namespace) -> None:
@@ -156,15 +213,20 @@ def aliased(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    one_thread_blas()
+    words = aliased(list(sys.argv[1:] if argv is None else argv))
+    parser = build_parser(words)
     language.deprecation_notes.clear()  # this command's notes, not a former one's (a library caller's main)
     try:
-        args = parser.parse_args(aliased(list(sys.argv[1:] if argv is None else argv)))
+        args = parser.parse_args(words)
     except SystemExit as e:  # a usage error (said in one line by CommandParser.error), --help or --version
         return e.code if isinstance(e.code, int) else 2
     if not getattr(args, "run", None):
         parser.print_help()
         return 2
+    from . import allocator
+    from .commands.common import say_deprecations  # here: --help and a usage error need neither
+    allocator.keep_large_buffers()
     saved = {**interrupt_by_default(), **stop_on_hangup()}
     try:
         check_bounds(args.command_parser, args)
@@ -173,7 +235,7 @@ def main(argv: list[str] | None = None) -> int:
         if sys.stdout is not None:
             sys.stdout.flush()  # here, not at exit: a reader gone or a full disk is reported like the rest
         return code
-    except (CliError, CaptureError, ModelError) as e:
+    except user_errors() as e:
         say_deprecations()
         print(f"{ERROR}{e}", file=sys.stderr)
         return 2

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -166,6 +165,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.jobs > 1 and len(args.inputs) > 1:
             jobs = [(p, args.input_format, st, None, None, args.allow_empty) for p, st in zip(args.inputs, per_file)]
+            from concurrent.futures import ProcessPoolExecutor  # here: only --jobs pays for it
+
             with ProcessPoolExecutor(max_workers=min(args.jobs, len(jobs))) as pool:
                 for path, res in zip(args.inputs, pool.map(_lint_job, jobs)):
                     results.append(res)

@@ -7,7 +7,7 @@ inside functions too (a lazy import is still a dependency), but for those under 
 top-level module) it names. The stages, lowest first:
 
     version.py, language.py, errors.py, protocol, schemas -> sources -> decode -> lint -> render, plugins -> filters.py -> sinks -> settings.py
-        -> the top: cli.py, commands/, tui/, sim/, the package itself (__init__.py, __main__.py)
+        -> the top: cli.py, allocator.py, commands/, tui/, sim/, the package itself (__init__.py, __main__.py)
 
 ``plugins/`` (the sigrok, Logic 2 and Wireshark plug-ins made from the maps) is an output form of the maps, as
 render's are, and sits beside it. ``filters.py`` (the filter language) reads Records and render's words, and sinks (decode --filter's lines)
@@ -29,7 +29,7 @@ TOP = len(("protocol", "sources", "decode", "lint", "render", "filters", "sinks"
 RANK = {"version": 0, "language": 0, "errors": 0, "protocol": 0, "schemas": 0, "sources": 1, "decode": 2, "lint": 3, "render": 4, "plugins": 4,
         "filters": 5,
         "sinks": 6, "settings": 7, "user_rules": 7, "compare": 7, "expect": 7,
-        "cli": TOP, "commands": TOP, "tui": TOP, "sim": TOP, "__main__": TOP, "": TOP}
+        "cli": TOP, "allocator": TOP, "commands": TOP, "tui": TOP, "sim": TOP, "__main__": TOP, "": TOP}
 
 # Upward imports that remain, (importing module, imported module) -> why. Each is a known crossing
 # (docs/architecture.md): remove it here when it is gone from the code.
