@@ -224,6 +224,8 @@ class Source:
 
 
 OVER_TEMPERATURE_RECOVERIES = ("reboot", "torque-enable")
+# What brings a servo back from a temperature stop, said in words (lint's S001, info's "what happened").
+RECOVERY_TEXT = {"reboot": "a reboot clears it", "torque-enable": "a torque_enable write clears it"}
 
 
 def _manual_return_flags() -> Mapping[int, str]:

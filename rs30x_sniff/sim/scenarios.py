@@ -316,3 +316,37 @@ def overheat(bus: SimBus, rng: random.Random, duration: float) -> Iterator[None]
         if cycle % 50 == 49:
             host.long(36, [(sid, b"\x01") for sid in gait.ids])  # a naive host re-enables torque
     yield from _cycles(host, gait, duration, hook)
+
+
+# ---- the family ---------------------------------------------------------------------------------
+@scenario("family", "a mixed-family TTL bus: RS303MR, RS304MD and RS204MD servos, each known by its model "
+          "number; the host reverses an RS204MD while its torque is on", 4.0, expects=("Q010",), servos=6)
+def family(bus: SimBus, rng: random.Random, duration: float) -> Iterator[None]:
+    ids = list(range(1, 7))
+    _servos(bus, ids, _seed(rng), models=("RS303MR", "RS304MD", "RS204MD"))
+    host, gait = Host(bus, rng), Gait(ids)
+    yield from _startup(host, gait)  # reads each servo's model number: the sniffer picks each one's map
+
+    def hook(cycle: int) -> None:
+        if cycle == 40:
+            # The RS204MD takes Reverse only with torque off (its manual, p.30): this write changes nothing.
+            host.write(3, 5, b"\x01")
+    yield from _cycles(host, gait, duration, hook)
+
+
+@scenario("rs485-family", "an RS485 bus of RS301CR and RS302CD servos: model numbers read, a return delay "
+          "saved with flash and reboot in one packet (flag 0x60, as their manual allows)", 3.0, servos=6)
+def rs485_family(bus: SimBus, rng: random.Random, duration: float) -> Iterator[None]:
+    ids = list(range(1, 7))
+    _servos(bus, ids, _seed(rng), models=("RS301CR", "RS302CD"))
+    host, gait = Host(bus, rng), Gait(ids)
+    yield from _startup(host, gait)
+
+    def hook(cycle: int) -> None:
+        if cycle == 20:
+            bus.wait_quiet()
+            host.write(2, 7, b"\x02")                        # return delay 200 us (No. 7)
+            host.command(2, FLAG_WRITE_FLASH | FLAG_REBOOT)   # saved and rebooted in one packet (their p.12)
+            bus.sleep(0.2)                                   # the flash write and the boot
+            host.write(2, 36, b"\x01")                       # torque is off after a boot (RAM defaults)
+    yield from _cycles(host, gait, duration, hook)

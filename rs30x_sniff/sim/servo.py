@@ -1,4 +1,5 @@
-"""An emulated RS30x servo: the manual's memory map, its packet handling, and a simple physical model."""
+"""An emulated servo of the command-type family: its model's memory map and behaviour, its packet handling,
+and a simple physical model."""
 
 from __future__ import annotations
 
@@ -31,6 +32,20 @@ FLAG_RECEIVED_ERROR = RETURN_RECEIVED_ERROR
 ALARM_MARGIN = 10.0  # the alarm bit rises 10 degC below the limit (No. 50/51)
 
 TORQUE_OFF, TORQUE_ON, TORQUE_BRAKE = 0, 1, 2
+# A servo must have some speed, angle limits and a temperature limit to move and heat up. Where a model's
+# sources give none (its map says unknown: the top speed, or a register without a default), the simulator
+# borrows the RS303MR's (the same register by name): an assumption of the simulation, never said of the
+# model (the map stays as the sources are).
+ASSUMED_TOP_SPEED_S_PER_60DEG = 0.11
+
+
+def baud_table(model: Model) -> dict[int, int]:
+    """The model's baud-rate codes -> bit/s (its map's baud_rate table: table 4.7 for the RS303MR)."""
+    try:
+        table = model.register("baud_rate").table
+    except KeyError:
+        table = None
+    return {code: int(rate) for code, rate in table.items()} if table else dict(enumerate(BAUD_RATES))
 
 
 @dataclass
@@ -69,16 +84,24 @@ class Servo:
         self.rng = random.Random(seed * 1000 + servo_id)
         self.defaults = bytearray(MEMORY_SIZE)
         self.writable = bytearray(MEMORY_SIZE)
+        borrowed = reg.default
         for r in model.registers:
-            if r.default is not None and r.address + r.size <= MEMORY_SIZE:
-                self.defaults[r.address:r.address + r.size] = r.default.to_bytes(r.size, "little",
-                                                                                   signed=r.default < 0)
+            default = r.default
+            if default is None and r.name and r.name in borrowed.names and borrowed.register(r.name).size == r.size:
+                default = borrowed.register(r.name).default
+            if default is not None and r.address + r.size <= MEMORY_SIZE:
+                self.defaults[r.address:r.address + r.size] = default.to_bytes(r.size, "little", signed=default < 0)
             if r.writable:
                 self.writable[r.address:r.address + r.size] = b"\x01" * r.size
         self.defaults[2] = firmware  # set at production (table 4.5); the manual's example shows 0x03
         self.mem = bytearray(self.defaults)
         self.mem[4] = servo_id
-        self.mem[6] = BAUD_RATES.index(baud)
+        self.bauds = baud_table(model)
+        codes = [code for code, rate in self.bauds.items() if rate == baud]
+        if not codes:
+            raise ValueError(f"an {model.name} cannot run at {baud} bit/s (its baud_rate table: "
+                             f"{', '.join(f'{r:g}' for r in self.bauds.values())})")
+        self.mem[6] = codes[0]
         self.mem[7] = return_delay
         self.flash = bytes(self.mem[ROM_START:ROM_END])  # what survives a reboot
         self.baud = baud            # the rate the UART runs at: changes only at boot (No. 6)
@@ -125,7 +148,7 @@ class Servo:
             flags |= FLAG_TEMPERATURE_LIMIT
         if self.temp >= limit - ALARM_MARGIN:
             flags |= FLAG_TEMPERATURE_ALARM
-        if self.flash_error:
+        if self.flash_error and FLAG_FLASH_ERROR in self.model.behaviour.return_flags:
             flags |= FLAG_FLASH_ERROR
         if self.received_error:
             flags |= FLAG_RECEIVED_ERROR
@@ -153,10 +176,16 @@ class Servo:
             return self._reply(bytes((NACK,))) if asks_ack else None
         cmds = ev.commands
         if cmds:
-            # Flash, reboot and initialize need address FF, count 0 and no data, one per packet (table 4.2).
-            if ev.address != COMMAND_ADDRESS or ev.count != 0 or ev.data or len(cmds) > 1:
+            # Flash, reboot and initialize need address FF, count 0 and no data, one per packet (table 4.2); the
+            # RS301CR/RS302CD take a flash write and a reboot in one (their manual p.12: flag 0x60).
+            together = cmds == ("flash", "reboot") and self.model.behaviour.flash_and_reboot_together
+            if ev.address != COMMAND_ADDRESS or ev.count != 0 or ev.data or (len(cmds) > 1 and not together):
                 self.received_error = True
                 return self._reply(bytes((NACK,))) if asks_ack else None
+            if together:
+                self.flash = bytes(self.mem[ROM_START:ROM_END])
+                self.reboot(t + FLASH_WRITE_TIME)
+                return None
             cmd = cmds[0]
             if cmd == "flash":
                 self.flash = bytes(self.mem[ROM_START:ROM_END])
@@ -196,7 +225,9 @@ class Servo:
         self.mem[ROM_START:ROM_END] = self.flash
         self.mem[RAM_START:RAM_END] = self.defaults[RAM_START:RAM_END]
         code = self.mem[6]
-        self.baud = BAUD_RATES[code] if code < len(BAUD_RATES) else self.baud
+        # An undefined code: the rate the model's manual names for it (RS301CR/RS302CD: 115200, p.19), else
+        # the servo keeps its rate.
+        self.baud = self.bauds.get(code) or self.model.behaviour.invalid_baud_code_gives or self.baud
         self.temperature_latched = False
         self.received_error = False
         self._move = None
@@ -206,22 +237,30 @@ class Servo:
     def _write(self, address: int, data: bytes, t: float) -> None:
         old_torque = self.mem[36]
         old_id, old_baud = self.mem[4], self.mem[6]
+        behaviour = self.model.behaviour
+        # Registers some models change only while torque is off (RS204MD: ID and Reverse, p.30): kept as they were.
+        kept = [(r.address, bytes(self.mem[r.address:r.address + r.size]))
+                for r in map(self.model.register, behaviour.torque_off_only)] if old_torque != TORQUE_OFF else []
         end = min(address + len(data), MEMORY_SIZE)
         mem, writable = self.mem, self.writable
         for a in range(address, end):
             if writable[a]:
                 mem[a] = data[a - address]
+        for a, old in kept:
+            mem[a:a + len(old)] = old
         # Out-of-range ID and baud codes are refused (settable ranges of No. 4 and No. 6).
         if not 1 <= mem[4] <= 127:
             mem[4] = old_id
-        if mem[6] >= len(BAUD_RATES):
-            mem[6] = old_baud
+        if mem[6] not in self.bauds and behaviour.invalid_baud_code_gives is None:
+            mem[6] = old_baud  # a model that falls back at boot keeps the code it was given
         touched = range(address, end)
         torque_on = False
         if 36 in touched:
             new = mem[36]
             if new > TORQUE_BRAKE:
                 mem[36] = new = old_torque
+            if self.temperature_latched and new == TORQUE_ON and behaviour.over_temperature_recovery == "torque-enable":
+                self.temperature_latched = False  # the RS301CR/RS302CD's way back from a temperature stop (p.20)
             if self.temperature_latched and new == TORQUE_ON:
                 mem[36] = TORQUE_BRAKE  # no torque until a reboot after the limit (No. 50/51)
             elif new == TORQUE_ON and old_torque != TORQUE_ON:
@@ -246,7 +285,7 @@ class Servo:
         goal_time = self.raw("goal_time") * 0.01
         # deg/s; never faster than that (No. 32/33). A model no source gives a top speed for moves as the
         # RS303MR does (0.11 s per 60 deg): the simulator needs some speed, the maps say none.
-        top = 60.0 / (self.model.top_speed_s_per_60deg or 0.11)
+        top = 60.0 / (self.model.top_speed_s_per_60deg or ASSUMED_TOP_SPEED_S_PER_60DEG)
         dur = max(goal_time, abs(goal - self.pos) / 10.0 / top)
         self._move = (t, self.pos, float(goal), dur)
         self._timed_move = goal_time > 0

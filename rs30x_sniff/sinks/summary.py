@@ -44,6 +44,16 @@ def servo_health(h: ServoHealth | None, when: Any) -> dict[str, Any]:
             "findings": dict(sorted(h.findings.items())) if h is not None else {}}
 
 
+def _recovery(name: str | None) -> str:
+    """What brings a servo of this model back from a temperature stop (its map's [behaviour])."""
+    from ..protocol.memmap import RECOVERY_TEXT, ModelError, default_registry
+    try:
+        way = default_registry().get(name).behaviour.over_temperature_recovery if name else "reboot"
+    except ModelError:
+        way = "reboot"
+    return RECOVERY_TEXT[way]
+
+
 def _any_model() -> Any:
     from ..protocol.memmap import default_registry
     return default_registry().default
@@ -161,7 +171,8 @@ def _temperature_line(lines: _Lines, sid: int, hv: dict) -> None:
         text = f"ID {sid} reached its temperature limit{lines.at(lim['first_t'], lim['first_wall'])}" + \
             (f" ({why})" if why else "")
         q = found.get(SWITCHED_BACK_ON, 0)
-        text += (f" and was switched back on {_times(q)} ({SWITCHED_BACK_ON})" if q else " and cut its torque")
+        text += (f" and was switched back on {_times(q)} ({SWITCHED_BACK_ON})" if q
+                 else f" and cut its torque ({_recovery(hv['model'])})")
         lines.say("error", sid, text, (lim["first_t"], lim["first_wall"]))
     elif "temperature_alarm" in flags:
         al = flags["temperature_alarm"]

@@ -34,6 +34,12 @@ def ret(sid, address, data, flags=0):
 POS = bytes.fromhex("8403")                # 90.0 deg
 READ1, RET1 = encode_read(1, 0x2A, 2), ret(1, 0x2A, POS)
 POLL = encode_short(1, 0x09, 0, b"", length=0, count=1)
+POLL2 = encode_short(2, 0x09, 0, b"", length=0, count=1)
+
+
+def read_model(sid):
+    return encode_read(sid, 0, 2)  # model number, addresses 0-1 (table 4.5)
+
 STATUS = bytes(18)
 
 # 18 goal writes sent back to back at 115200 bit/s, as a sniffer left at 57600 reads them (F007).
@@ -122,6 +128,8 @@ CASES: dict[str, tuple[str, list]] = {
     ]),
     "P009": ("flash and reboot in one packet", [
         (encode_command(1, 0x60), "P009", ""), (encode_command(1, 0x40), "", ""), (encode_command(1, 0x20), "", ""),
+        (read_model(2), "", ""), (ret(2, 0, bytes.fromhex("1030")), "", "servo 2 is an RS301CR"),
+        (encode_command(2, 0x60), "", "its manual allows the two in one packet (p.12)"),
     ]),
     "P010": ("broadcast asking for replies", [
         (encode_read(255, 0x2A, 2), "P010", "nobody answers here: B002 is not said for broadcasts"),
@@ -268,6 +276,17 @@ CASES: dict[str, tuple[str, list]] = {
     "Q009": ("torque on for a servo past its temperature limit", [
         (POLL, "", ""), (ret(1, 42, STATUS, 0x80), "S001", ""), (w(1, 0x24, b"\x01"), "Q009", ""),
         (encode_command(1, 0x20), "", "reboot"), (w(1, 0x24, b"\x01"), "", "fine after the reboot"),
+        (read_model(2), "", ""), (ret(2, 0, bytes.fromhex("1030")), "", "servo 2 is an RS301CR"),
+        (POLL2, "", ""), (ret(2, 42, STATUS, 0x80), "S001", ""),
+        (w(2, 0x24, b"\x01"), "", "the RS301CR's way back (its manual p.20): no finding"),
+    ]),
+    "Q010": ("a register an RS204MD takes only with torque off, written with torque on", [
+        (read_model(1), "", ""), (ret(1, 0, bytes.fromhex("4020")), "", "servo 1 is an RS204MD"),
+        (w(1, 0x05, b"\x01"), "", "reverse while torque is unknown: nothing said"),
+        (w(1, 0x24, b"\x01"), "", "torque on"), (w(1, 0x05, b"\x00"), "Q010", "reverse: ignored"),
+        (w(1, 0x24, b"\x00"), "", "torque off"), (w(1, 0x05, b"\x00"), "", "now it takes"),
+        (read_model(2), "", ""), (ret(2, 0, bytes.fromhex("3030")), "", "servo 2 is an RS303MR"),
+        (w(2, 0x24, b"\x01"), "", ""), (w(2, 0x05, b"\x01"), "", "an RS303MR takes it with torque on"),
     ]),
 }
 

@@ -39,9 +39,11 @@ TEXTS = {
              "goal_position=1600 (raw) on ID 1 outside -1500-1500 (160.0deg)",
              "goal_time=20000 (raw) on ID 2 outside 0-16383 (200.0s)", "servo_id=0 (raw) on ID 1 outside 1-127"],
     "M004": ["writes only goal_position (high byte) of ID 1", "writes only goal_position (low byte) of IDs 1, 2"],
-    "M005": ["ID 1 reports model number 0x300C, which no memory map knows (0x3030 RS303MR, 0x3040 RS304MD); "
+    "M005": ["ID 1 reports model number 0x300C, which no memory map knows (0x2040 RS204MD, 0x3010 RS301CR, 0x3020 RS302CD, "
+             "0x3030 RS303MR, 0x3040 RS304MD, RS405CB, RS406CB by --model only); "
              "decoding it with the RS303MR map instead",
-             "ID 3 reports model number 0x300C, which no memory map knows (0x3030 RS303MR, 0x3040 RS304MD); "
+             "ID 3 reports model number 0x300C, which no memory map knows (0x2040 RS204MD, 0x3010 RS301CR, 0x3020 RS302CD, "
+             "0x3030 RS303MR, 0x3040 RS304MD, RS405CB, RS406CB by --model only); "
              "decoding it with the RS303MR map instead"],
 }
 CODES = sorted(TEXTS)

@@ -33,7 +33,7 @@ TEXTS = {
     "P011": ["read of 128-143 goes past address 139", "read of length 0"],
     "P012": ["return with Count 2 (always 1)"],
     "P013": ["return flags 0x40 set reserved bit(s) 0x40"],
-    "S001": ["ID 1 passed its temperature limit and cut torque"],
+    "S001": ["ID 1 passed its temperature limit and cut torque (a reboot clears it)"],
     "S002": ["ID 1 is within 10 degC of its temperature limit"] * 2,
     "S003": ["ID 1 failed to write its flash ROM"],
     "S004": ["ID 1 received a packet it could not accept"],

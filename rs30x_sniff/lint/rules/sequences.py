@@ -7,10 +7,11 @@ import numpy as np
 from ...protocol.events import T_END, T_START
 from ...protocol.wire import (
     BROADCAST_ID, FLAG_REBOOT as _REBOOT, FLAG_WRITE_FLASH as _FLASH, RETURN_TEMPERATURE_LIMIT, encode_command,
-    encode_long, encode_return, encode_short)
+    encode_long, encode_read, encode_return, encode_short)
 from ..batch import UNKNOWN
 from ..params import DURATION, OFFSET, Measured, Message, said, said_as
-from ..registry import crowded, example, rule
+from ...protocol.memmap import ModelError, default_registry
+from ..registry import crowded, example, models_where, rule
 
 # A flash write or reboot still due when a timed capture ends this soon after the write that needs it
 # is no finding: the capture may have stopped before it came (the seams of a capture are not faults).
@@ -452,10 +453,18 @@ def too_many_servos(told, lint, rec, ev):
                                     {"seen": Measured(len(lint.ids)), "most": lint.config.max_servos}))
 
 
+def _torque_enable_recovers(model) -> bool:
+    return model is not None and model.behaviour.over_temperature_recovery == "torque-enable"
+
+
 @rule("Q009", "torque-on-after-temperature-limit", "error", "Torque on for a servo locked by its temperature limit.", f"""
 ## What it does
 Flags torque_enable set to 1 for a servo whose return reported the temperature limit (S001) with no
 reboot of it since.
+
+Only for models that need a reboot after the limit ({models_where(lambda m: not _torque_enable_recovers(m))}):
+on the {models_where(_torque_enable_recovers)} a torque_enable write is the way back (its manual, p.20), so
+it is no finding there, and it ends the lock the rule remembers.
 
 ## Why it matters
 The manual says a servo that reached its temperature limit refuses torque on until it is rebooted or
@@ -466,7 +475,65 @@ power-cycled: the command does nothing and the joint stays limp, while the host 
 """, kinds=("target",), fields=("torque_enable",), column="silent")
 def torque_on_after_temperature_limit(lint, rec, plan, targets):
     j = plan.index["torque_enable"]
+    if _torque_enable_recovers(plan.model):
+        for _, _, sh in targets:
+            sh.temp_limit = False  # this model's way back from a temperature stop
+        return
     for sid, raws, sh in targets:
         if sh.temp_limit and raws[j] == 1:
             lint.emit("Q009", rec, said("torque on for ID {id}, which tripped its temperature limit and was not "
                                         "rebooted since", {"id": sid}), sid=sid)
+
+
+
+def _torque_off_only_fields() -> tuple[str, ...]:
+    """Every register some model takes only with torque off (its map's [behaviour] torque_off_only)."""
+    try:
+        models = default_registry().models.values()
+    except ModelError:
+        return ()  # the command reports a broken map in one line when it loads the maps
+    return tuple(sorted({name for m in models for name in m.behaviour.torque_off_only})) or ("servo_id",)
+
+
+def _needs_torque_off(plan) -> list[str]:
+    """The registers of this write that its model changes only with torque off."""
+    off = plan.model.behaviour.torque_off_only if plan.model is not None else ()
+    return [name for name in off if name in plan.index]
+
+
+def _write_needs_torque_off_columns(view) -> bool:
+    """Q010 on a Block: no write of a torque-off-only register to a servo whose torque is known to be on
+    (torque_enable writes take the record path: torque stays as it was before the Block)."""
+    torque = view.shadows("torque")
+    for t in view.targets:
+        if _needs_torque_off(t.plan):
+            on = (torque[t.ids] != 0) & (torque[t.ids] != UNKNOWN)
+            if on.any():
+                return False
+    return True
+
+
+@rule("Q010", "write-needs-torque-off", "warning", "A register written while torque is on, which its model takes only with torque off.", f"""
+## What it does
+Flags a write to a register that the servo's model changes only while its torque is off, to a servo whose
+torque_enable the linter last saw on or in brake mode. The models' maps name these registers: servo_id and
+reverse on the RS204MD (its manual, p.30); models: {models_where(lambda m: bool(m.behaviour.torque_off_only))}.
+
+## Why it matters
+The servo ignores the write and keeps its old ID or direction, while the host goes on as if it had
+changed: the next packets go to an ID nobody answers to, or the joint turns the wrong way.
+Switch torque off (torque_enable 0), write, then switch it back on. (The linter's other rules and the
+pairing still take such a write as done: a servo_id write moves the servo to its new ID for them.)
+
+## Example
+{example(encode_read(1, 0, 2), encode_return(1, 0, bytes.fromhex("4020")),
+         encode_short(1, 0, 0x24, bytes((1,))), encode_short(1, 0, 0x05, bytes((1,))),
+         note="servo 1 answers model number 0x2040 (RS204MD); torque on, then reverse:")}
+""", kinds=("target",), fields=_torque_off_only_fields(), column=_write_needs_torque_off_columns)
+def write_needs_torque_off(lint, rec, plan, targets):
+    for name in _needs_torque_off(plan):
+        for sid, _, sh in targets:
+            if sh.torque is not None and sh.torque != 0 and sid != BROADCAST_ID:
+                lint.emit("Q010", rec, said("{name} written to ID {id} ({model}) while its torque is on: "
+                                            "the {model} takes it only with torque off",
+                                            {"name": name, "id": sid, "model": plan.model.name}), sid=sid)
