@@ -163,7 +163,8 @@ def test_a_map_without_behaviour_acts_as_the_rs303mr_manual_says():
     m = parse_model(__import__("tomllib").loads(GOOD), "x.toml")
     assert m.behaviour == Behaviour() and m.sources == () and m.also_named == ()
     b = m.behaviour
-    assert (b.flash_and_reboot_together, b.invalid_baud_code_gives, b.over_temperature_recovery) == (False, None, "reboot")
+    assert (b.flash_and_reboot_together, b.invalid_baud_code_gives, b.over_temperature_recovery) == (
+        False, None, "reboot")
     assert dict(b.return_flags) == RETURN_FLAG_BITS and dict(b.return_areas) == {} and b.torque_off_only == ()
     # The bundled maps say so explicitly, with the manual's voltage accuracy.
     for name in ("RS303MR", "RS304MD"):
