@@ -515,8 +515,17 @@ def _compare_register(term: str, name: str, op: str, value: str, registry: Model
         return reg.address, reg.size, False, table.__getitem__
 
     specs: dict[Model, Any] = {}  # by model (a Model hashes as itself)
+    refused: list[FilterError] = []
     for model in registry.models.values():  # every model now, so a bad value is an error at once
-        specs[model] = compile_for(model)
+        try:
+            specs[model] = compile_for(model)
+        except FilterError as e:
+            # One model may not take the value (its map gives this register no unit, as RS405CB's warm_up_time):
+            # no match there. An error only when no model that has the register takes it.
+            specs[model] = None
+            refused.append(e)
+    if refused and not any(specs.values()):
+        raise refused[0]
 
     def spec_of(model: Model):
         try:

@@ -15,12 +15,12 @@ from .decode.framing import DEFAULT_GAP_BYTES
 from .lint.config import FAIL_ON, FORMATS, ConfigError, LintConfig
 from .lint.config import resolve as resolve_rules
 from .lint.registry import RULES, SEVERITIES, Registry
-from .protocol.memmap import ModelError, ModelRegistry, default_registry
+from .protocol.memmap import ModelError, ModelRegistry, bus_rates, default_registry
 from .decode.decoder import DecodeOptions
 from .sources.timebase import TIME_REFS
 from .sources.timeunit import UNITS as TIME_UNITS
 from .render.times import DEFAULT_TIME_FORMAT, TIME_FORMATS
-from .protocol.wire import BAUD_RATES, DEFAULT_BAUD
+from .protocol.wire import DEFAULT_BAUD
 from .compare import ThresholdError, parse_thresholds
 from .expect import as_rule, check_clashes, load_checks
 from .user_rules import compile_rules
@@ -456,10 +456,11 @@ def resolve(command_line: Mapping[str, Any] | None = None, config: Mapping[str, 
         # is scanned by the command once the settings are known.
         baud = cap.get("baud", DEFAULT_BAUD)
         origin["baud"] = cap_origin.get("baud", CAPTURE) if "baud" in cap else f"{DEFAULTS} (auto: nothing to tell by)"
-    elif baud not in BAUD_RATES and not values["baud_any"] and ("baud" in conf or "baud" in cli):
-        # A capture records the rate it was made at; only a rate someone typed is held to table 4.7.
-        rates = ", ".join(map(str, BAUD_RATES))
-        raise SettingsError(f"{_label('baud', baud, origin['baud'])}: not a rate of table 4.7 ({rates}); "
+    elif baud not in bus_rates() and not values["baud_any"] and ("baud" in conf or "baud" in cli):
+        # A capture records the rate it was made at; only a rate someone typed is held to the servos' tables
+        # (table 4.7, and 460800 where a model's map has it).
+        rates = ", ".join(map(str, bus_rates()))
+        raise SettingsError(f"{_label('baud', baud, origin['baud'])}: not a rate the servos run at ({rates}); "
                             f"add --baud-any (baud-any = true) to use it anyway")
     fmt = cli.get("format", conf.get("format"))
     return Settings(baud=baud, baud_auto=baud_auto, default_model=values["model"], models=models,

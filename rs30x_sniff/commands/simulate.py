@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 from typing import IO
 from collections.abc import Iterable
 
 from ..sources.captures import FORMATS, MCAP, format_for_output, write_capture
-from ..protocol.wire import BAUD_RATES, DEFAULT_BAUD
+from ..protocol.memmap import bus_rates
+from ..protocol.wire import DEFAULT_BAUD
 from .common import CliError, check_positive
 from .options import add_format_option, duration
 from ..sinks.outputs import STDOUT, output_binary, output_path, write_stream
@@ -60,13 +62,18 @@ def run(args: argparse.Namespace) -> int:
 
     if args.scenario not in scenarios.SCENARIOS:
         raise CliError(f"--scenario {args.scenario}: unknown (known: {', '.join(scenarios.SCENARIOS)})")
-    if args.baud not in BAUD_RATES:
-        raise CliError(f"--baud {args.baud}: the servos run at one of {', '.join(map(str, BAUD_RATES))} (table 4.7)")
+    if args.baud not in bus_rates():
+        raise CliError(f"--baud {args.baud}: the servos run at one of {', '.join(map(str, bus_rates()))} (table 4.7, "
+                       "and 460800 for models whose baud table has it)")
     check_positive("--duration", args.duration)
     if not args.output and not args.port:
         raise CliError("say where the bus goes: -o FILE, --port PORT, or both")
-    chunks: Iterable[tuple[bytes, float]] = scenarios.run(args.scenario, baud=args.baud, seed=args.seed,
-                                                          duration=args.duration)
+    played = scenarios.run(args.scenario, baud=args.baud, seed=args.seed, duration=args.duration)
+    try:
+        first = next(played, None)  # the servos are made here: one whose model lacks the rate says so
+    except ValueError as e:
+        raise CliError(f"--baud {args.baud}: {e}") from None
+    chunks: Iterable[tuple[bytes, float]] = played if first is None else itertools.chain((first,), played)
     if args.output:
         fmt = format_for_output(args.output, args.format)
         if args.port:

@@ -14,6 +14,7 @@ from .decoder import Sink, Step
 from .framing import FrameDecoder
 from ..protocol.baud import NO_ESTIMATE, BaudEstimate, estimate_from_spacings
 from ..protocol.events import RAW, T_END, T_START
+from ..protocol.memmap import bus_rates
 from ..protocol.wire import BAUD_RATES
 
 from .pairing import Record
@@ -24,6 +25,13 @@ if TYPE_CHECKING:  # names for the checker; no import at run time
 # Table 4.7's rates, most likely first: the factory default 115200 (chapter 4, No. 6), then the
 # rates hosts commonly pick, then the rest. A scan stops at the first rate that decodes cleanly.
 SCAN_ORDER: tuple[int, ...] = (115200, 57600, 230400, 9600, 38400, 19200, 153600, 76800, 28800, 14400)
+
+
+def scan_order() -> tuple[int, ...]:
+    """SCAN_ORDER, then the rates only some models have (460800: RS301CR, RS302CD, RS405CB code 0x0A)."""
+    return SCAN_ORDER + tuple(r for r in bus_rates() if r not in SCAN_ORDER)
+
+
 SCAN_DWELL = 0.3  # seconds read at each rate: several frames even at 9600 on a busy bus
 
 _VALID_KINDS = frozenset(("short", "long", "return", "ack", "nack"))
@@ -207,7 +215,7 @@ ACCEPT_SHARE = 0.5  # a rate whose bytes are mostly valid frames ends the scan a
 MIN_FRAMES = 2      # fewer valid frames than this at the best rate: no answer
 
 
-def scan(read_for: Callable[[int, float], bytes], rates: Iterable[int] = SCAN_ORDER, dwell: float = SCAN_DWELL,
+def scan(read_for: Callable[[int, float], bytes], rates: Iterable[int] | None = None, dwell: float = SCAN_DWELL,
          *, accept_share: float = ACCEPT_SHARE, min_frames: int = MIN_FRAMES,
          clock: Callable[[], float] = time.monotonic) -> ScanResult:
     """Try each rate with ``read_for(baud, seconds) -> bytes`` and pick the one with most valid frames per second.
@@ -218,7 +226,7 @@ def scan(read_for: Callable[[int, float], bytes], rates: Iterable[int] = SCAN_OR
     """
     start = clock()
     table: list[RateScore] = []
-    for baud in rates:
+    for baud in scan_order() if rates is None else rates:
         s = score_bytes(read_for(baud, dwell), baud, dwell)
         table.append(s)
         if s.frames >= min_frames and s.valid_share >= accept_share:

@@ -95,6 +95,9 @@ def estimate_baud(chunks: Iterable[tuple[bytes, float | None]], rates: Iterable[
     (10 bits, 8N1) and equals it where the line never went idle. A low percentile of those spacings
     is matched to the nearest rate of table 4.7; None when nothing is within 10 % or too few bytes
     sit back to back (sparse timestamps: a logger stamping every second, chunks far apart).
+    460800 (code 0x0A of some models) is left out of the candidates on purpose: arrival-stamped chunks at
+    115200 would then read as back to back at 460800. A capture at 460800 is decoded with --baud 460800,
+    and until then its rate-bound figures are absent, with the reason.
     """
     return estimate_from_spacings(_spacings(chunks), rates)
 

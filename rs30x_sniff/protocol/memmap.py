@@ -16,7 +16,7 @@ from typing import Any
 from ..schemas import memory_map_schema
 from ..schemas.check import first_failure
 from .codegen import values_function
-from .wire import MAX_READ_ADDRESS, RETURN_FLAG_BITS, RETURN_MODE_MASK, RETURN_MODE_TABLE
+from .wire import BAUD_RATES, MAX_READ_ADDRESS, RETURN_FLAG_BITS, RETURN_MODE_MASK, RETURN_MODE_TABLE
 
 DEFAULT_MODEL = "RS303MR"
 UNKNOWN = "unknown"  # a map's word for a model fact no source gives (model_number, top_speed_s_per_60deg)
@@ -677,3 +677,18 @@ class ModelRegistry:
 def default_registry() -> ModelRegistry:
     """The registry of the decoders found by :func:`decoders_dirs` (loaded once)."""
     return ModelRegistry.from_dirs(decoders_dirs())
+
+
+@lru_cache(maxsize=1)
+def bus_rates() -> tuple[int, ...]:
+    """Every rate a servo of the family runs at: table 4.7's, and each memory map's baud_rate table (code 0x0A,
+    460800, on the RS301CR, RS302CD and RS405CB): the rates a port scan tries and a typed --baud may name."""
+    rates = set(BAUD_RATES)
+    try:
+        models = list(default_registry().models.values())
+    except ModelError:
+        models = []  # a broken map is reported in one line by the command that loads the maps
+    for m in models:
+        table = m.register("baud_rate").table if "baud_rate" in m.names else None
+        rates.update(int(r) for r in (table or {}).values())
+    return tuple(sorted(rates))

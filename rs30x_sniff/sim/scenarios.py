@@ -7,8 +7,9 @@ import random
 from dataclasses import dataclass, field
 from collections.abc import Callable, Generator, Iterator
 
+from ..protocol.memmap import bus_rates
 from ..protocol.wire import (
-    BAUD_RATES, FLAG_REBOOT, FLAG_WRITE_FLASH, RETURN_ACK, RETURN_MODE_RANGES, encode_command, encode_long,
+    FLAG_REBOOT, FLAG_WRITE_FLASH, RETURN_ACK, RETURN_MODE_RANGES, encode_command, encode_long,
     REQUEST_FIRST, RETURN_FIRST, encode_read, encode_short)
 from .bus import Chunk, SimBus
 from .servo import RETURN_DELAY_STEP, Physics, Servo
@@ -81,8 +82,8 @@ def run(name: str, *, baud: int = 115200, seed: int = 0, duration: float | None 
         bus: SimBus | None = None) -> Generator[Chunk, None, None]:
     """The capture of a scenario as ``(bytes, t)`` chunks (t in seconds from 0), lazily."""
     sc = get(name)
-    if baud not in BAUD_RATES:
-        raise ValueError(f"the servos cannot run at {baud} bit/s (table 4.7: {', '.join(map(str, BAUD_RATES))})")
+    if baud not in bus_rates():
+        raise ValueError(f"the servos cannot run at {baud} bit/s (their tables: {', '.join(map(str, bus_rates()))})")
     bus = bus or SimBus(baud)
     rng = random.Random(seed)
     script = sc.build(bus, rng, sc.duration if duration is None else duration)
@@ -198,11 +199,11 @@ def hexapod(bus: SimBus, rng: random.Random, duration: float) -> Iterator[None]:
           servos=3)
 def setup(bus: SimBus, rng: random.Random, duration: float) -> Iterator[None]:
     host = Host(bus, rng)
-    code = BAUD_RATES.index(bus.baud)
     seed = _seed(rng)
     for k, model in enumerate(("RS303MR", "RS304MD", "RS303MR")):
         new_id = 10 + k
-        bus.attach(Servo(model, 1, baud=bus.baud, seed=seed + k))  # factory default: ID 1 (No. 4)
+        servo = bus.attach(Servo(model, 1, baud=bus.baud, seed=seed + k))  # factory default: ID 1 (No. 4)
+        code = servo.mem[6]
         bus.sleep(0.2)
         host.write(1, 0, b"", ack=True)            # ping: is anyone at ID 1?
         host.request(encode_short(1, 0x03))       # read 0-29: model number, firmware, ROM settings

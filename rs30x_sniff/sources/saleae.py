@@ -54,7 +54,8 @@ from collections.abc import Callable, Iterable, Iterator
 
 from ..protocol.chunks import FRAMING_ERROR, HOST, PARITY_ERROR, SERVO, Marked
 from .timebase import FIRST
-from ..protocol.wire import BAUD_RATES, BITS_PER_BYTE, REQUEST_HEADER, RETURN_HEADER
+from ..protocol.memmap import bus_rates
+from ..protocol.wire import BITS_PER_BYTE, REQUEST_HEADER, RETURN_HEADER
 from .captures import CaptureError
 from .foreign import ForeignFormat, ReadContext, register
 
@@ -699,7 +700,7 @@ def _from_durations(durations: list[float]) -> dict[str, Any]:
             f"({FRAME_BITS:g} bit times: {1 / bit:,.0f} bit/s)")
     if agree < AGREE:
         return {"baud_note": f"{seen}, but only {agree:.0%} within {MATCH:.0%} of it: no one rate"}
-    best = min(BAUD_RATES, key=lambda r: abs(math.log(bit * r)))
+    best = min(bus_rates(), key=lambda r: abs(math.log(bit * r)))
     if abs(bit * best - 1) > MATCH:
         return {"baud_note": f"{seen}: no rate of table 4.7 within {MATCH:.0%}"}
     return {"baud": best, "baud_note": f"the analyzer's bit rate, from {seen}"}
