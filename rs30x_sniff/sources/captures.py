@@ -15,6 +15,8 @@ import time
 from array import array
 from bisect import bisect_right
 from collections import Counter
+from itertools import repeat
+from operator import itemgetter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -35,6 +37,7 @@ FORMATS = (BINARY, HEX, TIMESTAMPED, MCAP)
 _EXTENSIONS = {".bin": BINARY, ".raw": BINARY, ".mcap": MCAP}
 _TEXT_EXTENSIONS = {".hex", ".txt", ".log", ".thex"}
 _READ_SIZE = 1 << 16
+_BLOCK_SIZE = 1 << 18        # a text file's plain lines are read this many bytes at a time (_plain_lines)
 _HEAD_SIZE = 4096           # bytes the format is sniffed from
 _MAX_LINE = 64 << 20        # a longer "line" is not a text capture (and would have to sit in memory whole)
 _BOM = b"\xef\xbb\xbf"
@@ -639,6 +642,26 @@ class _Lines:
         else:
             self.readline = lambda: f.readline(_MAX_LINE)
             self._close = f.close
+            if opened.seekable:
+                self.whole_lines = self._whole_lines
+
+    # Many lines at a time (_read_text's plain lines): a file read as it is, LF line ends (else None).
+    whole_lines: Callable[[], bytes | None] | None = None
+
+    def _whole_lines(self) -> bytes | None:
+        """Up to _BLOCK_SIZE bytes of whole lines, each ending in LF; b"" at the end; None when not even one
+        line ends within them (a last line without its LF, a longer line): readline() takes the next line."""
+        f = self.opened.stream
+        block = f.read(_BLOCK_SIZE)
+        if not block:
+            return b""
+        cut = block.rfind(b"\n") + 1
+        if cut < len(block):
+            f.seek(cut - len(block), io.SEEK_CUR)  # the cut line is read with the next block
+            if not cut:
+                return None
+            block = block[:cut]
+        return block
 
     def _stream(self, opened: _Opened, enc: str | None) -> None:
         fd = opened.fd
@@ -713,6 +736,8 @@ def _read_text(lines: _Lines, path: str, timestamped: bool, index: _LineIndex | 
     unit: TimeUnit | None = None
     exp = 0  # the unit's power of ten below a second, once known
     sample: list[_SampledLine] = []
+    whole_lines = lines.whole_lines if timestamped else None
+    backlog: list[bytes] = []  # lines of a block _plain_lines declined, last first, read one by one
 
     def settle(found: TimeUnit) -> Iterator[Chunk]:
         """The unit is known: said once, and the sampled lines handed on in it."""
@@ -725,7 +750,25 @@ def _read_text(lines: _Lines, path: str, timestamped: bool, index: _LineIndex | 
 
     try:
         while True:
-            line = readline()
+            line: bytes | None
+            if backlog:
+                line = backlog.pop()
+            else:
+                if whole_lines is not None and unit is not None and not exp:  # times in seconds, as written
+                    block = whole_lines()
+                    if block:
+                        chunks = _plain_lines(block, offset, lineno, index)
+                        if chunks is not None:
+                            lineno += len(chunks[1])
+                            offset = index.end if index is not None else offset + sum(map(len, chunks[0]))
+                            yield from zip(*chunks)
+                            continue
+                        backlog = [ln + b"\n" for ln in block.split(b"\n")[-2::-1]]
+                        line = backlog.pop()
+                    else:
+                        line = b"" if block == b"" else readline()
+                else:
+                    line = readline()
             if line is None:  # a stream gone quiet: hand on what is pending
                 quiet += IDLE_WAIT
                 if pending:
@@ -826,6 +869,63 @@ def _read_text(lines: _Lines, path: str, timestamped: bool, index: _LineIndex | 
         raise
     finally:
         lines.close()
+
+
+# The bytes of plain timestamped lines (_plain_lines): a time as written (digits and a point), hex digits,
+# spaces and LF. Anything else (a comment, a sign, an exponent, nan, a tab, CR, an underscore float() would
+# read) is for the line-by-line reader, which says what is wrong.
+_PLAIN_BYTES = b"0123456789abcdefABCDEF. \n"
+
+
+def _plain_lines(block: bytes, offset: int, lineno: int, index: _LineIndex | None) -> tuple[list, list] | None:
+    """The (bytes, times) of a block of whole lines that are each "TIME HH HH ..." (or each "TIME HHHH...": a time
+    in seconds as written, digits and a point, then the bytes one space apart, or all with none), each line indexed
+    in ``index`` as _read_text indexes it (``offset``, ``lineno``: the stream offset and line number before the
+    block); None, and nothing indexed, when any line is otherwise (_read_text then reads them one by one, and says
+    what is wrong). The same chunks as line by line, with C loops over the block's lines for the Python of each."""
+    if block.translate(None, _PLAIN_BYTES):
+        return None
+    rows = block.split(b"\n")
+    rows.pop()  # after the last LF
+    parts = list(map(bytes.partition, rows, repeat(b" ")))
+    heads, rests = list(map(itemgetter(0), parts)), list(map(itemgetter(2), parts))
+    try:
+        times = list(map(float, heads))  # digits and points only: what _NUMBER reads, or a ValueError
+    except ValueError:
+        return None
+    if min(times) < 0 or max(times) > _EPOCH_MAX:  # (a time after 2100 is the line reader's to refuse)
+        return None
+    import numpy as np  # a text capture's reader only (numpy is no start-up cost of every command)
+
+    width = np.fromiter(map(len, rests), np.int64, len(rests))
+    joined = b" ".join(rests)
+    if len(joined) % 3 == 2 and not joined[2::3].lstrip(b" "):
+        # A space at every third place: "HH HH ... HH" throughout (a pair with a space in it fails fromhex, one of
+        # two spaces comes out one byte short), so each line's bytes are one space apart, none before or after.
+        step, n = 3, (width + 1) // 3
+    elif b" " not in joined and not (width % 2).any():
+        step, n = 2, width // 2
+        joined = b"".join(rests)
+    else:
+        return None  # bytes spaced otherwise (a line of its own kind: see _LineIndex)
+    if not n.all():
+        return None
+    try:
+        whole = bytes.fromhex(joined.decode("ascii"))
+    except ValueError:
+        return None
+    ends = np.cumsum(n)
+    if len(whole) != ends[-1]:
+        return None
+    starts = ends - n
+    data = list(map(whole.__getitem__, map(slice, starts.tolist(), ends.tolist())))
+    if index is not None:
+        first = np.fromiter(map(len, heads), np.int64, len(heads)) + 2  # the column after "TIME "
+        lines = np.arange(lineno + 1, lineno + 1 + len(rows), dtype=np.int64)
+        index.starts.frombytes((starts + offset).tobytes())
+        index.where.frombytes((lines << 32 | first << 2 | step).tobytes())
+        index.end = offset + int(ends[-1])
+    return data, times
 
 
 def _sampled_unit(sample: list[_SampledLine], now: float | None = None) -> TimeUnit:
