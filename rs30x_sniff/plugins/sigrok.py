@@ -94,14 +94,17 @@ TX = 1
 SEAM_S = 10.0
 REPLY_TIMEOUT_S = 0.05
 
-# PulseView 0.4 colours an annotation by its row and its class's index: one
-# hue per row, stepped round a ring of 16 by the index. Classes that must look
-# apart within a row are therefore 4 or more apart: a bad sum (10) from a
-# good one (6), an error (11) from a warning (7); a note (8: the edge of the
-# capture, a fact rather than a fault) and a missing reply (9) lie between.
+# PulseView (0.4.2 as Debian ships it) colours a class by its row and its
+# index: hue = the decoder's hue + 20 x row + 55 x class index (degrees). The
+# indices are chosen for what that gives (with the first decoder's hue, 120):
+# packets: request green, return cyan, ACK blue, NACK purple; fields: header
+# teal, register yellow, checksum green, a bad sum red; warnings: a note (the
+# edge of the capture, a fact rather than a fault) blue, a missing reply
+# magenta, an error red, a warning amber. Under another hue they stay as far
+# apart: a bad sum 110 degrees from a good one, an error 55 from a warning.
 class Ann:
-    (REQUEST, RETURN, ACK, NACK, HEADER, REGISTER, CHECKSUM, WARNING, NOTE,
-     NO_REPLY, BAD_SUM, ERROR) = range(12)
+    (REQUEST, RETURN, ACK, NACK, BAD_SUM, REGISTER, CHECKSUM, HEADER, NOTE,
+     NO_REPLY, ERROR, WARNING) = range(12)
 
 # Garbage whose reason is the edge of the capture, not a fault of the bus.
 EDGE_REASONS = ('capture-start', 'capture-end')
@@ -130,19 +133,19 @@ class Decoder(srd.Decoder):
         {'id': 'gap', 'desc': 'Idle byte times that end a frame',
             'default': 20.0},
     )
-    annotations = (
+    annotations = (  # in the order of Ann
         ('request', 'Request'),
         ('return', 'Return'),
         ('ack', 'ACK'),
         ('nack', 'NACK'),
-        ('header', 'Header field'),
+        ('bad-sum', 'Bad checksum'),
         ('register', 'Register'),
         ('checksum', 'Checksum'),
-        ('warning', 'Warning'),
+        ('header', 'Header field'),
         ('note', 'Note (the edge of the capture)'),
         ('no-reply', 'No reply'),
-        ('bad-sum', 'Bad checksum'),
         ('error', 'Error'),
+        ('warning', 'Warning'),
     )
     annotation_rows = (
         ('packets', 'Packets', (Ann.REQUEST, Ann.RETURN, Ann.ACK, Ann.NACK)),
