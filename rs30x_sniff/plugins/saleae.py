@@ -37,7 +37,9 @@ from saleae.analyzers import AnalyzerFrame, ChoicesSetting, HighLevelAnalyzer, N
 ANALYZER = '''
 
 # ---- the Logic 2 analyzer ---------------------------------------------------------------------------------
+# Every model a user may name: each map's own name, then another name of a map (also_named) once.
 MODEL_NAMES = tuple(m["name"] for m in MAPS["models"])
+MODEL_NAMES += tuple(sorted(set(n for m in MAPS["models"] for n in m.get("also_named") or () if n not in MODEL_NAMES)))
 BITS_PER_BYTE = 10   # 8N1: start, 8 data bits, stop (manual table 4.7)
 FRAME_BITS = 9.5     # an Async Serial frame runs from the start bit to the middle of the stop bit
 GAP_BYTES = 20       # the idle gap that cuts a frame when the setting is 0: rs30x-sniff's own default

@@ -28,9 +28,12 @@ HEADER = """\
 INIT = HEADER + """
 '''
 This decoder stacks on top of the 'uart' PD and decodes the packets of the
-Futaba RS30x command-type servos (RS303MR, RS304MD, and any model given a
-memory map): short and long packets from the host, return packets, ACK and
-NACK, with the memory map's register names, scaled values and units.
+Futaba command-type servos (RS30x and the family that shares its packets:
+each model the 'model' option lists has a memory map): short and long
+packets from the host, return packets, ACK and NACK, with the memory map's
+register names, scaled values and units. A servo is decoded with the model
+its model-number return names; a model without a known number (RS405CB,
+RS406CB) only when the 'model' option names it.
 
 The bus is one half-duplex wire at 115200 bit/s (8N1) unless the servos were
 set to another rate (manual table 4.7): decode it as the uart's RX. When the

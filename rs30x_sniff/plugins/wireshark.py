@@ -323,6 +323,11 @@ rs30x.experts = {ef.bad_checksum, ef.cut, ef.edge, ef.noise, ef.status, ef.heade
 -- ---- preferences --------------------------------------------------------------------------------------
 local MODEL_CHOICES = {{1, "as decoded (recorded in the capture)", 0}}
 for i, m in ipairs(MODELS) do MODEL_CHOICES[#MODEL_CHOICES + 1] = {i + 1, m.name, i} end
+for i, m in ipairs(MODELS) do  -- another name of a map (RS406CB for RS405CB's) decodes with that map
+  for _, other in ipairs(m.also_named) do
+    if BY_NAME[other] == m then MODEL_CHOICES[#MODEL_CHOICES + 1] = {#MODEL_CHOICES + 1, other, i} end
+  end
+end
 rs30x.prefs.model = Pref.enum("Model", 0, "The memory map to decode registers with: the one rs30x-sniff " ..
                               "decoded each packet with (its default " .. DEFAULT.name .. "), or this one",
                               MODEL_CHOICES, false)
