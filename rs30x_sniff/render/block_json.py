@@ -18,7 +18,7 @@ import numpy as np
 from ..protocol.events import OFFSET, RAW, LongPacket, ReturnPacket, ShortPacket
 from ..protocol.wire import AT_DATA, AT_ID, AT_LENGTH, FRAME_OVERHEAD, HEADER_SIZE, SUM_SIZE
 from ..decode.frame_runs import LONG
-from .layout_json import fields_json, long_plan, mixed_fields_json, record_fields_json
+from .layout_json import MixedJson, fields_json, long_plan, record_fields_json
 from .records import COMPACT, NO_FIELDS, SPACED, record_json, record_json_text
 
 if TYPE_CHECKING:  # names for the checker; no import at run time
@@ -120,8 +120,8 @@ def _lines(blk: Block, only: set[int] | None, compact: bool, rows: Any, end: str
             else:  # fields
                 if layout is None:
                     vals.append("")
-                elif type(layout) is tuple:  # a long packet to servos of mixed models
-                    vals.append(mixed_fields_json(layout, raw[AT_DATA:-SUM_SIZE], only, compact))
+                elif type(layout) is MixedJson:  # a long packet to servos of mixed models
+                    vals.append(layout.text(raw[AT_DATA:-SUM_SIZE], only, compact))
                 else:
                     data = raw[AT_DATA:-SUM_SIZE]
                     # fields_json reads the values only to pick fields by ID (``only``)
@@ -166,7 +166,8 @@ def _template(blk: Block, k: int, model: Any, key: tuple, only: set[int] | None,
     ev = rec.event
     raw = ev[RAW]
     if type(ev) is LongPacket and blk.vid_models is not None and raw[AT_LENGTH] and len(raw) > FRAME_OVERHEAD:
-        return model.keep(key, (text, slots, long_plan(raw, blk.vid_models)))
+        plan = long_plan(raw, blk.vid_models)
+        return model.keep(key, (text, slots, MixedJson(plan) if isinstance(plan, tuple) else plan))
     return model.keep(key, (text, slots, rec.data_layout()[0]))
 
 

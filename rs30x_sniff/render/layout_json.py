@@ -11,7 +11,9 @@ looked up by its raw value (:func:`value_text`). The templates are kept in the l
 from __future__ import annotations
 
 import json
+import struct
 from typing import Any, cast
+from collections.abc import Callable
 
 from ..decode.pairing import Record
 from ..protocol.events import Packet
@@ -19,8 +21,8 @@ from ..protocol.codegen import SERVO, percent_function
 from ..protocol.memmap import ByRaw, Layout, Register
 from ..protocol.wire import AT_ADDRESS, AT_COUNT, AT_DATA, AT_LENGTH, FRAME_OVERHEAD, SUM_SIZE
 
-__all__ = ["MixedParts", "fields_json", "long_plan", "json_scalar", "mixed_fields_json", "record_fields_json",
-           "value_text"]
+__all__ = ["MixedJson", "MixedParts", "fields_json", "long_plan", "json_scalar", "mixed_fields_json",
+           "record_fields_json", "value_text"]
 
 _TEMPLATES = "json fields"  # Layout.cache key: ((per-part templates, whole fill) spaced, (...) compact)
 _INF = float("inf")
@@ -146,6 +148,53 @@ def long_plan(raw: bytes, vid_models: dict[int, Any]) -> Layout | MixedParts:
             got = tuple((m.layout(address, b - a), a, b, vid) for m, a, b, vid in spans)
         got = first.keep(key, got)
     return got
+
+
+class MixedJson:
+    """The fields' JSON of one shape of long packet to servos of mixed models (its MixedParts): what
+    :func:`mixed_fields_json` writes, from one generated fill of the whole packet's data (made on first use, for
+    each spacing) where every servo's fields are wanted, instead of a fill per record."""
+
+    __slots__ = ("parts", "fills")
+
+    def __init__(self, parts: MixedParts) -> None:
+        self.parts = parts
+        self.fills: dict[bool, Callable[[bytes], str] | None] = {}
+
+    def text(self, data: bytes, only: set[int] | None = None, compact: bool = False) -> str:
+        """``mixed_fields_json(self.parts, data, only, compact)``."""
+        if only is None:
+            fills = self.fills
+            if compact not in fills:
+                fills[compact] = _mixed_fill(self.parts, compact)
+            fill = fills[compact]
+            if fill is not None:
+                return fill(data)
+        return mixed_fields_json(self.parts, data, only, compact)
+
+
+def _mixed_fill(parts: MixedParts, compact: bool) -> Callable[[bytes], str] | None:
+    """:func:`mixed_fields_json` of every servo as one ``%`` of one format (percent_function): the records' part
+    templates one after the other, their raw values by one struct unpack of the whole data (each record's own
+    layout's format, a pad byte for its VID before it); None when a layout has no struct format to join."""
+    formats, templates, items = ["<"], [], []
+    base = 0  # the raw values before this record's
+    for sub, a, b, _ in parts:
+        unpacker = getattr(sub.unpack_raw, "__self__", None)
+        if not isinstance(unpacker, struct.Struct) or not unpacker.format.startswith("<") or unpacker.size != b - a:
+            return None
+        formats.append("x" + unpacker.format[1:])  # the record's VID (at a - 1), then its parts
+        for j, (start, size, reg, partial) in enumerate(sub.parts):
+            templates.append(field_template(reg, partial, compact))
+            items += [("byte", a - 1), ("hex", 2 * (a + start), 2 * (a + start + size)),
+                      ("text", value_text(reg, partial), base + j)]
+        base += len(sub.parts)
+    whole = struct.Struct("".join(formats))
+    if parts and whole.size != parts[-1][2]:  # the records, VIDs and all, are the whole data
+        return None
+    fill = percent_function(("," if compact else ", ").join(templates), items)
+    unpack = whole.unpack
+    return lambda data: fill(data, data.hex(), unpack(data), "")
 
 
 def mixed_fields_json(parts: MixedParts, data: bytes, only: set[int] | None = None, compact: bool = False) -> str:
