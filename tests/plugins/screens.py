@@ -139,7 +139,7 @@ def screenshot(cmd: list[str], env: dict[str, str], png: Path, cwd: Path, crop: 
 
 # PulseView at two zooms: a packet's fields (5.5 us a pixel) and the whole capture (12 us a pixel).
 ZOOMS = {"pulseview": 5.5e-6, "pulseview-overview": 1.2e-5}
-PULSEVIEW_CROP = "1000x205+0+97"   # its rulers and rows (the window is 1000 x 720 at the top left)
+PULSEVIEW_CROP = "1000x215+0+95"   # its rulers and rows (the window is 1000 x 720 at the top left)
 WIRESHARK_CROP = f"{SCREEN[0]}x290+0+0"  # its packet list
 
 
