@@ -878,53 +878,42 @@ _PLAIN_BYTES = b"0123456789abcdefABCDEF. \n"
 
 
 def _plain_lines(block: bytes, offset: int, lineno: int, index: _LineIndex | None) -> tuple[list, list] | None:
-    """The (bytes, times) of a block of whole lines that are each "TIME HH HH ..." (or each "TIME HHHH...": a time
-    in seconds as written, digits and a point, then the bytes one space apart, or all with none), each line indexed
-    in ``index`` as _read_text indexes it (``offset``, ``lineno``: the stream offset and line number before the
+    """The (bytes, times) of a block of whole lines that are each "TIME HH HH ..." or "TIME HHHH..." (a time in
+    seconds as written, digits and a point, then the bytes one space apart or with none), each line indexed in
+    ``index`` as _read_text indexes it (``offset``, ``lineno``: the stream offset and line number before the
     block); None, and nothing indexed, when any line is otherwise (_read_text then reads them one by one, and says
     what is wrong). The same chunks as line by line, with C loops over the block's lines for the Python of each."""
     if block.translate(None, _PLAIN_BYTES):
         return None
-    rows = block.split(b"\n")
+    import numpy as np  # a text capture's reader only (numpy is no start-up cost of every command)
+
+    a = np.frombuffer(block, dtype=np.uint8)
+    if (a[1:][a[:-1] == 32] <= 32).any():  # a space before a space or LF (a line starting with one has no time)
+        return None
+    rows = block.decode("ascii").split("\n")
     rows.pop()  # after the last LF
-    parts = list(map(bytes.partition, rows, repeat(b" ")))
+    parts = list(map(str.partition, rows, repeat(" ")))
     heads, rests = list(map(itemgetter(0), parts)), list(map(itemgetter(2), parts))
     try:
         times = list(map(float, heads))  # digits and points only: what _NUMBER reads, or a ValueError
+        data = list(map(bytes.fromhex, rests))
     except ValueError:
         return None
     if min(times) < 0 or max(times) > _EPOCH_MAX:  # (a time after 2100 is the line reader's to refuse)
         return None
-    import numpy as np  # a text capture's reader only (numpy is no start-up cost of every command)
-
+    n = np.fromiter(map(len, data), np.int64, len(data))
     width = np.fromiter(map(len, rests), np.int64, len(rests))
-    joined = b" ".join(rests)
-    if len(joined) % 3 == 2 and not joined[2::3].lstrip(b" "):
-        # A space at every third place: "HH HH ... HH" throughout (a pair with a space in it fails fromhex, one of
-        # two spaces comes out one byte short), so each line's bytes are one space apart, none before or after.
-        step, n = 3, (width + 1) // 3
-    elif b" " not in joined and not (width % 2).any():
-        step, n = 2, width // 2
-        joined = b"".join(rests)
-    else:
-        return None  # bytes spaced otherwise (a line of its own kind: see _LineIndex)
-    if not n.all():
+    # No space doubled, none at either end, the bytes pairs: one space between every two bytes, or none.
+    step = np.where(width == 3 * n - 1, 3, np.where(width == 2 * n, 2, 0))
+    if not ((step > 0) & (n > 0)).all():  # (a line of its own spacing: see _LineIndex)
         return None
-    try:
-        whole = bytes.fromhex(joined.decode("ascii"))
-    except ValueError:
-        return None
-    ends = np.cumsum(n)
-    if len(whole) != ends[-1]:
-        return None
-    starts = ends - n
-    data = list(map(whole.__getitem__, map(slice, starts.tolist(), ends.tolist())))
     if index is not None:
         first = np.fromiter(map(len, heads), np.int64, len(heads)) + 2  # the column after "TIME "
+        ends = np.cumsum(n) + offset
         lines = np.arange(lineno + 1, lineno + 1 + len(rows), dtype=np.int64)
-        index.starts.frombytes((starts + offset).tobytes())
+        index.starts.frombytes((ends - n).tobytes())
         index.where.frombytes((lines << 32 | first << 2 | step).tobytes())
-        index.end = offset + int(ends[-1])
+        index.end = int(ends[-1])
     return data, times
 
 

@@ -24,7 +24,8 @@ ODD = [
     b"%s FA AF 01 ", b" %s FA AF 01", b"%s\tFA AF 01", b"%s  FA AF", b"+%s FA AF 01", b"%se0 FA AF 01",
     b"-%s FA AF 01", b"%s FA ZZ 01", b"%s", b"%s fa af 01", b"%s FA AF 0", b"%s FA AF 01\r",
     b"5000000000.5 FA AF 01", b"nan FA AF", b"1_0.5 FA", b"%s FA AF # \xc2\xb5s", b"\xef\xbb\xbf%s FA AF",
-    b"%s FA.AF", b".%s FA AF", b"%s. FA AF", b"%s FA    AF 01", b"%s FA AF\x0b01", b"%s FA AF\x0c", b"0x10 FA AF",
+    b"%s FA.AF", b".%s FA AF", b"%s. FA AF", b"%s FA    AF 01",
+    b"%s FAAF  01", b"%s FAAF 01 ", b"%s FA AF\x0b01", b"%s FA AF\x0c", b"0x10 FA AF",
 ]
 
 
