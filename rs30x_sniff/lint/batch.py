@@ -371,12 +371,17 @@ def _writes(view: BlockView, run: tuple, vid_groups: list) -> list[int] | None:
                 sets[attr].append((order, sids, view.values(plan, j, at)))
     m_order = np.concatenate([m[0] for m in mentions]) if mentions else np.zeros(0, np.int64)
     m_ids = np.concatenate([m[1] for m in mentions]) if mentions else np.zeros(0, np.int64)
-    shadow_order = []
-    seen = set(lint.servos)
-    for s in m_ids[np.argsort(m_order, kind="stable")].tolist():
-        if s not in seen:
-            seen.add(s)
-            shadow_order.append(s)
+    shadow_order: list[int] = []
+    known = np.zeros(256, dtype=bool)
+    known[list(lint.servos)] = True
+    new = ~known[m_ids]  # (the usual: none, the servos' shadows made by an earlier Block)
+    if new.any():
+        m_order, m_ids = m_order[new], m_ids[new]
+        seen: set[int] = set()
+        for s in m_ids[np.argsort(m_order, kind="stable")].tolist():
+            if s not in seen:
+                seen.add(s)
+                shadow_order.append(s)
     return shadow_order
 
 
@@ -388,13 +393,14 @@ def _concat(sets):
 
 
 def _last_per_servo(sets) -> dict[int, int]:
+    """Each servo's value set last (the largest order key; of two at one key, the one set later), no sort."""
     order, ids, vals = _concat(sets)
     if not len(order):
         return {}
-    k = np.lexsort((order, ids))
-    ids, vals = ids[k], vals[k]
-    last = np.flatnonzero(np.append(ids[1:] != ids[:-1], True))
-    return dict(zip(ids[last].tolist(), vals[last].tolist()))
+    last = np.full(256, -1, dtype=np.int64)
+    np.maximum.at(last, ids, order)
+    won = order == last[ids]
+    return dict(zip(ids[won].tolist(), vals[won].tolist()))  # a later one of a tie replaces an earlier
 
 
 MATRIX_CELLS = 1 << 22  # _before_rows' largest matrix (32 MiB of int64 per array)

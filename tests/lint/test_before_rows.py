@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
-from rs30x_sniff.lint.batch import UNKNOWN, _before, _before_rows
+from rs30x_sniff.lint.batch import UNKNOWN, _before, _before_rows, _last_per_servo
 
 SERVOS = st.integers(1, 6)
 
@@ -57,3 +57,23 @@ def test_two_values_at_one_point_go_the_general_way():
     column = np.full(256, UNKNOWN, dtype=np.int64)
     assert _before_rows([one, two], column, 4)(np.array([2]), np.array([3])) is None
     assert _before_rows([one], column, 4)(np.array([2, 1]), np.array([3, 3])).tolist() == [10, UNKNOWN]
+
+
+def _last_by_sort(sets) -> dict[int, int]:
+    """The reference: sorted by servo and order (stable: of two at one point, the later set), each servo's last."""
+    order = np.concatenate([s[0] for s in sets])
+    ids = np.concatenate([s[1] for s in sets])
+    vals = np.concatenate([s[2] for s in sets])
+    k = np.lexsort((order, ids))
+    ids, vals = ids[k], vals[k]
+    last = np.flatnonzero(np.append(ids[1:] != ids[:-1], True))
+    return dict(zip(ids[last].tolist(), vals[last].tolist()))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.lists(st.tuples(st.integers(0, 4000), SERVOS, st.integers(-500, 500)), min_size=1, max_size=20),
+                min_size=1, max_size=4))
+def test_last_per_servo_equals_the_sorted_way(groups):
+    """Ties included (one point, two values): the later set wins, as the linter applies them."""
+    sets = [tuple(np.array(col, dtype=np.int64) for col in zip(*g)) for g in groups]
+    assert _last_per_servo(sets) == _last_by_sort(sets)
