@@ -219,10 +219,14 @@ def _headers_quiet(lint: Any, memo: dict, blk: Any, run: tuple, vid_groups: list
         samples += rows[k[new]].tolist()
     for rows, vids, _ in vid_groups:
         # Long packets: by header and VIDs (the VIDs of a row as one fixed-size byte string).
+        hs = hdr[rows]
+        if (hs == hs[0]).all() and (vids == vids[0]).all():  # the usual: the same packet to the same servos
+            samples.append(int(rows[0]))
+            continue
         v = np.ascontiguousarray(vids).view(np.dtype((np.void, vids.shape[1]))).ravel()
-        for h in np.unique(hdr[rows]).tolist():
-            sub = rows[hdr[rows] == h]
-            _, at = np.unique(v[hdr[rows] == h], return_index=True)
+        for h in np.unique(hs).tolist():
+            sub = rows[hs == h]
+            _, at = np.unique(v[hs == h], return_index=True)
             samples += sub[at].tolist()
     header_rules = None
     # The key of a sample, read from the bytes: what its Record would say (its bytes, its model or its VIDs'
