@@ -61,10 +61,12 @@ def add_format_option(p: argparse.ArgumentParser, choices: tuple[str, ...], help
 def add_bus_options(p: argparse.ArgumentParser) -> None:
     """--model, --baud and the timing knobs of decoding: what the bus is."""
     p.add_argument("--model", action="append", default=[], metavar="[ID=]MODEL",
-                   help="servo model for every ID (RS303MR, RS304MD) or for one ID (3=RS304MD); repeatable")
+                   help="servo model for every ID (a memory map's name: RS303MR, RS304MD, RS301CR, RS204MD, "
+                        "RS405CB, ...) or for one ID (3=RS304MD); repeatable")
     p.add_argument("--baud", type=baud_arg, default=None, metavar="BPS|auto",
-                   help="bus baud rate, one of table 4.7's, or auto: a port is tried at each rate, a capture goes "
-                        "by its metadata or timestamps (default: what the capture shows, else 115200)")
+                   help="bus baud rate, one of table 4.7's (460800 too, where a model has it), or auto: a port is "
+                        "tried at each rate, a capture goes by its metadata or timestamps (default: what the capture "
+                        "shows, else 115200)")
     p.add_argument("--baud-any", action="store_true", default=None,
                    help="accept a --baud that is not one of the manual's rates")
     p.add_argument("--gap-bytes", type=float, default=None, metavar="N",

@@ -87,7 +87,8 @@ class Servo:
         borrowed = reg.default
         for r in model.registers:
             default = r.default
-            if default is None and r.name and r.name in borrowed.names and borrowed.register(r.name).size == r.size:
+            if (default is None and r.name and r.name != "model_number" and r.name in borrowed.names
+                    and borrowed.register(r.name).size == r.size):  # a model number no source gives stays 0
                 default = borrowed.register(r.name).default
             if default is not None and r.address + r.size <= MEMORY_SIZE:
                 self.defaults[r.address:r.address + r.size] = default.to_bytes(r.size, "little", signed=default < 0)

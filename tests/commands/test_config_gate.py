@@ -169,14 +169,16 @@ def test_time_unit_on_a_binary_or_mcap_capture_is_refused(capsys, tmp_path):
 
 
 def test_a_rate_past_table_4_7_needs_baud_any_on_files_and_ports(capsys, tmp_path):
-    """460800 is no servo's rate (table 4.7 stops at 230400): refused as the docs now say, taken with --baud-any."""
-    code, _, err = run(capsys, "info", TIMED, "--isolated", "--baud", "460800")
+    """921600 is no servo's rate (table 4.7 stops at 230400, code 0x0A of some models is 460800): refused as the docs
+    say, taken with --baud-any; 460800 is taken as it is."""
+    code, _, err = run(capsys, "info", TIMED, "--isolated", "--baud", "921600")
     assert code == 2
-    one_line(err, "--baud 460800: not a rate of table 4.7", "--baud-any")
-    code, _, err = run(capsys, "record", "/dev/ttyUSB-not-there", "--isolated", "--baud", "460800", "-o",
+    one_line(err, "--baud 921600: not a rate the servos run at", "--baud-any")
+    code, _, err = run(capsys, "record", "/dev/ttyUSB-not-there", "--isolated", "--baud", "921600", "-o",
                        tmp_path / "x.mcap", "--duration", "1")
-    assert code == 2 and "--baud 460800: not a rate of table 4.7" in err
-    assert run(capsys, "info", TIMED, "--isolated", "--baud", "460800", "--baud-any")[0] == 0
+    assert code == 2 and "--baud 921600: not a rate the servos run at" in err
+    assert run(capsys, "info", TIMED, "--isolated", "--baud", "921600", "--baud-any")[0] == 0
+    assert run(capsys, "info", TIMED, "--isolated", "--baud", "460800")[0] == 0
     text = (Path(__file__).resolve().parents[2] / "docs" / "live-capture.md").read_text()
     assert "or 460800." not in text and "`--baud-any`" in text
 
