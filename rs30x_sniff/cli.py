@@ -143,6 +143,13 @@ def user_errors() -> tuple[type[Exception], ...]:
     return tuple(found)
 
 
+def say_deprecations() -> None:
+    """commands.common's, where a note waits: `plugin` and `rules` import none of the commands' common code."""
+    if language.deprecation_notes:
+        from .commands.common import say_deprecations as say
+        say()
+
+
 def one_thread_blas() -> None:
     """ONE_THREAD set to 1 where the user set nothing, before numpy is imported (build_parser imports it)."""
     for name in ONE_THREAD:
@@ -224,8 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "run", None):
         parser.print_help()
         return 2
-    from . import allocator
-    from .commands.common import say_deprecations  # here: --help and a usage error need neither
+    from . import allocator  # here: --help and a usage error need none of it
     allocator.keep_large_buffers()
     saved = {**interrupt_by_default(), **stop_on_hangup()}
     try:

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..plugins.maps import plugin_maps
-from .common import CliError
+from ..errors import CliError
 
 # Tool -> (module of rs30x_sniff.plugins with generate(maps) -> {path: text} and install_hint(out) -> str, what).
 TOOLS = {

@@ -80,3 +80,12 @@ def test_an_unknown_command_lists_every_choice(capsys):
     assert cli.main(["lnt"]) == 2
     err = capsys.readouterr().err
     assert err.startswith(cli.ERROR) and all(f"'{name}'" in err for name in cli.COMMANDS)
+
+
+def test_plugin_loads_no_numpy(tmp_path):
+    # The plug-ins are made from the memory maps alone (issue 35: `plugin` does not need numpy).
+    for argv in (["plugin", "--help"], ["plugin", "sigrok", "-o", str(tmp_path / "out")]):
+        got = probe(*argv)
+        assert got["code"] == 0, argv
+        assert not [m for m in got["modules"] if m.split(".")[0] == "numpy"], argv
+    assert (tmp_path / "out").is_dir()
