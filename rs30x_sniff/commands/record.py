@@ -29,13 +29,16 @@ from ..sources.reconnect import ReconnectingSource
 
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 IDLE_INTERVAL = 0.1     # a quiet port still hands the loop an empty chunk this often
+UNWATCHED_GATHER_SECONDS = 1.0  # a recording nobody watches live: the bytes of a busy bus decoded a second at a time
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("record", help="record a serial port to MCAP (a passive tap; never writes to the port)",
                        description="Capture the bus from a serial port (a device or a pyserial URL) into an MCAP "
-                                   "file, decoding and linting as it goes. Ctrl-C, SIGTERM, --duration and a lost "
-                                   "port all leave a finalized file.")
+                                   "file, decoding and linting as it goes. The file holds every byte as it came, "
+                                   "the findings and the figures; every command reads it decoded, and convert "
+                                   "writes its decoded topics for Foxglove (or give --decoded). Ctrl-C, SIGTERM, "
+                                   "--duration and a lost port all leave a finalized file.")
     p.add_argument("port", metavar="PORT", help="serial device (/dev/ttyUSB0) or pyserial URL (socket://host:port)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.mcap",
                    help="MCAP file to write (- streams it to stdout)")
@@ -44,6 +47,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_live_options(p, help="stop after TIME (30s, 10min, 2h; default: run until Ctrl-C)")
     p.add_argument("--print", dest="print_lines", action="store_true",
                    help="also print each decoded packet as a text line (like decode)")
+    p.add_argument("--decoded", action="store_true",
+                   help="also write each packet, transaction and servo state as it comes (Foxglove plots the file "
+                        "as it is; about three times the CPU of the bytes alone; convert makes them later)")
     add_time_format_option(p)
     p.add_argument("--split-size", type=float, default=None, metavar="MB",
                    help="start a new numbered file (OUT-001.mcap, OUT-002.mcap, ...) after about MB megabytes "
@@ -154,8 +160,11 @@ def run(args: argparse.Namespace) -> int:
     log = _Log()
     say = log.say
 
-    # The columnar path, a gather at a time (sinks.pipeline.columnar_for).
-    src = open_port(args, opts.baud, say)
+    # The columnar path, a gather at a time (sinks.pipeline.columnar_for). What nobody watches live (no --print,
+    # no --foxglove) is gathered a second at a time: a group costs about a millisecond whatever it holds, and the
+    # file's chunks are cut a second at a time anyway.
+    watched = args.print_lines or args.foxglove is not None
+    src = open_port(args, opts.baud, say, gather=GATHER_SECONDS if watched else UNWATCHED_GATHER_SECONDS)
     columnar = columnar_for(src)
 
     def make_sink(path: str | IO[bytes], part: int) -> McapSink:
@@ -163,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
         if part:
             extra["part"] = str(part)
         sink = McapSink(path, source=args.port, baud=opts.baud, time_base="wall", models=opts.models,
-                        extra_metadata=extra)
+                        extra_metadata=extra, decoded=args.decoded)
         sink.stats.stalls = src.stalls  # where the reader fell behind: in rs30x.stats, and no load over them
         return sink
 

@@ -26,6 +26,9 @@ METADATA_NAME = "rs30x"               # written first: a killed writer still lea
 MODELS_METADATA_NAME = "rs30x.models"  # written by finish(): what the bus taught us
 STATS_METADATA_NAME = "rs30x.stats"    # written by finish(): `info`'s figures for the whole log, as JSON
 GAPS_METADATA_NAME = "rs30x.gaps"      # written by finish() if the port was lost and found again: the gaps, as JSON
+# The rs30x metadata's "topics": what a file holds beside its raw bytes, findings and figures. A raw file (record's
+# default) is decoded again by whoever reads it; `convert` writes its decoded topics.
+TOPICS_RAW = "raw"
 GAP_METADATA_NAME = "rs30x.gap"        # one gap, written when the port came back (a cut file keeps it): JSON values
 
 # capture: the capture's own times; synthetic: byte positions at the baud rate (no timestamps);

@@ -241,7 +241,7 @@ def test_record_with_foxglove_streams_what_it_writes(tmp_path):
 
     pty = Pty()
     out = tmp_path / "bus.mcap"
-    proc = cli("record", pty.path, "-o", str(out), "--foxglove", "127.0.0.1:0")
+    proc = cli("record", pty.path, "-o", str(out), "--foxglove", "127.0.0.1:0", "--decoded")
     try:
         line = proc.stderr.readline().decode()
         m = SERVER_LINE.search(line)
@@ -280,7 +280,7 @@ def test_record_loses_no_bytes_to_a_client_that_leaves_or_comes_late(tmp_path):
 
     pty = Pty()
     out = tmp_path / "bus.mcap"
-    proc = cli("record", pty.path, "-o", str(out), "--baud", "230400", "--foxglove", "127.0.0.1:0")
+    proc = cli("record", pty.path, "-o", str(out), "--baud", "230400", "--foxglove", "127.0.0.1:0", "--decoded")
     try:
         line = proc.stderr.readline().decode()
         m = SERVER_LINE.search(line)

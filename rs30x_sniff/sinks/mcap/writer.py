@@ -19,7 +19,7 @@ from ...protocol.events import Garbage
 from ...protocol.mcap_names import (DIAGNOSTICS_TOPIC, GAP_METADATA_NAME, GAPS_METADATA_NAME, LOG_SCHEMA,
                                     MCAP_MAGIC, METADATA_NAME, MODELS_METADATA_NAME, PACKET_SCHEMA, PACKETS_TOPIC,
                                     RAW_SCHEMA, RAW_TOPIC,
-                                    SERVO_STATE_SCHEMA, STATE_TOPIC, STATS_METADATA_NAME, TIME_BASES,
+                                    SERVO_STATE_SCHEMA, STATE_TOPIC, STATS_METADATA_NAME, TIME_BASES, TOPICS_RAW,
                                     TRANSACTION_SCHEMA, TRANSACTIONS_TOPIC, log_time_ns)
 from ...render.block_json import record_json_line
 from ...schemas import schema_bytes
@@ -271,7 +271,8 @@ class McapSink(JsonChannels):
 
     def __init__(self, path: str | IO[bytes], *, source: str, baud: int, time_base: str,
                  models: dict[int, str] | None = None, extra_metadata: dict[str, str] | None = None,
-                 chunk_seconds: float = 1.0, chunk_size: int = 256 * 1024, start_time: float | None = None) -> None:
+                 chunk_seconds: float = 1.0, chunk_size: int = 256 * 1024, start_time: float | None = None,
+                 decoded: bool = True) -> None:
         if time_base not in TIME_BASES:
             raise ValueError(f"time_base must be one of {TIME_BASES}, not {time_base!r}")
         if isinstance(path, (str, bytes)) or hasattr(path, "__fspath__"):
@@ -283,6 +284,10 @@ class McapSink(JsonChannels):
             self._file = path
             self._owns_file = False
         super().__init__(source=source, baud=baud, models=models, start_time=start_time)
+        # decoded=False: the bytes (/rs30x/raw), the findings and the figures only, as a dumpcap keeps a capture
+        # to decode later: every reader of the file decodes the raw bytes again, and `convert` writes the
+        # decoded topics from them. A black box left running costs far less so (record's default).
+        self.decoded = decoded
         self.path = path
         self.time_base = time_base
         self.gaps: list[dict] = []  # where the source lost the line (gap()): the rs30x.gaps metadata
@@ -321,6 +326,8 @@ class McapSink(JsonChannels):
         meta = {"source": source, "baud": str(baud), "time_base": time_base, "tool": "rs30x-sniff",
                 "start_time": "" if start_time is None else repr(start_time),
                 "tool_version": __version__, "models": _models_text(self.model_names)}
+        if not decoded:
+            meta["topics"] = TOPICS_RAW  # absent: every topic (all files before this key)
         meta.update(extra_metadata or {})
         self._sdk(self._writer.write_metadata, METADATA_NAME, meta)
 
@@ -424,7 +431,12 @@ class McapSink(JsonChannels):
             self.stats.chunk(data, t)
 
     def batch(self, step: Step) -> None:
-        super().batch(step)
+        if self.decoded:
+            super().batch(step)
+        else:
+            self.flush_held()  # the raw bytes only (their group's records make no messages here)
+            if step.findings:
+                self.findings(step.findings)
         self.stats.batch(step)  # a CaptureStats: it takes Blocks as they are (takes_blocks)
 
     def gap(self, t: float, lost_at: float | None, note: str) -> None:
