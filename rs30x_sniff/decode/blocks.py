@@ -252,7 +252,8 @@ def feed_run(tracker: BusTracker, run: FrameRun, out: list) -> bool:
     kind, flag = h["kind"], h["flag"]
     is_short, is_return = kind == SHORT, kind == RETURN
     # Frames the columnar path leaves to the tracker: the special cases, each changing the tracker's
-    # state in a way only it follows (broadcast writes, servo_id writes, data past the map, model numbers).
+    # state in a way only it follows (broadcast writes, servo_id writes, data past the map, model numbers), and
+    # requests of a return mode only a model's map defines (whether a return is due is the servo's model's say).
     slow = tracker.rows_needing_tracker(h)
     # Pairing: a request asking for a reply must be followed at once, within the timeout, by a return
     # the columnar path takes; a return must follow such a request.

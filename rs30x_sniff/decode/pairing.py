@@ -11,10 +11,11 @@ import numpy as np
 
 from .frame_runs import LONG, RETURN, SHORT
 from ..protocol.events import (
-    ADDRESS, CAPTURE_START, CHECKSUM_OK, DATA, FLAG, ID, LONG_ADDRESS, LONG_CHECKSUM_OK, LONG_LENGTH, LONG_RECORDS,
-    REASON, T_END, T_START, Ack, AnyEvent, Garbage, LongPacket, Nack, Packet, ReturnPacket, ShortPacket)
+    ADDRESS, CAPTURE_START, CHECKSUM_OK, DATA, FLAG, ID, LONG_ADDRESS, LONG_CHECKSUM_OK, LONG_FLAG, LONG_LENGTH,
+    LONG_RECORDS, REASON, T_END, T_START, Ack, AnyEvent, Garbage, LongPacket, Nack, Packet, ReturnPacket, ShortPacket)
 from ..protocol.memmap import Field, Model, ModelRegistry, default_registry
-from ..protocol.wire import AT_DATA, BROADCAST_ID, FLAG_WANTS_REPLY, LONG_PACKET_ID, SUM_SIZE
+from ..protocol.wire import (
+    AT_DATA, BROADCAST_ID, FLAG_MODE_UNDEFINED, FLAG_WANTS_REPLY, LONG_PACKET_ID, NO_AREAS, RETURN_MODE_MASK, SUM_SIZE)
 
 # Reply status of a record.
 ANSWERED = "answered"        # a request whose reply came
@@ -47,17 +48,24 @@ BROADCAST_WRITE = 1  # data to ID 255: every servo's shadow
 SERVO_ID_WRITE = 2   # data over servo_id (table 4.6 No. 4): the servo answers to its new ID at once
 PAST_MAP = 4         # data past address 255: clipped
 MODEL_NUMBER = 8     # a return of the model number from a servo of no configured model: its model is learned
+# A request whose return mode table 4.3 leaves undefined and some model's map defines (return_areas: RS204MD's
+# and RS405CB's 0x0D reads 60-127): whether a return is due depends on its servo's model, which the tracker
+# knows at that frame, learned ones included (a model number earlier in the same run).
+MODEL_RETURN_MODE = 16
 
 
 # frame_case and frame_cases are twins, one frame and a column of frames: change one, change the other.
 # The tracker decides each event by frame_case; BusTracker.rows_needing_tracker hands frame_cases to the
 # columnar path. tests/decode/test_pairing_twins.py holds them equal on random runs.
-def frame_case(kind: int, sid: int, address: int, size: int, id_address: int, configured: Collection[int]) -> int:
+def frame_case(kind: int, sid: int, address: int, size: int, id_address: int, configured: Collection[int],
+               flag: int, area_modes: Collection[int]) -> int:
     """The special cases of one checksum-valid frame (PLAIN: none): ``kind`` SHORT, LONG or RETURN
     (rs30x_sniff.decode.frame_runs), ``size`` its data bytes (a long packet's: each record's, after its VID),
-    ``id_address`` where servo_id lives, ``configured`` the IDs given a model (none is learned)."""
+    ``id_address`` where servo_id lives, ``configured`` the IDs given a model (none is learned), ``flag`` its
+    flag byte, ``area_modes`` the return modes beyond table 4.3 some model may define (MODEL_RETURN_MODE)."""
+    mode_case = MODEL_RETURN_MODE if kind == SHORT and flag & RETURN_MODE_MASK in area_modes else PLAIN
     if size <= 0:
-        return PLAIN
+        return mode_case
     end = address + size
     case = PAST_MAP if end > MAP_SIZE else PLAIN
     if kind == RETURN:
@@ -67,12 +75,13 @@ def frame_case(kind: int, sid: int, address: int, size: int, id_address: int, co
         case |= BROADCAST_WRITE
     elif address <= id_address < end:
         case |= SERVO_ID_WRITE
-    return case
+    return case | mode_case
 
 
-def frame_cases(columns: Mapping[str, np.ndarray], id_address: int, configured: Collection[int]) -> np.ndarray:
+def frame_cases(columns: Mapping[str, np.ndarray], id_address: int, configured: Collection[int],
+                area_modes: Collection[int]) -> np.ndarray:
     """:func:`frame_case` of every frame of a run, from its header columns (rs30x_sniff.decode.frame_runs
-    FrameRun.header: kind, id, address, length, data_len): one uint8 of case bits per row."""
+    FrameRun.header: kind, id, flag, address, length, data_len): one uint8 of case bits per row."""
     kind, sid = columns["kind"], columns["id"]
     address = columns["address"].astype(np.int64)
     size = np.where(kind == LONG, columns["length"].astype(np.int64) - 1, columns["data_len"])
@@ -90,6 +99,10 @@ def frame_cases(columns: Mapping[str, np.ndarray], id_address: int, configured: 
         known[list(configured)] = True
         learns &= ~known[sid]
     case[learns] |= MODEL_NUMBER
+    if area_modes:
+        modes = np.zeros(256, dtype=bool)  # by flag byte: its return mode is one of area_modes
+        modes[[f for f in range(256) if f & RETURN_MODE_MASK in area_modes]] = True
+        case[(kind == SHORT) & modes[columns["flag"]]] |= MODEL_RETURN_MODE
     return case
 
 
@@ -187,12 +200,37 @@ class Record:
 
     @property
     def expects(self) -> str | None:
-        """What reply a request asks for: "ack", "return", or None."""
+        """What reply a request asks for: "ack", "return", or None. A return mode table 4.3 does not define
+        asks for a return where the servo's model defines it (its map's return_areas: RS204MD's 0x0D)."""
         ev = self.event
         if type(ev) is ShortPacket:
-            kind = ev.expects.kind
+            kind = (ev.expects_in(self.return_areas) if FLAG_MODE_UNDEFINED[ev[FLAG]] else ev.expects).kind
             if kind != "none":
                 return kind
+        return None
+
+    @property
+    def return_areas(self) -> Mapping[int, tuple[int, int]]:
+        """The return modes beyond table 4.3 this record's servo model defines (none without a model)."""
+        m = self.model
+        return NO_AREAS if m is None else m.behaviour.return_areas
+
+    @property
+    def read_range(self) -> tuple[int, int] | None:
+        """For a short request: (first address, byte count) of the return it asks for, by table 4.3 or by its
+        servo model's return_areas; None for any other record."""
+        ev = self.event
+        if type(ev) is ShortPacket:
+            return ev.read_range_in(self.return_areas) if FLAG_MODE_UNDEFINED[ev[FLAG]] else ev.read_range
+        return None
+
+    @property
+    def op(self) -> str | None:
+        """What a short request does, as one word (ShortPacket.op), reading the range :attr:`read_range`
+        says; None for any other record."""
+        ev = self.event
+        if type(ev) is ShortPacket:
+            return ev.op_in(self.return_areas) if FLAG_MODE_UNDEFINED[ev[FLAG]] else ev.op
         return None
 
     @property
@@ -268,7 +306,7 @@ class Record:
         """For a read request: the registers it asks for."""
         ev = self.event
         if type(ev) is ShortPacket:
-            rr = ev.read_range
+            rr = self.read_range
             if rr is not None:
                 assert self.model is not None, "a short packet's record carries its servo's model (feed_into)"
                 return self.model.names_in(*rr)
@@ -362,6 +400,11 @@ class BusTracker:
         reg = self.default.register("servo_id")
         self._id_address = reg.address
         self._id_range = reg.range or (1, 127)
+        # The return modes beyond table 4.3 any model here may define (MODEL_RETURN_MODE): those of every
+        # model a servo could have or be learned as, whichever it turns out to have.
+        self._area_modes = frozenset(
+            mode for m in (*self.registry.models.values(), *self.configured.values(), self.default)
+            for mode in m.behaviour.return_areas)
 
     def _all_default(self) -> bool:
         d = self.default
@@ -371,7 +414,7 @@ class BusTracker:
     def rows_needing_tracker(self, columns: Mapping[str, np.ndarray]) -> np.ndarray:
         """Per frame of a run of checksum-valid frames (its header columns, FrameRun.header): True where
         the frame is one of the special cases (:func:`frame_case`), which only :meth:`feed_into` follows."""
-        return frame_cases(columns, self._id_address, self.configured) != PLAIN
+        return frame_cases(columns, self._id_address, self.configured, self._area_modes) != PLAIN
 
     @property
     def uniform(self) -> bool:
@@ -559,7 +602,7 @@ class BusTracker:
         if n <= 0:
             return
         ida = self._id_address
-        case = frame_case(LONG, LONG_PACKET_ID, address, n, ida, self.configured)
+        case = frame_case(LONG, LONG_PACKET_ID, address, n, ida, self.configured, ev[LONG_FLAG], self._area_modes)
         records = ev[LONG_RECORDS]
         if case & PAST_MAP:
             for vid, data in records:
@@ -584,7 +627,7 @@ class BusTracker:
         if ev[CHECKSUM_OK]:
             sid, address, data = ev[ID], ev[ADDRESS], ev[DATA]
             ida = self._id_address
-            case = frame_case(SHORT, sid, address, len(data), ida, self.configured)
+            case = frame_case(SHORT, sid, address, len(data), ida, self.configured, ev[FLAG], self._area_modes)
             if case & BROADCAST_WRITE:
                 for st in list(self.servos.values()):
                     st.store(address, data, ev[T_START])
@@ -595,8 +638,11 @@ class BusTracker:
                     st.store(address, data, ev[T_START])  # clipped if PAST_MAP
                     if case & SERVO_ID_WRITE:
                         self._renumber([(sid, data[ida - address])])
-        if FLAG_WANTS_REPLY[ev[FLAG]]:  # an ACK/NACK or a return (table 4.3)
+        flag = ev[FLAG]
+        if FLAG_WANTS_REPLY[flag]:  # an ACK/NACK or a return (table 4.3)
             self._pending = rec
+        elif FLAG_MODE_UNDEFINED[flag] and flag & RETURN_MODE_MASK in rec.return_areas:
+            self._pending = rec  # a return its servo's model defines (MODEL_RETURN_MODE)
 
     def _renumber(self, moves: list[tuple[int, int]]) -> None:
         """Servos whose servo_id was written: each (old, new) servo answers to its new ID at once
@@ -656,7 +702,8 @@ class BusTracker:
                 st.returns += 1
                 if rec.latency is not None and rec.status == PAIRED:
                     st.latencies.append(rec.latency)
-                if frame_case(RETURN, sid, address, len(data), self._id_address, self.configured) & MODEL_NUMBER:
+                if frame_case(RETURN, sid, address, len(data), self._id_address, self.configured, ev[FLAG],
+                              self._area_modes) & MODEL_NUMBER:
                     self._learn(sid, data, st)
                 st.store(address, data, ev[T_START])  # clipped if PAST_MAP
                 rec.model = st.model

@@ -7,11 +7,12 @@ a second). Two events are equal when their kind and every field are equal.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from operator import itemgetter
 from typing import Any, Literal, final
 
 from .wire import (
-    EXPECT_BY_MODE, FLAG_WANTS_ACK, RETURN_MODE_MASK, Expect, command_names, expects, return_flag_names,
+    EXPECT_BY_MODE, FLAG_WANTS_ACK, RETURN_MODE_MASK, Expect, command_names, expects, read_range, return_flag_names,
     return_mode)
 
 # Why a run of bytes was skipped (Garbage.reason).
@@ -117,6 +118,20 @@ class ShortPacket(Event):
         e = EXPECT_BY_MODE[self[5] & RETURN_MODE_MASK]  # wire.read_range, inlined: replies look here
         return (self[6], self[7]) if e is None else e.range
 
+    # A servo whose model defines return modes beyond table 4.3 (``areas``: memmap.Behaviour.return_areas, a
+    # mode -> (first address, byte count)) answers a request of such a mode: these forms say so.
+    def expects_in(self, areas: Mapping[int, tuple[int, int]]) -> Expect:
+        """:attr:`expects` of this request to a servo whose model defines ``areas``."""
+        return expects(self[5], self[6], self[7], areas)
+
+    def read_range_in(self, areas: Mapping[int, tuple[int, int]]) -> tuple[int, int] | None:
+        """:attr:`read_range` of this request to a servo whose model defines ``areas``."""
+        return read_range(self[5], self[6], self[7], areas)
+
+    def op_in(self, areas: Mapping[int, tuple[int, int]]) -> str:
+        """:attr:`op` of this request to a servo whose model defines ``areas``."""
+        return self._op(self.read_range_in(areas) is not None)
+
     @property
     def wants_ack(self) -> bool:
         return FLAG_WANTS_ACK[self[5]]
@@ -124,10 +139,12 @@ class ShortPacket(Event):
     @property
     def op(self) -> str:
         """What the packet does, as one word: write, read, write+read, flash, reboot, ping, ..."""
+        return self._op(self.read_range is not None)
+
+    def _op(self, reads: bool) -> str:
         cmds = self.commands
         if cmds:
             return "+".join(cmds)
-        reads = self.read_range is not None
         if self[9]:
             return "write+read" if reads else ("write+ack" if self.wants_ack else "write")
         if reads:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from functools import reduce
 from operator import xor
+from types import MappingProxyType
 from typing import NamedTuple
 
 # Headers (manual, "Format of Packets"): requests start FA AF, returns FD DF.
@@ -94,6 +96,10 @@ EXPECT_BY_MODE: tuple[Expect | None, ...] = tuple(
 FLAG_WANTS_ACK: tuple[bool, ...] = tuple(f & RETURN_MODE_MASK == RETURN_ACK for f in range(256))
 FLAG_WANTS_REPLY: tuple[bool, ...] = tuple(
     EXPECT_BY_MODE[f & RETURN_MODE_MASK] is not _EXPECT_NONE for f in range(256))
+# Per flag byte: True where table 4.3 does not define its return mode. Another model's manual may (a map's
+# [behaviour] return_areas: mode -> (first address, byte count)); only such a flag needs the servo's model.
+FLAG_MODE_UNDEFINED: tuple[bool, ...] = tuple(f & RETURN_MODE_MASK not in RETURN_MODE_TABLE for f in range(256))
+NO_AREAS: Mapping[int, tuple[int, int]] = MappingProxyType({})  # a model with no return mode beyond table 4.3
 _COMMAND_NAMES: tuple[tuple[str, ...], ...] = tuple(
     tuple(name for bit, name in COMMANDS if f & bit) for f in range(256))
 
@@ -118,16 +124,29 @@ def command_names(flag: int) -> tuple[str, ...]:
     return _COMMAND_NAMES[flag & 0xFF]
 
 
-def expects(flag: int, address: int = 0, length: int = 0) -> Expect:
-    """What a short request with this flag (and, for mode F, this Address and Length) expects back."""
+def expects(flag: int, address: int = 0, length: int = 0, areas: Mapping[int, tuple[int, int]] = NO_AREAS) -> Expect:
+    """What a short request with this flag (and, for mode F, this Address and Length) expects back; ``areas``:
+    the return modes beyond table 4.3 its servo's model defines (memmap.Behaviour.return_areas)."""
     e = EXPECT_BY_MODE[flag & RETURN_MODE_MASK]
-    return Expect("return", (address, length)) if e is None else e
+    if e is None:
+        return Expect("return", (address, length))
+    if areas and FLAG_MODE_UNDEFINED[flag & 0xFF]:
+        area = areas.get(flag & RETURN_MODE_MASK)
+        if area is not None:
+            return Expect("return", area)
+    return e
 
 
-def read_range(flag: int, address: int = 0, length: int = 0) -> tuple[int, int] | None:
-    """(first address, byte count) of the return packet the request asks for, if any (table 4.3)."""
+def read_range(flag: int, address: int = 0, length: int = 0,
+               areas: Mapping[int, tuple[int, int]] = NO_AREAS) -> tuple[int, int] | None:
+    """(first address, byte count) of the return packet the request asks for, if any (table 4.3, and
+    ``areas`` as :func:`expects` takes them)."""
     e = EXPECT_BY_MODE[flag & RETURN_MODE_MASK]
-    return (address, length) if e is None else e.range
+    if e is None:
+        return (address, length)
+    if areas and FLAG_MODE_UNDEFINED[flag & 0xFF]:
+        return areas.get(flag & RETURN_MODE_MASK)
+    return e.range
 
 
 def request_flag_names(flag: int) -> list[str]:

@@ -29,8 +29,8 @@ def direction(rec: Record) -> str:
 def kind_word(rec: Record) -> str:
     """WRITE, READ, LONG, RETURN, ACK, ... as shown in text output and the TUI."""
     ev = rec.event
-    if type(ev) is ShortPacket:
-        op = ev.op
+    op = rec.op  # a short request's, by its servo's model: a return mode it defines reads (RS204MD's 0x0D)
+    if op is not None:
         return _OP_WORD.get(op) or op.upper().replace("INITIALIZE", "INIT")
     return _KIND_WORD.get(ev.kind, ev.kind.upper())
 
@@ -83,7 +83,7 @@ def packet_notes(rec: Record) -> list[str]:
     notes = []
     if type(ev) is ShortPacket:
         names = rec.read_names
-        read = ev.read_range
+        read = rec.read_range
         if names and read:
             a, n = read
             notes.append(f"read[{a}+{n}]" if len(names) > 3 else f"read[{','.join(names)}]")
@@ -246,8 +246,8 @@ def record_json(rec: Record, only: set[int] | None = None, *, fields: bool = Tru
     elif rec.is_reply:
         obj["id"] = rec.id
     if type(ev) is ShortPacket:
-        obj["op"] = ev.op
-        read = ev.read_range
+        obj["op"] = rec.op
+        read = rec.read_range
         if read is not None:
             a, n = read
             obj["read"] = {"address": a, "length": n, "names": rec.read_names}

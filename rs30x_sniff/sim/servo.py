@@ -206,7 +206,7 @@ class Servo:
             return None  # every servo would answer at once
         if asks_ack:
             return self._reply(bytes((ACK,)))
-        rr = ev.read_range
+        rr = ev.read_range_in(self.model.behaviour.return_areas)  # table 4.3, and the modes its model adds (0x0D)
         if rr is None:
             return None
         address, length = rr

@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from rs30x_sniff.decode import blocks as blocks_module
 from rs30x_sniff.decode.frame_runs import LONG, RETURN, SHORT, FrameRun
 from rs30x_sniff.decode.pairing import (
-    BROADCAST_WRITE, MODEL_NUMBER, PAST_MAP, PLAIN, SERVO_ID_WRITE, BusTracker, frame_case, frame_cases)
+    BROADCAST_WRITE, MODEL_NUMBER, MODEL_RETURN_MODE, PAST_MAP, PLAIN, SERVO_ID_WRITE, BusTracker, frame_case,
+    frame_cases)
 from rs30x_sniff.decode.decoder import DecodeOptions
 from rs30x_sniff.protocol.events import LongPacket, ReturnPacket, ShortPacket
 from rs30x_sniff.protocol.wire import byte_time, encode_long, encode_read, encode_return, encode_short
@@ -26,14 +27,18 @@ SETTINGS = settings(max_examples=200, deadline=None,
 addresses = st.sampled_from([0, 1, 2, 3, 4, 5, 30, 42, 140, 250, 253, 254, 255])
 ids = st.sampled_from([1, 2, 3, 5, 127, 255])
 shorts = st.builds(lambda sid, flag, address, data: encode_short(sid, flag, address, data),
-                   ids, st.sampled_from([0x00, 0x01, 0x09, 0x0F]), addresses, st.binary(max_size=8))
+                   ids, st.sampled_from([0x00, 0x01, 0x09, 0x0D, 0x0F, 0x02]), addresses, st.binary(max_size=8))
 longs = st.builds(lambda address, size, vids: encode_long(address, [(v, bytes([v] * size)) for v in vids]),
                   addresses, st.integers(0, 5), st.lists(st.sampled_from([1, 2, 3, 5, 9]), min_size=1, max_size=4))
 returns = st.builds(lambda sid, address, data: encode_return(sid, address, data),
                     ids, addresses, st.one_of(st.sampled_from([b"\x30\x30", b"\x40\x30", b"\x99\x99"]),
                                               st.binary(max_size=8)))
 frames = st.one_of(shorts, longs, returns)
-configured = st.sampled_from([{}, {1: "rs303mr"}, {2: "rs304md", 5: "rs303mr"}])
+configured = st.sampled_from([{}, {1: "rs303mr"}, {2: "rs304md", 5: "rs303mr"}, {1: "rs204md", 3: "rs405cb"}])
+# The return modes beyond table 4.3 the bundled maps define (RS204MD's and RS405CB's 0x0D), as the tracker
+# gathers them; and none, as a registry without such maps gives.
+AREA_MODES = frozenset({0x0D})
+area_modes = st.sampled_from([AREA_MODES, frozenset()])
 
 
 def run_of(frames: list[bytes]) -> FrameRun:
@@ -42,22 +47,23 @@ def run_of(frames: list[bytes]) -> FrameRun:
     return FrameRun(0, b"".join(frames), ends - [len(f) for f in frames], ends, None, None)
 
 
-def case_of(ev, id_address: int, configured) -> int:
+def case_of(ev, id_address: int, configured, modes=AREA_MODES) -> int:
     """frame_case of one event, its arguments taken as the tracker takes them."""
     if type(ev) is LongPacket:
-        return frame_case(LONG, 0, ev.address, ev.length - 1, id_address, configured)
+        return frame_case(LONG, 0, ev.address, ev.length - 1, id_address, configured, ev.flag, modes)
     kind = SHORT if type(ev) is ShortPacket else RETURN
     assert type(ev) in (ShortPacket, ReturnPacket)
-    return frame_case(kind, ev.id, ev.address, len(ev.data), id_address, configured)
+    flag = ev.flag if type(ev) is ShortPacket else ev.flags
+    return frame_case(kind, ev.id, ev.address, len(ev.data), id_address, configured, flag, modes)
 
 
 @SETTINGS
-@given(st.lists(frames, min_size=1, max_size=40), st.sampled_from([4, 0, 200, 255]), configured)
-def test_the_column_form_is_the_single_frame_form_on_every_row(fs, id_address, models):
+@given(st.lists(frames, min_size=1, max_size=40), st.sampled_from([4, 0, 200, 255]), configured, area_modes)
+def test_the_column_form_is_the_single_frame_form_on_every_row(fs, id_address, models, modes):
     run = run_of(fs)
-    cases = frame_cases(run.header(), id_address, models)
+    cases = frame_cases(run.header(), id_address, models, modes)
     assert cases.dtype == np.uint8
-    assert cases.tolist() == [case_of(ev, id_address, models) for ev in run.events()]
+    assert cases.tolist() == [case_of(ev, id_address, models, modes) for ev in run.events()]
 
 
 @SETTINGS
@@ -89,6 +95,10 @@ def test_each_case_by_example():
     assert case(encode_return(1, 0, b"\x40")) == PLAIN
     assert case(encode_return(1, 4, b"\x02")) == PLAIN               # a return moves no servo
     assert case(encode_return(1, 250, bytes(8))) == PAST_MAP
+    assert case(encode_short(1, 0x0D, 0, b"", length=0, count=0)) == MODEL_RETURN_MODE  # a model's 60-127 read
+    assert case(encode_short(1, 0x0D, 4, b"\x02")) == MODEL_RETURN_MODE | SERVO_ID_WRITE
+    assert case(encode_short(1, 0x02, 0, b"", length=0, count=0)) == PLAIN  # no map defines mode 0010
+    assert case(encode_return(1, 60, bytes(68), 0x0D)) == PLAIN               # a return's flags are no mode
 
 
 BT = byte_time(115200)

@@ -36,7 +36,7 @@ def reply_due(lint, req) -> float:
     ev = req.event
     sh = lint.servos.get(ev.id)
     rd = sh.return_delay if sh is not None and sh.return_delay is not None else 0
-    rr = ev.read_range
+    rr = req.read_range  # by table 4.3, or by its servo model's return_areas
     size = 1 if rr is None else FRAME_OVERHEAD + rr[1]
     due = expected_latency(rd) + size * lint.byte_time + lint.config.latency_margin
     return min(due, lint.config.reply_timeout)
@@ -51,7 +51,7 @@ def _asked(rec) -> str:
         return "an ACK"
     names = rec.read_names
     if len(names) > 3:  # the whole range, never cut ("..."): machine formats carry the message as it is
-        address, length = rec.event.read_range
+        address, length = rec.read_range
         named = [n for n in names if not n.startswith("reserved")] or names
         return f"a return of addresses {address}-{address + length - 1} ({named[0]} to {named[-1]})"
     return f"a return of {', '.join(names)}"
@@ -215,7 +215,7 @@ def return_range_mismatch(lint, rec, ev):
     if req.expects == "ack":
         lint.emit("B005", rec, said("return where request @{offset} asked for an ACK", {"offset": offset}))
         return
-    rr = req.event.read_range
+    rr = req.read_range  # by table 4.3, or by its servo model's return_areas (RS204MD's 0x0D: 60-127)
     if rr is not None and (ev.address, ev.length) != rr:
         lint.emit("B005", rec, said("returns {length} byte(s) from address {address}; request @{offset} asked for "
                                     "{asked_length} from {asked_address}",

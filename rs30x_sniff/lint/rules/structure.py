@@ -145,7 +145,8 @@ def bad_count(lint, rec, ev):
 @rule("P007", "undefined-return-mode", "error", "Flag bits 3-0 are not a return mode of table 4.3.", f"""
 ## What it does
 Flags a short packet whose return-mode bits (flag bits 3-0) are none of 0000, 0001, 0011, 0101, 0111,
-1001, 1011 or 1111 (table 4.3).
+1001, 1011 or 1111 (table 4.3), unless its servo's model defines that mode (its map's return_areas:
+1101, a return of addresses 60-127, on {models_where(lambda m: 0x0D in m.behaviour.return_areas)}).
 
 ## Why it matters
 The host cannot know whether the servo will answer, and with what; the linter cannot pair the
@@ -156,7 +157,7 @@ request with a reply either, so a stray return may follow and collide with the n
 """, kinds=("short",), column="header")
 def undefined_return_mode(lint, rec, ev):
     mode = ev.return_mode
-    if mode not in RETURN_MODES:
+    if mode not in RETURN_MODES and mode not in rec.return_areas:  # a mode the servo's model defines is a read
         lint.emit("P007", rec, said("return mode {mode:04b} is not in table 4.3", {"mode": mode}))
 
 
