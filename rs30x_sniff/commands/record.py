@@ -30,6 +30,7 @@ from ..sources.reconnect import ReconnectingSource
 STATUS_INTERVAL = 0.25  # seconds between status line refreshes
 IDLE_INTERVAL = 0.1     # a quiet port still hands the loop an empty chunk this often
 UNWATCHED_GATHER_SECONDS = 1.0  # a recording nobody watches live: the bytes of a busy bus decoded a second at a time
+PRINT_GATHER_SECONDS = 0.25     # --print: lines a person reads, a quarter of a second at a time
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -160,11 +161,13 @@ def run(args: argparse.Namespace) -> int:
     log = _Log()
     say = log.say
 
-    # The columnar path, a gather at a time (sinks.pipeline.columnar_for). What nobody watches live (no --print,
-    # no --foxglove) is gathered a second at a time: a group costs about a millisecond whatever it holds, and the
-    # file's chunks are cut a second at a time anyway.
-    watched = args.print_lines or args.foxglove is not None
-    src = open_port(args, opts.baud, say, gather=GATHER_SECONDS if watched else UNWATCHED_GATHER_SECONDS)
+    # The columnar path, a gather at a time (sinks.pipeline.columnar_for). A group costs about a millisecond
+    # whatever it holds, so the gather is as long as what watches allows: a tenth of a second for Foxglove's live
+    # plots, a quarter for --print's lines (a person reading them), a second for the file alone (its chunks
+    # are cut a second at a time anyway).
+    gather = (GATHER_SECONDS if args.foxglove is not None else PRINT_GATHER_SECONDS if args.print_lines
+              else UNWATCHED_GATHER_SECONDS)
+    src = open_port(args, opts.baud, say, gather=gather)
     columnar = columnar_for(src)
 
     def make_sink(path: str | IO[bytes], part: int) -> McapSink:
