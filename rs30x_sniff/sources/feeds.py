@@ -20,10 +20,10 @@ Chunk = tuple[bytes, "float | None"]
 REPLAY_SLICE = 64        # bytes per step when replaying a capture that has no timestamps
 POLL_SECONDS = 0.1       # a live source yields at least this often, so commands and batches flow
 # A port's bytes pile up this long between passes of the decoder (LiveSource's gather): the screen takes a
-# batch every feed.POST_INTERVAL (as long) anyway, and half a second of a busy bus (some 440 frames at
-# 230400 baud) makes Blocks that the linter and the statistics take at a fraction of the cost per frame
-# (the feeder thread on the hexapod: ~0.55 s of CPU over 10 s with 0.1 s gathers, ~0.3 s with these).
-PORT_GATHER_SECONDS = 0.5
+# batch every feed.POST_INTERVAL (as long) anyway, and a second of a busy bus (some 880 frames at 230400
+# baud) makes Blocks that the linter and the statistics take at a fraction of the cost per frame (the
+# feeder thread on the hexapod: ~0.55 s of CPU over 10 s with 0.1 s gathers, ~0.3 s with 0.5 s ones).
+PORT_GATHER_SECONDS = 1.0
 # A capture file at least this large is read by a child process (io.read_ahead) while this one decodes:
 # below it, starting a Python process (~0.2 s) costs more than the reading it takes off this one.
 READ_AHEAD_BYTES = 8 << 20

@@ -21,10 +21,11 @@ from .servos import ServoRow, servo_snapshot
 if TYPE_CHECKING:  # names for the checker; no import at run time
     from ..lint.linter import Linter
 
-# Seconds between batches: two screen updates a second. Each redraws most of the screen (the timeline
-# scrolls, the newest packet's detail, the servos' values, the plot), some 20-40 ms of CPU in Textual: four a
-# second cost the monitor on a busy port twice the CPU for a screen that reads no better (issue 31, 5).
-POST_INTERVAL = 0.5
+# Seconds between batches: one screen update a second, as top and iftop refresh. Each redraws most of the
+# screen (the timeline scrolls, the newest packet's detail, the servos' values, the plot), some 20-40 ms of CPU
+# in Textual: two a second made the monitor on a busy port cost 6x a bare reading loop, one 2.8x
+# (bench/live.py, issue 31 §5's target 3x).
+POST_INTERVAL = 1.0
 MAX_BATCH = 50_000      # records per batch, so one batch never stalls the screen for long
 # While a file loads, the screen is told less often: a redraw of the whole screen costs the decoding
 # thread ~0.1 s of the GIL, and a file is not live (the first batch still comes at once, so the screen
