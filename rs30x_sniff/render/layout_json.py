@@ -179,15 +179,15 @@ def _mixed_fill(parts: MixedParts, compact: bool) -> Callable[[bytes], str] | No
     layout's format, a pad byte for its VID before it); None when a layout has no struct format to join."""
     formats, templates, items = ["<"], [], []
     base = 0  # the raw values before this record's
-    for sub, a, b, _ in parts:
+    for sub, a, b, vid in parts:
         unpacker = getattr(sub.unpack_raw, "__self__", None)
         if not isinstance(unpacker, struct.Struct) or not unpacker.format.startswith("<") or unpacker.size != b - a:
             return None
         formats.append("x" + unpacker.format[1:])  # the record's VID (at a - 1), then its parts
         for j, (start, size, reg, partial) in enumerate(sub.parts):
-            templates.append(field_template(reg, partial, compact))
-            items += [("byte", a - 1), ("hex", 2 * (a + start), 2 * (a + start + size)),
-                      ("text", value_text(reg, partial), base + j)]
+            # The VID is the shape's (long_plan's key holds them): written into the template, the first %s (id).
+            templates.append(field_template(reg, partial, compact).replace("%s", str(vid), 1))
+            items += [("hex", 2 * (a + start), 2 * (a + start + size)), ("text", value_text(reg, partial), base + j)]
         base += len(sub.parts)
     whole = struct.Struct("".join(formats))
     if parts and whole.size != parts[-1][2]:  # the records, VIDs and all, are the whole data
