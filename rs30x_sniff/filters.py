@@ -406,7 +406,7 @@ def _registers(value: str, registry: ModelRegistry) -> Term:
         if type(ev) is ShortPacket:
             if ev.data and covers(model, ev.address, len(ev.data)):
                 return True
-            rr = ev.read_range
+            rr = rec.read_range  # by the servo's model (return modes beyond table 4.3)
             return rr is not None and covers(model, *rr)
         if type(ev) is ReturnPacket:
             return covers(model, ev.address, len(ev.data))

@@ -21,7 +21,7 @@ from ..decode.pairing import Record
 from ..decode.frame_runs import LONG, RETURN, SHORT
 from ..protocol.events import DATA, FLAG, ID, LONG_RECORDS, OFFSET, RAW, T_END, T_START, Ack, Garbage, LongPacket, \
     ReturnPacket, ShortPacket
-from ..protocol.wire import BROADCAST_ID, byte_time
+from ..protocol.wire import BROADCAST_ID, FLAG_MODE_UNDEFINED, byte_time
 from .bus_load import LOAD_WINDOW, LoadWindows, RecentLoad
 from .health import FLUSH_ROWS, HealthRecorder
 from .summary import servo_health, timer, what_happened
@@ -142,7 +142,9 @@ class CaptureStats(Sink[Record | Block]):
             data = ev[DATA]
             key = (ev[FLAG], bool(data))
             op = _OPS.get(key)
-            if op is None:  # the op and whether it reads depend on the flag and on data being there
+            if FLAG_MODE_UNDEFINED[key[0]]:  # a mode some models define (0x0D): the servo's model says
+                op = (rec.op or "", rec.read_range is not None)  # a short packet's record always has an op
+            elif op is None:  # the op and whether it reads depend on the flag and on data being there
                 assert type(ev) is ShortPacket  # (t is its type; told once per flag and data)
                 op = _OPS[key] = (ev.op, ev.read_range is not None)
             self.by_op[op[0]] += 1

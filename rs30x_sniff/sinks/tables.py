@@ -312,7 +312,7 @@ class TransactionsTable(TableSink):
                 continue
             tj = transaction_json(rec)
             ev = rec.event
-            rr = ev.read_range
+            rr = rec.read_range  # the servo's model's reading of its flag (return modes beyond table 4.3)
             key = (rec.model.name if rec.model is not None else None, rr)
             names = self._names.get(key)
             if names is None:
@@ -375,7 +375,7 @@ class PacketsTable(TableSink):
             header = (ev.id, ev.flag if t is not ReturnPacket else ev.flags, ev.address, ev.length, ev.count) \
                 if t is ShortPacket or t is LongPacket or t is ReturnPacket else (rec.id, None, None, None, None)
             self._row(self._time(ev.t_start, ev.offset), (
-                ev.offset, ev.kind, direction(rec), header[0], ev.op if t is ShortPacket else
+                ev.offset, ev.kind, direction(rec), header[0], rec.op if t is ShortPacket else
                 ("write" if t is LongPacket else None), *header[1:], ev.checksum_ok, rec.status,
                 rec.request.offset if rec.request is not None else None, rec.latency,
                 summary(rec, bare=False, keep=False), [f.code for f in rec.findings] or None, ev.raw.hex()))

@@ -245,7 +245,7 @@ class DetailPane(Vertical):
         if type(ev) is ReturnPacket:
             names = ev.flag_names
         elif type(ev) is ShortPacket:
-            read = ev.read_range
+            read = rec.read_range  # by the servo's model (return modes beyond table 4.3)
             names = list(ev.commands) + ([f"return {read[1]}B @{read[0]}"] if read else ["ack"] if ev.wants_ack else [])
         else:
             names = []

@@ -16,7 +16,7 @@ def transaction_json(rec: Record) -> dict[str, Any]:
     reply = rec.reply
     rev = reply.event if reply is not None else None
     return {
-        "id": ev.id, "op": ev.op if type(ev) is ShortPacket else "write", "expects": rec.expects,
+        "id": ev.id, "op": rec.op if type(ev) is ShortPacket else "write", "expects": rec.expects,
         "status": rec.status or "missing", "request_offset": ev.offset, "t_request": ev.t_start,
         "request_raw": ev.raw.hex(), "read": rec.read_names,
         "reply_type": rev.kind if rev is not None else None,
