@@ -35,6 +35,7 @@ slope says whether a long recording's memory grows because of them.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import random
@@ -50,6 +51,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+from decode import bare_loop  # noqa: E402
 from jsonl import BARE as JSONL_FLOOR  # noqa: E402
 from traffic import hexapod_bytes, hexapod_frames  # noqa: E402
 
@@ -58,31 +60,9 @@ from rs30x_sniff.protocol.wire import encode_long, encode_return, encode_short  
 PY = sys.executable
 CLI = [PY, "-m", "rs30x_sniff"]
 
-# The split+XOR loop of bench/decode.py (bare_loop), over the bytes of a file.
-SPLIT_XOR = r'''
-import sys
-from functools import reduce
-from operator import xor
-def frames(data):
-    n_frames, i, n, find = 0, 0, len(data), data.find
-    while i < n:
-        a = find(b"\xfa\xaf", i); b = find(b"\xfd\xdf", i)
-        if a < 0 and b < 0:
-            break
-        j = a if b < 0 or 0 <= a < b else b
-        if j + 7 > n:
-            break
-        size = data[j + 5] * data[j + 6] if data[j] == 0xFA else data[j + 5]
-        end = j + 8 + size
-        if end > n:
-            break
-        if reduce(xor, data[j + 2:end - 1], 0) == data[end - 1]:
-            n_frames += 1
-            i = end
-        else:
-            i = j + 1
-    return n_frames
-'''
+# The split+XOR loop of bench/decode.py (bare_loop), over the bytes of a file: its own source, run as a script.
+SPLIT_XOR = ("import sys\nfrom functools import reduce\nfrom operator import xor\n"
+             + inspect.getsource(bare_loop) + "frames = bare_loop\n")
 BINARY_FLOOR = SPLIT_XOR + 'print(frames(open(sys.argv[1], "rb").read()))\n'
 # A timestamped capture: each line's time read as a float and its hex as bytes, then the same loop over the bytes.
 TEXT_FLOOR = SPLIT_XOR + r'''
