@@ -50,7 +50,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="also print each decoded packet as a text line (like decode)")
     p.add_argument("--decoded", action="store_true",
                    help="also write each packet, transaction and servo state as it comes (Foxglove plots the file "
-                        "as it is; about three times the CPU of the bytes alone; convert makes them later)")
+                        "as it is; about three times the CPU of the bytes alone; convert makes them later; "
+                        "--trigger's windows always hold them)")
     add_time_format_option(p)
     p.add_argument("--split-size", type=float, default=None, metavar="MB",
                    help="start a new numbered file (OUT-001.mcap, OUT-002.mcap, ...) after about MB megabytes "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections import deque
+from functools import lru_cache
 from typing import Any, Protocol, TypeVar, cast, final
 from collections.abc import Callable, Collection, Iterable, Mapping
 from weakref import ref
@@ -100,10 +101,16 @@ def frame_cases(columns: Mapping[str, np.ndarray], id_address: int, configured: 
         learns &= ~known[sid]
     case[learns] |= MODEL_NUMBER
     if area_modes:
-        modes = np.zeros(256, dtype=bool)  # by flag byte: its return mode is one of area_modes
-        modes[[f for f in range(256) if f & RETURN_MODE_MASK in area_modes]] = True
-        case[(kind == SHORT) & modes[columns["flag"]]] |= MODEL_RETURN_MODE
+        case[(kind == SHORT) & _flags_of_modes(frozenset(area_modes))[columns["flag"]]] |= MODEL_RETURN_MODE
     return case
+
+
+@lru_cache(maxsize=8)
+def _flags_of_modes(area_modes: frozenset[int]) -> np.ndarray:
+    """By flag byte: whether its return mode is one of ``area_modes`` (made once, not for every run)."""
+    modes = np.zeros(256, dtype=bool)
+    modes[[f for f in range(256) if f & RETURN_MODE_MASK in area_modes]] = True
+    return modes
 
 
 # A servo answers no sooner than 100 us after a request's last byte (table 4.6 No. 7, return delay 0). A reply

@@ -9,7 +9,7 @@ from collections.abc import Callable, Iterable, Iterator
 
 from ..decode.pairing import ANSWERED, PAIRED
 from ..protocol.events import FLAG, OFFSET, REASON, TRUNCATED
-from ..protocol.memmap import Model, ModelError, default_registry
+from ..protocol.memmap import Model, loaded_models
 from ..protocol.wire import COMMAND_BITS, REQUEST_HEADER, checksum
 
 SEVERITIES = ("info", "warning", "error")
@@ -342,11 +342,7 @@ def frame(*body: int, header: bytes = REQUEST_HEADER) -> bytes:
 def models_where(test: Callable[[Model], bool]) -> str:
     """The models of the memory maps for which ``test`` holds, by name ("RS301CR, RS302CD"), for a rule's doc:
     what a rule says of a model's behaviour comes from its map's [behaviour], never from a list here."""
-    try:
-        models = default_registry().models.values()
-    except ModelError:
-        return "(the memory maps do not load)"  # the command reports a broken map in one line when it loads them
-    return ", ".join(m.name for m in models if test(m)) or "none of the memory maps"
+    return ", ".join(m.name for m in loaded_models() if test(m)) or "none of the memory maps"
 
 
 def example(*frames: bytes | tuple[float, bytes], note: str = "") -> str:

@@ -251,6 +251,33 @@ class Behaviour:
     voltage_accuracy_v: float | None = None        # +- volts of present_voltage; None: unsaid
     source: str = ""                               # where these facts come from (a source key or a citation)
 
+    @property
+    def recovers_by_torque_enable(self) -> bool:
+        """Whether a torque_enable write clears a temperature stop (RS301CR/RS302CD p.20), not only a reboot."""
+        return self.over_temperature_recovery == "torque-enable"
+
+    @property
+    def recovery(self) -> str:
+        """What clears a temperature stop, in words (lint's S001, info's "what happened")."""
+        return RECOVERY_TEXT[self.over_temperature_recovery]
+
+    @property
+    def reserved_flags(self) -> int:
+        """The return-packet status bits this model leaves reserved: table 4.4's 6, 4, 2 and 0 for the RS303MR;
+        bit 3 too where a manual has no flash-write-error bit (RS301CR/RS302CD)."""
+        defined = 0
+        for bit in self.return_flags:
+            defined |= bit
+        return 0xFF & ~defined
+
+
+MANUAL_BEHAVIOUR = Behaviour()
+
+
+def behaviour_of(model: Model | None) -> Behaviour:
+    """A servo's model's behaviour, or the RS303MR manual's where no model is known (none configured or learned)."""
+    return MANUAL_BEHAVIOUR if model is None else model.behaviour
+
 
 @dataclass(slots=True, eq=False)
 class Model:
@@ -679,16 +706,22 @@ def default_registry() -> ModelRegistry:
     return ModelRegistry.from_dirs(decoders_dirs())
 
 
+def loaded_models() -> list[Model]:
+    """The models of :func:`default_registry`, or none when a map fails to load: what is said of the models when the
+    package is imported (a rule's doc, the rates a --baud may name) never fails there; the command that loads the
+    maps reports a broken one in one line."""
+    try:
+        return list(default_registry().models.values())
+    except ModelError:
+        return []
+
+
 @lru_cache(maxsize=1)
 def bus_rates() -> tuple[int, ...]:
     """Every rate a servo of the family runs at: table 4.7's, and each memory map's baud_rate table (code 0x0A,
     460800, on the RS301CR, RS302CD and RS405CB): the rates a port scan tries and a typed --baud may name."""
     rates = set(BAUD_RATES)
-    try:
-        models = list(default_registry().models.values())
-    except ModelError:
-        models = []  # a broken map is reported in one line by the command that loads the maps
-    for m in models:
+    for m in loaded_models():
         table = m.register("baud_rate").table if "baud_rate" in m.names else None
         rates.update(int(r) for r in (table or {}).values())
     return tuple(sorted(rates))

@@ -141,12 +141,7 @@ def read_range(flag: int, address: int = 0, length: int = 0,
                areas: Mapping[int, tuple[int, int]] = NO_AREAS) -> tuple[int, int] | None:
     """(first address, byte count) of the return packet the request asks for, if any (table 4.3, and
     ``areas`` as :func:`expects` takes them)."""
-    e = EXPECT_BY_MODE[flag & RETURN_MODE_MASK]
-    if e is None:
-        return (address, length)
-    if areas and FLAG_MODE_UNDEFINED[flag & 0xFF]:
-        return areas.get(flag & RETURN_MODE_MASK)
-    return e.range
+    return expects(flag, address, length, areas).range
 
 
 def request_flag_names(flag: int) -> list[str]:

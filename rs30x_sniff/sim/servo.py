@@ -260,7 +260,7 @@ class Servo:
             new = mem[36]
             if new > TORQUE_BRAKE:
                 mem[36] = new = old_torque
-            if self.temperature_latched and new == TORQUE_ON and behaviour.over_temperature_recovery == "torque-enable":
+            if self.temperature_latched and new == TORQUE_ON and behaviour.recovers_by_torque_enable:
                 self.temperature_latched = False  # the RS301CR/RS302CD's way back from a temperature stop (p.20)
             if self.temperature_latched and new == TORQUE_ON:
                 mem[36] = TORQUE_BRAKE  # no torque until a reboot after the limit (No. 50/51)

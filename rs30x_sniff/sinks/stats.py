@@ -141,10 +141,11 @@ class CaptureStats(Sink[Record | Block]):
         if t is ShortPacket:
             data = ev[DATA]
             key = (ev[FLAG], bool(data))
-            op = _OPS.get(key)
             if FLAG_MODE_UNDEFINED[key[0]]:  # a mode some models define (0x0D): the servo's model says
                 op = (rec.op or "", rec.read_range is not None)  # a short packet's record always has an op
-            elif op is None:  # the op and whether it reads depend on the flag and on data being there
+            elif key in _OPS:
+                op = _OPS[key]
+            else:  # the op and whether it reads depend on the flag and on data being there
                 assert type(ev) is ShortPacket  # (t is its type; told once per flag and data)
                 op = _OPS[key] = (ev.op, ev.read_range is not None)
             self.by_op[op[0]] += 1

@@ -46,12 +46,12 @@ def servo_health(h: ServoHealth | None, when: Any) -> dict[str, Any]:
 
 def _recovery(name: str | None) -> str:
     """What brings a servo of this model back from a temperature stop (its map's [behaviour])."""
-    from ..protocol.memmap import RECOVERY_TEXT, ModelError, default_registry
+    from ..protocol.memmap import ModelError, behaviour_of, default_registry
     try:
-        way = default_registry().get(name).behaviour.over_temperature_recovery if name else "reboot"
-    except ModelError:
-        way = "reboot"
-    return RECOVERY_TEXT[way]
+        model = default_registry().get(name) if name else None
+    except ModelError:  # a model no map names now (a recording read with other maps)
+        model = None
+    return behaviour_of(model).recovery
 
 
 def _any_model() -> Any:

@@ -19,6 +19,13 @@ def _as(number: bytes, *frames: bytes):
 RS301CR, RS303MR, RS204MD = bytes.fromhex("1030"), bytes.fromhex("3030"), bytes.fromhex("4020")
 
 
+def test_the_reserved_status_bits_are_table_4_4s_without_a_model_and_bit_3_more_on_the_rs301cr():
+    from rs30x_sniff.protocol.memmap import behaviour_of, default_registry
+    from rs30x_sniff.protocol.wire import RETURN_FLAGS_RESERVED
+    assert behaviour_of(None).reserved_flags == RETURN_FLAGS_RESERVED
+    assert behaviour_of(default_registry().get("RS301CR")).reserved_flags == RETURN_FLAGS_RESERVED | 0x08
+
+
 def test_bit_3_is_a_flash_error_on_the_rs303mr_and_reserved_on_the_rs301cr():
     assert [c for c, _ in _as(RS303MR, POLL, encode_return(1, 42, STATUS, 0x08))] == ["S003"]
     assert _as(RS301CR, POLL, encode_return(1, 42, STATUS, 0x08)) == [

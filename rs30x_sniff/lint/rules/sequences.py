@@ -10,7 +10,7 @@ from ...protocol.wire import (
     encode_long, encode_read, encode_return, encode_short)
 from ..batch import UNKNOWN
 from ..params import DURATION, OFFSET, Measured, Message, said, said_as
-from ...protocol.memmap import ModelError, default_registry
+from ...protocol.memmap import behaviour_of, loaded_models
 from ..registry import crowded, example, models_where, rule
 
 # A flash write or reboot still due when a timed capture ends this soon after the write that needs it
@@ -453,18 +453,15 @@ def too_many_servos(told, lint, rec, ev):
                                     {"seen": Measured(len(lint.ids)), "most": lint.config.max_servos}))
 
 
-def _torque_enable_recovers(model) -> bool:
-    return model is not None and model.behaviour.over_temperature_recovery == "torque-enable"
-
-
 @rule("Q009", "torque-on-after-temperature-limit", "error", "Torque on for a servo locked by its temperature limit.", f"""
 ## What it does
 Flags torque_enable set to 1 for a servo whose return reported the temperature limit (S001) with no
 reboot of it since.
 
-Only for models that need a reboot after the limit ({models_where(lambda m: not _torque_enable_recovers(m))}):
-on the {models_where(_torque_enable_recovers)} a torque_enable write is the way back (its manual, p.20), so
-it is no finding there, and it ends the lock the rule remembers.
+Only for models that need a reboot after the limit
+({models_where(lambda m: not m.behaviour.recovers_by_torque_enable)}): on the
+{models_where(lambda m: m.behaviour.recovers_by_torque_enable)} a torque_enable write is the way back (its
+manual, p.20), so it is no finding there, and it ends the lock the rule remembers.
 
 ## Why it matters
 The manual says a servo that reached its temperature limit refuses torque on until it is rebooted or
@@ -475,7 +472,7 @@ power-cycled: the command does nothing and the joint stays limp, while the host 
 """, kinds=("target",), fields=("torque_enable",), column="silent")
 def torque_on_after_temperature_limit(lint, rec, plan, targets):
     j = plan.index["torque_enable"]
-    if _torque_enable_recovers(plan.model):
+    if behaviour_of(plan.model).recovers_by_torque_enable:
         for _, _, sh in targets:
             sh.temp_limit = False  # this model's way back from a temperature stop
         return
@@ -487,17 +484,14 @@ def torque_on_after_temperature_limit(lint, rec, plan, targets):
 
 
 def _torque_off_only_fields() -> tuple[str, ...]:
-    """Every register some model takes only with torque off (its map's [behaviour] torque_off_only)."""
-    try:
-        models = default_registry().models.values()
-    except ModelError:
-        return ()  # the command reports a broken map in one line when it loads the maps
-    return tuple(sorted({name for m in models for name in m.behaviour.torque_off_only})) or ("servo_id",)
+    """Every register some model takes only with torque off (its map's [behaviour] torque_off_only): the writes
+    Q010 looks at. With none (no such model loaded) servo_id stands in: no fields at all would mean every write."""
+    return tuple(sorted({name for m in loaded_models() for name in m.behaviour.torque_off_only})) or ("servo_id",)
 
 
 def _needs_torque_off(plan) -> list[str]:
     """The registers of this write that its model changes only with torque off."""
-    off = plan.model.behaviour.torque_off_only if plan.model is not None else ()
+    off = behaviour_of(plan.model).torque_off_only
     return [name for name in off if name in plan.index]
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ...protocol.wire import (
     RETURN_FLASH_WRITE_ERROR, RETURN_RECEIVED_ERROR, RETURN_TEMPERATURE_ALARM, RETURN_TEMPERATURE_LIMIT,
     encode_return)
-from ...protocol.memmap import RECOVERY_TEXT
+from ...protocol.memmap import behaviour_of
 from ..params import said
 from ..registry import example, models_where, rule
 
@@ -22,15 +22,6 @@ def _turned_on(lint, ev, bit: int) -> bool:
     return sh is None or not sh.flags & bit
 
 
-def _has(model, bit: int) -> bool:
-    """Whether the servo's model gives ``bit`` a meaning (its map's return_flags; table 4.4 for the RS303MR)."""
-    return model is None or bit in model.behaviour.return_flags
-
-
-def _torque_enable_clears(model) -> bool:
-    return model is not None and model.behaviour.over_temperature_recovery == "torque-enable"
-
-
 
 
 def _ret(flags: int) -> str:
@@ -44,19 +35,17 @@ No. 14) and it cut its torque (brake mode).
 {_NOTE}
 ## Why it matters
 The joint goes limp or stiff under load, mid-motion. The motor is then at 120-140 degC. What brings the
-servo back is its model's: a reboot ({models_where(lambda m: not _torque_enable_clears(m))}; torque on
-before that is Q009), or a torque_enable write ({models_where(_torque_enable_clears)}); the finding says
-which.
+servo back is its model's: a reboot ({models_where(lambda m: not m.behaviour.recovers_by_torque_enable)};
+torque on before that is Q009), or a torque_enable write
+({models_where(lambda m: m.behaviour.recovers_by_torque_enable)}); the finding says which.
 
 ## Example
 {_ret(RETURN_TEMPERATURE_LIMIT)}
 """, kinds=("return",), when="flagged", column="silent")
 def temperature_limit(lint, rec, ev):
     if _turned_on(lint, ev, RETURN_TEMPERATURE_LIMIT):
-        model = rec.model
-        way = RECOVERY_TEXT[model.behaviour.over_temperature_recovery if model is not None else "reboot"]
         lint.emit("S001", rec, said("ID {id} passed its temperature limit and cut torque ({way})",
-                                    {"id": ev.id, "way": way}))
+                                    {"id": ev.id, "way": behaviour_of(rec.model).recovery}))
 
 
 @rule("S002", "temperature-alarm", "warning", "A servo reports a temperature alarm.", f"""
@@ -77,7 +66,8 @@ def temperature_alarm(lint, rec, ev):
 @rule("S003", "flash-write-error", "error", "A servo reports that writing its flash ROM failed.", f"""
 ## What it does
 Flags a return with status bit 3 set: the last Write Flash ROM command failed. Models whose manual
-reserves bit 3 have no such report ({models_where(lambda m: not _has(m, RETURN_FLASH_WRITE_ERROR))}):
+reserves bit 3 have no such report
+({models_where(lambda m: RETURN_FLASH_WRITE_ERROR not in m.behaviour.return_flags)}):
 the rule is silent for them, and P013 names the reserved bit.
 {_NOTE}
 ## Why it matters
@@ -88,7 +78,8 @@ comes back with old values, maybe on another ID or baud rate.
 {_ret(RETURN_FLASH_WRITE_ERROR)}
 """, kinds=("return",), when="flagged", column="silent")
 def flash_write_error(lint, rec, ev):
-    if _turned_on(lint, ev, RETURN_FLASH_WRITE_ERROR) and _has(rec.model, RETURN_FLASH_WRITE_ERROR):
+    if (_turned_on(lint, ev, RETURN_FLASH_WRITE_ERROR)
+            and RETURN_FLASH_WRITE_ERROR in behaviour_of(rec.model).return_flags):
         lint.emit("S003", rec, said("ID {id} failed to write its flash ROM", {"id": ev.id}))
 
 

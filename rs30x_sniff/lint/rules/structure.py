@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from ...protocol.memmap import behaviour_of
 from ...protocol.wire import (
     BROADCAST_ID, COMMAND_ADDRESS, COMMAND_BITS, FLAG_INITIALIZE, FLAG_REBOOT, FLAG_RESERVED, FLAG_WRITE_FLASH,
-    MAX_READ_ADDRESS, RETURN_FLAGS_RESERVED, RETURN_FLASH_WRITE_ERROR, RETURN_MODES, RETURN_SPECIFIED, encode_long,
+    MAX_READ_ADDRESS, RETURN_FLASH_WRITE_ERROR, RETURN_MODES, RETURN_SPECIFIED, encode_long,
     encode_read, encode_return, encode_short)
 from ..params import Measured, said
 from ..registry import example, frame, models_where, rule
@@ -192,16 +193,13 @@ def command_packet_format(lint, rec, ev):
                                      "length": ev.length, "data": len(ev.data)}))
 
 
-def _together_allowed(model) -> bool:
-    return model is not None and model.behaviour.flash_and_reboot_together
-
-
 @rule("P009", "combined-flash-reboot", "error", "Flash write and reboot requested in one packet.", f"""
 ## What it does
 Flags a packet that sets both the Write Flash ROM bit (6) and the Reboot bit (5), sent to a servo whose
-manual asks for the two in separate packets: {models_where(lambda m: not _together_allowed(m))}.
+manual asks for the two in separate packets: {models_where(lambda m: not m.behaviour.flash_and_reboot_together)}.
 The RS301CR/RS302CD manual allows both in one packet (flag 0x60, p.12), so the rule is silent for
-{models_where(_together_allowed)} (each model's `[behaviour]` in its memory map says which).
+{models_where(lambda m: m.behaviour.flash_and_reboot_together)} (each model's `[behaviour]` in its memory map says
+which).
 
 ## Why it matters
 The manual asks for the two as separate packets, the reboot only after the flash write has finished.
@@ -212,7 +210,7 @@ configuration (the manual warns not to cut power during a flash write).
 {example(bytes.fromhex("FAAF01600701011274"), note="the manual's own return-delay example:")}
 """, kinds=("command",), column="silent")
 def combined_flash_reboot(lint, rec, ev):
-    if ev.flag & _FLASH_REBOOT == _FLASH_REBOOT and not _together_allowed(rec.model):
+    if ev.flag & _FLASH_REBOOT == _FLASH_REBOOT and not behaviour_of(rec.model).flash_and_reboot_together:
         lint.emit("P009", rec, said("flash write and reboot in one packet; send the reboot separately, "
                                     "after the flash write", {}))
 
@@ -273,17 +271,6 @@ def return_count(lint, rec, ev):
         lint.emit("P012", rec, said("return with Count {count} (always 1)", {"count": ev.count}))
 
 
-def _reserved_bits(model) -> int:
-    """The status bits a model's return flags leave reserved: table 4.4's for the RS303MR (6, 4, 2, 0); a model
-    whose manual reserves more (the RS301CR/RS302CD's bit 3) says so by its map's return_flags."""
-    if model is None:
-        return RETURN_FLAGS_RESERVED
-    defined = 0
-    for bit in model.behaviour.return_flags:
-        defined |= bit
-    return 0xFF & ~defined
-
-
 @rule("P013", "return-reserved-flag", "warning", "A return packet sets a reserved status bit.", f"""
 ## What it does
 Flags a return whose flags set a bit its servo's model reserves (always 0): bit 6, 4, 2 or 0 in table
@@ -298,7 +285,7 @@ does not know; its other status bits are then not to be trusted either.
 {example(encode_return(1, 0x2A, _G90, flags=0x40))}
 """, kinds=("return",), when="flagged", column="silent")
 def return_reserved_flag(lint, rec, ev):
-    reserved = ev.flags & _reserved_bits(rec.model)
+    reserved = ev.flags & behaviour_of(rec.model).reserved_flags
     if reserved:
         # The whole flags byte also holds the status bits (table 4.4: temperature, flash, received error),
         # which come and go with the servo's state: measured. The reserved bits set are the behaviour.
