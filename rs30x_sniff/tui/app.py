@@ -130,6 +130,10 @@ class MonitorApp(App):
         self._gc_thresholds: tuple[int, int, int] | None = None  # the process's, restored at unmount
         self._redraws = 0     # redraws of the panes for batches (_refresh_views)
         self._ticked_at = -1  # _redraws at the last tick
+        self._redrawn_at: float | None = None  # config.clock() at the last redraw for a batch
+        # The record the detail pane was given as the timeline followed (its seq, and its findings then): the
+        # Selected message the same move queues behind the batch shows it again only if a finding came since.
+        self._followed: tuple[int, int] | None = None
         self._filter_task: asyncio.Task | None = None
         # The first bottom pane's class from the start: added at the first resize instead, it would
         # restyle every widget once more before the first frame.
@@ -259,13 +263,17 @@ class MonitorApp(App):
         timeline.sync()
         if timeline.follow:
             # Show the newest record now rather than after the next batch (the Selected message queues behind it).
-            self.detail.show(self.store.get(timeline.cursor_seq) if timeline.cursor_seq is not None else None)
+            seq = timeline.cursor_seq
+            rec = self.store.get(seq) if seq is not None else None
+            self.detail.show(rec)
+            self._followed = (seq, len(rec.findings)) if seq is not None and rec is not None else None
         self.servos.update_from(self.store, flash=self.done or self.source.kind != "file")
         self.servos.tick()  # flashes due to end go now, in this redraw, rather than in a tick's own
         self.findings.update_from(self.store)
         self.plot.update_from(self.store)
         self._refresh_header()
         self._redraws += 1
+        self._redrawn_at = self.config.clock()
 
     def _refresh_header(self) -> None:
         self.info.models = self._models_text()
@@ -279,6 +287,9 @@ class MonitorApp(App):
         seen, self._ticked_at = self._ticked_at, self._redraws
         if not self.status.is_attached or self._redraws != seen:
             return
+        if not self.done and not batch_overdue(self.config.clock(), self._redrawn_at, self.config.post_interval,
+                                               self.config.tick_interval):
+            return
         self._refresh_header()
         self.servos.tick()
 
@@ -286,6 +297,9 @@ class MonitorApp(App):
     @on(Timeline.Selected)
     def _on_selected(self, message: Timeline.Selected) -> None:
         rec = self.store.get(message.seq) if message.seq is not None else None
+        followed, self._followed = self._followed, None
+        if rec is not None and followed == (message.seq, len(rec.findings)):
+            return  # the record the batch's redraw showed already, as it is
         self.detail.show(rec)
 
     @on(Timeline.FollowChanged)
@@ -372,6 +386,7 @@ class MonitorApp(App):
         self.feeder.clear_stats()
         self.servos.reset()
         self.detail.show(None)
+        self._followed = None
         self.info.filter_text = ""
         self._refresh_views()
         self.findings.update_from(self.store)
@@ -415,6 +430,7 @@ class MonitorApp(App):
             return
         self.toggle_class("-with-detail")
         if self.has_class("-with-detail"):
+            self._followed = None
             self.detail.show(self.store.get(self.timeline.cursor_seq) if self.timeline.cursor_seq is not None
                              else None)
 
@@ -520,6 +536,13 @@ class MonitorApp(App):
     def _plot(self, name: str) -> None:
         self.store.set_plot(self.store.plot_id, name)
         self.plot.update_from(self.store)
+
+
+def batch_overdue(now: float, redrawn_at: float | None, post_interval: float, tick_interval: float) -> bool:
+    """Whether a tick should redraw the header and end flashes itself: not while a live source's next batch is due
+    within a tick, as its redraw will do it (a tick just before would cost the screen a redraw of its own, and on
+    a live port the redraws are most of the monitor's CPU)."""
+    return redrawn_at is None or now - redrawn_at >= post_interval + tick_interval
 
 
 def make_app(source: Feed, options: DecodeOptions | None = None, **config: Any) -> MonitorApp:

@@ -14,6 +14,9 @@ from .servos import SERVO_COLUMNS, ServoRow
 from .store import Store
 
 FLASH_SECONDS = 1.0  # how long a changed value stays highlighted
+# A flash may end this much early: one lit by a port's batch then ends with the next batch, a second later, rather
+# than costing a redraw of its own a tick after it (a live screen's redraws are most of its CPU).
+FLASH_EARLY = 0.25
 FLASH_STYLE = Style.parse("bold black on yellow")
 
 _SHORT = {"torque_enable": "torque", "goal_position": "goal", "present_position": "pos", "present_speed": "speed",
@@ -99,7 +102,7 @@ class ServosPane(LineTable):
     def tick(self) -> None:
         """Let flashes expire."""
         now = self.clock()
-        done = [k for k, at in self._changed.items() if now - at >= FLASH_SECONDS]
+        done = [k for k, at in self._changed.items() if now - at >= FLASH_SECONDS - FLASH_EARLY]
         for k in done:
             del self._changed[k]
         if done:

@@ -16,9 +16,17 @@ class TextLines(Widget):
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
         self._strips: list[Strip] = []
+        self._shown: list[tuple] = []  # what each line shows: its text, its style and its spans' styles
 
     def set_lines(self, lines: Iterable[Text]) -> None:
-        """Render ``lines`` and draw them."""
+        """Render ``lines`` and draw them; lines equal to those shown cost no redraw (the header is told every
+        tick, and a live screen's redraws are most of its CPU)."""
+        lines = list(lines)
+        # Text's own == leaves out the line's base style: the key holds it.
+        shown = [(line.plain, line.style, line.spans) for line in lines]
+        if shown == self._shown:
+            return
+        self._shown = shown
         console = self.app.console
         self._strips = [Strip(list(line.render(console)), line.cell_len) for line in lines]
         self.refresh()

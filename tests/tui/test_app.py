@@ -410,8 +410,11 @@ async def test_changed_servo_values_flash_briefly():
         cell = pane.get_cell("3", "pos")
         assert cell.plain == "20.0" and "yellow" in str(cell.style)
         assert not pane.get_cell("3", "volt").style  # unchanged values stay plain
-        clock.t += 1.5
+        clock.t += 0.5
         pane.tick()
+        assert "yellow" in str(pane.get_cell("3", "pos").style)  # half a second on: still lit
+        clock.t += 0.3
+        pane.tick()  # a port's next batch comes a second on, give or take: its redraw ends the flash
         assert not pane.get_cell("3", "pos").style
 
 
