@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 
 from .language import LanguageError, parse_duration, say_duration
 from .decode.pairing import DEFAULT_REPLY_TIMEOUT
@@ -21,9 +20,6 @@ from .sources.timebase import TIME_REFS
 from .sources.timeunit import UNITS as TIME_UNITS
 from .render.times import DEFAULT_TIME_FORMAT, TIME_FORMATS
 from .protocol.wire import DEFAULT_BAUD
-from .compare import ThresholdError, parse_thresholds
-from .expect import as_rule, check_clashes, load_checks
-from .user_rules import compile_rules
 
 CONFIG_NAME = "rs30x-sniff.toml"
 TABLE = "tool.rs30x-sniff"
@@ -180,10 +176,20 @@ def _label(key: str, value: Any, where: str) -> str:
     return f"{where}: {key.replace('_', '-')} = {value!r}"
 
 
+def _as_rules(checks: Iterable[Any]) -> tuple:
+    """Figure checks ([[expect]]) as rules (expect.as_rule), importing expect only for a config that has some."""
+    checks = tuple(checks)
+    if not checks:
+        return ()
+    from .expect import as_rule
+
+    return tuple(as_rule(c) for c in checks)
+
+
 def own_rules(conf: Mapping[str, Any]) -> tuple:
     """A checked config's own rules for the registry: its [[rule]]s, and its [[expect]]s as rules (so that
     selections, severities, reports and `rules` know them)."""
-    return (*conf.get("rule", ()), *(as_rule(c) for c in conf.get("expect", ())))
+    return (*conf.get("rule", ()), *_as_rules(conf.get("expect", ())))
 
 
 def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None = None,
@@ -212,13 +218,20 @@ def check(table: Mapping[str, Any], where: str, registry: ModelRegistry | None =
     if "rule" in out:
         if where == COMMAND_LINE:
             raise SettingsError("user rules ([[rule]]) come from a config file only")
+        from .user_rules import compile_rules  # a config's own rules, and figure checks, and thresholds below:
+        # imported only for a file that has them (a tenth of each start-up otherwise)
+
         out["rule"] = compile_rules(out["rule"], where, reg)
     if "expect" in out:
         if where == COMMAND_LINE:
             raise SettingsError("figure checks ([[expect]]) come from a config file only")
+        from .expect import check_clashes, load_checks
+
         out["expect"] = load_checks(out["expect"], where)
         check_clashes(out.get("rule", ()), out["expect"], where)  # one registry holds both: one line, exit 2
     if "regress" in out:  # checked for every command that reads the file, as diff reads it
+        from .compare import ThresholdError, parse_thresholds
+
         try:
             parse_thresholds(out["regress"], where)
         except ThresholdError as e:
@@ -309,8 +322,13 @@ def find_config(start: Path | None = None) -> Path | None:
             return own
         py = folder / "pyproject.toml"
         if py.is_file():
+            import tomllib  # only where a pyproject.toml is met: most start-ups parse no TOML
+
             try:
-                doc = tomllib.loads(py.read_text(encoding="utf-8"))
+                text = py.read_text(encoding="utf-8")
+                if "rs30x-sniff" not in text:
+                    continue  # its tables cannot name ours
+                doc = tomllib.loads(text)
             except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
                 return py  # broken: let load_config say so rather than silently skip the project's settings
             if "rs30x-sniff" in doc.get("tool", {}):
@@ -320,6 +338,8 @@ def find_config(start: Path | None = None) -> Path | None:
 
 def load_config(path: Path | str) -> dict[str, Any]:
     """The checked settings of a config file (snake_case keys), with ``source`` naming the file."""
+    import tomllib
+
     path = Path(path)
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -377,7 +397,7 @@ class Settings:
 
     def rule_set(self) -> Registry:
         """The run's rule set: the built-in rules, the config file's [[rule]]s and its [[expect]]s as rules."""
-        return rule_set((*self.user_rules, *(as_rule(c) for c in self.expects)), self.config_path or CONFIG)
+        return rule_set((*self.user_rules, *_as_rules(self.expects)), self.config_path or CONFIG)
 
     def lint_config(self) -> LintConfig:
         """The linter's configuration; its timing thresholds follow the decode options."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 import time
 from pathlib import Path
 
@@ -11,6 +13,9 @@ from rs30x_sniff.decode.framing import FrameDecoder
 from rs30x_sniff.protocol.wire import byte_time
 
 ROOT = Path(__file__).resolve().parent.parent
+# The memory maps' cache (protocol.map_cache) of the tests and of the commands they start: a directory of this run's,
+# never the user's own.
+os.environ["XDG_CACHE_HOME"] = tempfile.mkdtemp(prefix="rs30x-sniff-tests-cache-")
 CAPTURES = ROOT / "captures"
 
 

@@ -213,7 +213,7 @@ def _contradicted(path: str | None, settings: Settings, estimate: Any, fit: Any)
 def is_port_path(path: str, *, unplugged: bool = False) -> bool:
     """A serial port (a device or a pyserial URL) rather than a capture file; with ``unplugged``, a /dev
     path that does not exist counts too (an adapter not plugged in: the monitor says so as a port)."""
-    from ..sources.serial_tap import is_port
+    from ..sources.ports import is_port
 
     return is_port(path) or (unplugged and path.startswith("/dev/") and not os.path.exists(path))
 

@@ -23,8 +23,6 @@ if TYPE_CHECKING:
     from ..decode.pairing import Record
 from ..sinks.pipeline import columnar_for, drive
 from ..settings import Settings
-from ..expect import evaluate
-from ..expect import findings as check_findings
 from ..sinks.lines import FindingsSink, ProgressSink
 from ..sinks.stats import CaptureStats
 from .common import (CliError, check_positive, config_layer, is_live, lint_config, live_sinks, no_data, open_input,
@@ -100,6 +98,9 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
             no_data(path, dec, source)
         if stats is not None and dec.bytes_in:
             stats.stalls = getattr(source, "stalls", stats.stalls)
+            from ..expect import evaluate  # a config with [[expect]] checks only (stats is None without one)
+            from ..expect import findings as check_findings
+
             results = evaluate(checks, stats.as_dict(), [r.code for r in linter.rules])
             found.findings.extend(check_findings(results, stats.bytes, stats.last_t if stats.timed else None))
     result.findings = found.findings

@@ -7,7 +7,6 @@ import io
 import json
 import os
 import re
-import xml.etree.ElementTree as ET
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -150,6 +149,8 @@ def write_json(results: list[FileResult], out: IO[str], fail_on: str = "error",
 def write_junit(results: list[FileResult], out: IO[str], fail_on: str = "error",
                 baseline: BaselineReport | None = None) -> None:
     """One test case per rule and file; a failure for each rule with findings at or above --fail-on."""
+    import xml.etree.ElementTree as ET  # JUnit output only
+
     suites = ET.Element("testsuites", name="rs30x-sniff lint")
     total_tests = total_fail = 0
     for r in results:

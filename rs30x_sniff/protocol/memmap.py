@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import re
 import struct
-import tomllib
 from collections.abc import Hashable, Mapping
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
@@ -15,6 +14,7 @@ from typing import Any
 
 from ..schemas import memory_map_schema
 from ..schemas.check import first_failure
+from . import map_cache
 from .codegen import values_function
 from .wire import BAUD_RATES, MAX_READ_ADDRESS, RETURN_FLAG_BITS, RETURN_MODE_MASK, RETURN_MODE_TABLE
 
@@ -515,11 +515,12 @@ def _where(doc: dict[str, Any], path: tuple[str | int, ...]) -> str:
     return ".".join(map(str, path))
 
 
-def parse_model(doc: dict[str, Any], source: str = "<memory map>") -> Model:
-    """Build a Model from a parsed TOML document: its shape checked by the schema (schemas/memory_map.json),
-    then what the schema cannot say (a name given once, unnamed registers reserved, ranges and defaults
-    within a register's size, no two registers on one address)."""
-    failure = first_failure(doc, memory_map_schema())
+def parse_model(doc: dict[str, Any], source: str = "<memory map>", *, schema_checked: bool = False) -> Model:
+    """Build a Model from a parsed TOML document: its shape checked by the schema (schemas/memory_map.json; not
+    again when ``schema_checked``: a document that passed, as map_cache keeps it), then what the schema cannot
+    say (a name given once, unnamed registers reserved, ranges and defaults within a register's size, no two
+    registers on one address)."""
+    failure = None if schema_checked else first_failure(doc, memory_map_schema())
     if failure is not None:
         path = failure.path
         if len(path) == 3 and path[0] == "register" and path[2] in _WITHIN_SIZE:
@@ -644,12 +645,23 @@ def load_model(path: str | Path) -> Model:
     """Load one memory-map file; a mistake raises ModelError naming the file and the key."""
     path = Path(path)
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        raw = path.read_bytes()
     except OSError as e:
         raise ModelError(f"{path}: cannot read: {e.strerror}") from None
+    kept = map_cache.get(raw)
+    if kept is not None:
+        return parse_model(kept, str(path), schema_checked=True)
+    import tomllib  # a map not kept yet (protocol.map_cache): most start-ups never parse TOML
+
+    try:
+        doc = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as e:
+        raise ModelError(f"{path}: not UTF-8 text: {e.reason} at byte {e.start}") from None
     except tomllib.TOMLDecodeError as e:
         raise ModelError(f"{path}: not valid TOML: {e}") from None
-    return parse_model(doc, str(path))
+    model = parse_model(doc, str(path))
+    map_cache.keep(raw, doc)  # after every check passed
+    return model
 
 
 def decoders_dirs() -> list[Path]:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import errno
 import os
-import secrets
 import shutil
 import stat
 import sys
@@ -62,7 +61,7 @@ def _create(folder: str, name: str, like: str | None) -> tuple[int, str]:
     """A new file in ``folder``, with the mode ``open()`` would give it: 0666 less the umask (os.open applies
     it), or the mode of ``like``, the file it will replace (as writing over it in place would keep)."""
     while True:
-        tmp = os.path.join(folder, f".{name}.{secrets.token_hex(4)}.part")
+        tmp = os.path.join(folder, f".{name}.{os.urandom(4).hex()}.part")
         try:
             fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o666)
         except FileExistsError:

@@ -10,7 +10,8 @@ import time
 from collections.abc import Callable, Iterator
 
 from ..protocol.chunks import SourceGap
-from .serial_tap import DURATION, GATHER_SECONDS, LOST, STOP_SIGNALS, STOPPED, LiveSource, SerialTap, is_port
+from .ports import is_port
+from .serial_tap import DURATION, GATHER_SECONDS, LOST, STOP_SIGNALS, STOPPED, LiveSource, SerialTap
 
 BY_ID = "/dev/serial/by-id"
 WAIT_STEP = 0.2  # seconds between looks for the port while it is gone

@@ -54,7 +54,6 @@ Bad input is a :class:`~rs30x_sniff.sources.captures.CaptureError` naming the fi
 
 from __future__ import annotations
 
-import calendar
 import re
 from datetime import datetime
 from typing import BinaryIO, cast
@@ -181,6 +180,8 @@ class _Sides:
 def _wall(y: int, mo: int, d: int, h: int, mi: int, s: int) -> int | None:
     """Seconds of a wall-clock time on a uniform scale (differences are wall-clock differences), None
     if it is no time (a leap second's :60 is taken as it comes)."""
+    import calendar  # a dated log line only: not a cost of every command's start-up
+
     if not (1 <= mo <= 12 and 1 <= d <= calendar.monthrange(y, mo)[1] and h <= 23 and mi <= 59 and s <= 60):
         return None
     return calendar.timegm((y, mo, d, h, mi, s, 0, 0, 0))

@@ -6,7 +6,6 @@ import os
 import queue
 import select
 import signal
-import stat
 import sys
 import threading
 import time
@@ -61,19 +60,6 @@ DURATION = "duration"  # --duration elapsed
 LOST = "lost"          # the port raised an error or vanished
 # Signals that end a capture cleanly (SIGHUP: the terminal or ssh session went away).
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, *((signal.SIGHUP,) if hasattr(signal, "SIGHUP") else ()))
-
-
-def is_port(path: str) -> bool:
-    """Whether INPUT names a serial port: a pyserial URL (rfc2217://, socket://, loop://, ...) or a
-    character device other than the memory devices (/dev/null, /dev/zero, ...)."""
-    if "://" in path:
-        return True
-    try:
-        st = os.stat(path)
-    except OSError:
-        return False
-    # Major 1 on Linux holds /dev/null, /dev/zero, /dev/random...: files, not ports.
-    return stat.S_ISCHR(st.st_mode) and os.major(st.st_rdev) != 1
 
 
 @final  # the live source tells it from a chunk by `type(item) is TapEnd`

@@ -23,14 +23,12 @@ bytes and their order are right either way, only the time scale depends on it. W
 
 from __future__ import annotations
 
-import configparser
 import io
 import itertools
 import re
-import zipfile
 import zlib
 from dataclasses import dataclass
-from typing import Any, BinaryIO
+from typing import TYPE_CHECKING, Any, BinaryIO
 from collections.abc import Iterator
 
 from ..protocol.chunks import FRAMING_ERROR, PARITY_ERROR, Marked
@@ -38,6 +36,9 @@ from .timebase import FIRST
 from ..protocol.wire import BITS_PER_BYTE, DEFAULT_BAUD
 from .captures import CaptureError
 from .foreign import ForeignFormat, ReadContext, register
+
+if TYPE_CHECKING:
+    import zipfile
 
 ZIP_MAGIC = b"PK\x03\x04"
 VERSIONS = ("1", "2")
@@ -83,6 +84,8 @@ def parse_samplerate(text: str) -> float | None:
 
 def open_session(stream: BinaryIO, path: str) -> Session:
     """Read a .sr file's version and metadata (a one-line CaptureError when it is not a session)."""
+    import zipfile  # a sigrok session only: not a cost of every command's start-up
+
     try:
         zf = zipfile.ZipFile(stream)
     except (zipfile.BadZipFile, OSError, EOFError, ValueError) as e:
@@ -95,6 +98,8 @@ def open_session(stream: BinaryIO, path: str) -> Session:
     if version not in VERSIONS:
         raise CaptureError(f"{path}: sigrok session version {version!r} is not one this reader knows "
                            f"({', '.join(VERSIONS)})")
+    import configparser  # a sigrok session only: not a cost of every command's start-up
+
     meta = configparser.ConfigParser(interpolation=None, strict=False)
     try:
         meta.read_string(_member(zf, path, "metadata").decode("utf-8", "replace"))
@@ -135,6 +140,8 @@ def open_session(stream: BinaryIO, path: str) -> Session:
 
 
 def _member(zf: zipfile.ZipFile, path: str, name: str) -> bytes:
+    import zipfile
+
     try:
         return zf.read(name)
     except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError) as e:

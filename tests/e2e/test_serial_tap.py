@@ -10,7 +10,8 @@ import time
 import pytest
 
 from rs30x_sniff.sources.captures import CaptureError
-from rs30x_sniff.sources.serial_tap import DURATION, LOST, LiveSource, SerialTap, is_port
+from rs30x_sniff.sources.ports import is_port
+from rs30x_sniff.sources.serial_tap import DURATION, LOST, LiveSource, SerialTap
 from rs30x_sniff.protocol.wire import byte_time
 from tests.e2e.helpers import Pty
 
