@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import marshal
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +67,8 @@ def keep(raw: bytes, doc: dict[str, Any]) -> None:
         blob = marshal.dumps(doc)
     except ValueError:  # a value marshal cannot hold (a TOML date): such a map is read each time
         return
+    import tempfile  # a map not kept yet: most start-ups keep none
+
     try:
         d.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=d, prefix=".part-")
