@@ -7,9 +7,11 @@ import json
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from ...render.block_json import block_json_rows, json_template
 from ...decode.frame_runs import LONG
-from ...protocol.mcap_names import PACKETS_TOPIC, TRANSACTIONS_TOPIC, log_time_ns
+from ...protocol.mcap_names import PACKETS_TOPIC, TRANSACTIONS_TOPIC
 from ...protocol.memmap import Layout
 from ...protocol.wire import (
     AT_ADDRESS, AT_COUNT, AT_DATA, AT_ID, AT_LENGTH, BROADCAST_ID, FRAME_OVERHEAD, HEADER_SIZE, SUM_SIZE)
@@ -68,8 +70,16 @@ def _tx_template(blk: Block, k: int, model: Any, key: tuple) -> tuple[str | None
     return model.keep(key, tpl)
 
 
+def _log_times(origin: float, byte_time: float, t0: Any, starts: Any, base: int) -> list[int]:
+    """log_time_ns(time_of(t, offset)) of every row at once: the same float operations in the same order
+    (origin + t, or origin + offset * byte_time; times 1e9, rounded half to even), so the same integers."""
+    x = origin + (t0 if t0 is not None else (base + starts.astype(np.int64)).astype(np.float64) * byte_time)
+    ns = np.rint(x * 1e9)
+    return np.where(x > 0, ns, 0.0).astype(np.int64).tolist()
+
+
 def block_messages(ch: Any, blk: Block, emit: Any) -> None:
-    """Emit (channel, log_time, body) for each row of ``blk`` as ``ch.record`` would, in the same order:
+    """Emit (log_time, channel, body) for each row of ``blk`` as ``ch.record`` would, in the same order:
     the packet, the state of each servo it sets, the transaction of a request that expects a reply."""
     if blk.linted_by_rows:
         for rec in blk.records():
@@ -85,7 +95,8 @@ def block_messages(ch: Any, blk: Block, emit: Any) -> None:
     lat: list[Any] = lats.tolist() if lats is not None else []
     answered = blk.answered.tolist()
     packets = block_json_rows(blk, None, compact=True)
-    time_of = ch.time_of
+    log_times = _log_times(ch.origin, ch.byte_time,
+                           c0, run.starts[lo:blk.hi], base)
     cid_packets = ch.channel(PACKETS_TOPIC, "rs30x.Packet")
     cid_tx = None
     servos = ch.servos
@@ -93,11 +104,10 @@ def block_messages(ch: Any, blk: Block, emit: Any) -> None:
     slot = ch.state_slot
     state_models = ch.model_names
     blk_models, default, vid_models = blk.models, blk.default, blk.vid_models
-    for k, (s, e, kind) in enumerate(zip(starts, ends, kinds)):
+    for k, (s, e, kind, log_time) in enumerate(zip(starts, ends, kinds, log_times)):
         offset = base + s
         t = t0[k] if timed else None
-        log_time = log_time_ns(time_of(t, offset))
-        emit(cid_packets, log_time, packets[k].encode())
+        emit((log_time, cid_packets, packets[k].encode()))
         raw = blob[s:e]
         if kind == LONG:
             model = default
@@ -130,7 +140,7 @@ def block_messages(ch: Any, blk: Block, emit: Any) -> None:
                     for name, frag in pairs:
                         st[name] = frag
                     body = f'{{"id":{tid},"model":"{state_models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
-                    emit(cid, log_time, body.encode())
+                    emit((log_time, cid, body.encode()))
         if answered[k]:
             # A reply with no latency (read with its request): a transaction without one, a shape of its own.
             key = ("mcap transaction", raw[:HEADER_SIZE], e - s, timed, timed and lat[k + 1] != lat[k + 1])
@@ -157,4 +167,4 @@ def block_messages(ch: Any, blk: Block, emit: Any) -> None:
                         vals.append(repr(lat[k + 1]))
                 if cid_tx is None:
                     cid_tx = ch.channel(TRANSACTIONS_TOPIC, "rs30x.Transaction")
-                emit(cid_tx, log_time, (fmt % tuple(vals)).encode())
+                emit((log_time, cid_tx, (fmt % tuple(vals)).encode()))

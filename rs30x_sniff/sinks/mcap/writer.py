@@ -7,7 +7,7 @@ import errno
 import heapq
 import json
 import struct
-from operator import itemgetter
+from operator import itemgetter, le
 from typing import IO, Any
 from collections.abc import Iterable
 
@@ -43,6 +43,19 @@ _encode = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode
 
 
 _log_time = itemgetter(0)  # a held message's (log_time, channel, data)
+
+
+def _merged(held: list[tuple[int, Any, bytes]], made: list[tuple[int, Any, bytes]]) -> list[tuple[int, Any, bytes]]:
+    """``held`` and ``made`` interleaved by log time, each in its own order, ``held`` first on a tie: what
+    heapq.merge makes of them. Where both are in time order already (a clock that never went back) a
+    stable sort of the two runs one after the other is the same list, made at C speed."""
+    if not held:
+        return made
+    for side in (held, made):
+        times = list(map(_log_time, side))
+        if not all(map(le, times, times[1:])):
+            return list(heapq.merge(held, made, key=_log_time))
+    return sorted(held + made, key=_log_time)
 
 
 class JsonChannels(Sink[Record | Block]):
@@ -86,6 +99,10 @@ class JsonChannels(Sink[Record | Block]):
         else:
             made.append((log_time, cid, data))
 
+    def _emit_held(self, message: tuple[int, Any, bytes]) -> None:
+        """``_emit`` of a (log_time, channel, data) message, as block_messages gives them."""
+        self._emit(message[1], message[0], message[2])
+
     def channel(self, topic: str, schema_name: str) -> Any:
         """The handle ``_write`` takes for ``topic`` (registered on first use)."""
         raise NotImplementedError
@@ -93,9 +110,25 @@ class JsonChannels(Sink[Record | Block]):
     def _write(self, cid: Any, log_time: int, data: bytes) -> None:
         raise NotImplementedError
 
+    def _write_all(self, messages: Iterable[tuple[int, Any, bytes]]) -> None:
+        """``_write`` of each (log_time, channel, data) message in turn (a file does it in one loop)."""
+        write = self._write
+        for lt, cid, data in messages:
+            write(cid, lt, data)
+
     def _live(self, cid: Any) -> bool:
         """Whether a message on ``cid`` would reach anyone (asked only when not ``_every_message``)."""
         return True
+
+    @property
+    def origin(self) -> float:
+        """What time_of adds to every time: --start-time's seconds since the epoch, or 0."""
+        return self._origin
+
+    @property
+    def byte_time(self) -> float:
+        """Seconds a byte takes on the wire at the baud rate (time_of's time of an untimed offset)."""
+        return self._byte_time
 
     def time_of(self, t: float | None, offset: int) -> float:
         """A message's time in seconds (log_time_ns makes its log time) from capture time ``t`` or, without
@@ -212,12 +245,46 @@ class JsonChannels(Sink[Record | Block]):
         """A columnar Pipeline's group of plain chunks (Pipeline.feed_many): their raw messages wait for
         the step they decode to, so the file gets both in log-time order (the record path interleaves
         them chunk by chunk; a group's records come after all its chunks)."""
-        self._made = self._raw_held if self._raw_held is not None else []
+        made = self._made = self._raw_held if self._raw_held is not None else []
         try:
-            for data, t in chunks:
-                self.raw(data, t)
+            if self._every_message:
+                self._raw_many(chunks, made.append)
+            else:
+                for data, t in chunks:
+                    self.raw(data, t)
         finally:
             self._raw_held, self._made = self._made, None
+
+    def _raw_many(self, chunks: list[tuple[bytes, float | None]], append: Any) -> None:
+        """``raw`` of each plain chunk, every message taken: the same bodies and log times with the
+        per-message calls (time_of, log_time_ns, channel) made inline (a file's every chunk comes here)."""
+        offset = self._raw_offset
+        origin, byte_t = self._origin, self._byte_time
+        b64 = base64.b64encode
+        cid = None
+        try:
+            for data, t in chunks:
+                n = len(data)
+                if not n:
+                    continue
+                if t is None and n > RAW_SPLIT:
+                    self._raw_offset = offset
+                    self.raw(data, None)  # split into RAW_SPLIT messages (it appends through _emit to the same list)
+                    offset = self._raw_offset
+                    continue
+                if cid is None:
+                    cid = self.channel(RAW_TOPIC, RAW_SCHEMA)  # on first use, as raw() registers it
+                if t is None:
+                    x = origin + offset * byte_t
+                    ts = "null"
+                else:
+                    x = origin + t
+                    ts = repr(float(t))
+                append((int(round(x * 1e9)) if x > 0 else 0, cid,  # log_time_ns(time_of(t, offset))
+                        f'{{"offset":{offset},"t":{ts},"length":{n},"data":"{b64(data).decode("ascii")}"}}'.encode()))
+                offset += n
+        finally:
+            self._raw_offset = offset
 
     def batch(self, step: Step) -> None:
         held = self._raw_held
@@ -232,11 +299,8 @@ class JsonChannels(Sink[Record | Block]):
                 self._made = None
                 # Interleaved by log time, each side kept in its own order (the raw bytes in stream order
                 # even where a capture's clock went back); raw first where times tie, as the record path
-                # writes a chunk before its records. heapq.merge is stable: within one input the order
-                # is kept, and on a tie the earlier input (the raw bytes) comes first.
-                write = self._write
-                for lt, cid, data in heapq.merge(held or (), made, key=_log_time):
-                    write(cid, lt, data)
+                # writes a chunk before its records.
+                self._write_all(_merged(held or [], made))
         if step.findings:  # after the step's records, in the order found, as the record path writes them
             self.findings(step.findings)
 
@@ -244,15 +308,16 @@ class JsonChannels(Sink[Record | Block]):
         record = self.record
         for rec in step:
             if type(rec) is Block:
-                block_messages(self, rec, self._emit)
+                made = self._made
+                block_messages(self, rec, made.append if made is not None else self._emit_held)
             else:
                 record(rec)
 
     def flush_held(self) -> None:
         """Write raw messages still held (a group that decoded to nothing yet)."""
         held, self._raw_held = self._raw_held, None
-        for lt, cid, data in held or ():
-            self._write(cid, lt, data)
+        if held:
+            self._write_all(held)
 
     def idle(self) -> None:
         self.flush_held()
@@ -407,6 +472,27 @@ class McapSink(JsonChannels):
         cid.log(data, log_time)
         self._chunk_bytes += len(data) + _MESSAGE_OVERHEAD
         self.messages += 1
+
+    def _write_all(self, messages: Iterable[tuple[int, Any, bytes]]) -> None:
+        # _write's loop with its state in locals: a columnar step's hundreds of thousands of messages
+        # pay one call each (the SDK's log), not three.
+        start, size = self._chunk_start, self._chunk_bytes
+        span, limit = self._chunk_ns, self._chunk_size
+        n = 0
+        try:
+            for log_time, cid, data in messages:
+                if start is None:
+                    start = log_time
+                elif log_time - start > span or start - log_time > span or size >= limit:
+                    self._chunk_start, self._chunk_bytes = start, size
+                    self.flush()
+                    start, size = log_time, 0
+                cid.log(data, log_time)
+                size += len(data) + _MESSAGE_OVERHEAD
+                n += 1
+        finally:
+            self._chunk_start, self._chunk_bytes = start, size
+            self.messages += n
 
     def flush(self) -> None:
         """Close the open chunk and hand it to the OS (a live recorder calls this when the bus is idle)."""
