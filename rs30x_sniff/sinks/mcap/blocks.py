@@ -124,21 +124,21 @@ def block_messages(ch: Any, blk: Block, emit: Any) -> None:
                 models[sid] = model.name  # ServoStates.changes: the model name the servo's records used
             layout = model.layout(raw[AT_ADDRESS], e - s - FRAME_OVERHEAD) if e - s > FRAME_OVERHEAD else None
         if layout is not None:
-            changed: dict[int, list[tuple[str, str]]] = {}
+            # Each servo's fragments are set as its parts come (a servo named twice keeps the later
+            # value, as when its pairs were gathered first); one message per servo after them all.
+            changed: dict[int, tuple[Any, dict[str, str]]] = {}
             for tid, parts, values in _named_parts(layout, raw):
-                pairs = changed.get(tid)
-                if pairs is None:
-                    pairs = changed[tid] = []
+                got = changed.get(tid)
+                if got is None:
+                    got = changed[tid] = slot(tid)
                     known[tid] = None
+                st = got[1]
                 for at, name, prefix, text in parts:
-                    pairs.append((name, prefix + text[values[at]]))
+                    st[name] = prefix + text[values[at]]
             if changed:
                 tail = f',"t":{"null" if t is None else repr(t)},"offset":{offset},'
                 fallback = model.name
-                for tid, pairs in changed.items():
-                    cid, st = slot(tid)
-                    for name, frag in pairs:
-                        st[name] = frag
+                for tid, (cid, st) in changed.items():
                     body = f'{{"id":{tid},"model":"{state_models.get(tid) or fallback}"{tail}{",".join(st.values())}}}'
                     emit((log_time, cid, body.encode()))
         if answered[k]:
