@@ -11,6 +11,8 @@ which of those are there at all (its pairing, its times), which in a Block's row
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from itertools import islice
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
@@ -28,6 +30,8 @@ if TYPE_CHECKING:  # names for the checker; no import at run time
 # What varies between rows of one shape (besides the fields). The templates are kept by the model
 # they are for (Model.keep): (format, slots, layout) of a Block's rows, (format, slots) of a Record's.
 _SLOTS = ("offset", "t", "t_end", "raw", "reply_to", "reply", "latency_s")
+# Lines of a Block's JSON text written at once (block_json_pieces): about 1.4 MB of decode's lines.
+PIECE_LINES = 1024
 
 
 class NonFiniteError(ValueError):
@@ -47,6 +51,21 @@ def block_json_lines(blk: Block, only: set[int] | None = None, compact: bool = F
     return "".join(block_json_rows(blk, only, compact, rows, "\n"))
 
 
+def block_json_pieces(blk: Block, only: set[int] | None = None, rows: Any = None,
+                      lines: int = PIECE_LINES) -> Iterator[str]:
+    """``block_json_lines`` in pieces of ``lines`` lines each: a long Block's text (1.4 kB a row) is never
+    held whole, so what decode --format jsonl holds does not grow with the Block."""
+    if blk.linted_by_rows:
+        yield block_json_lines(blk, only, rows=rows)
+        return
+    it = _line_iter(blk, only, False, rows, "\n")
+    while True:
+        piece = "".join(islice(it, lines))
+        if not piece:
+            return
+        yield piece
+
+
 def block_json_rows(blk: Block, only: set[int] | None = None, compact: bool = False, rows: Any = None,
                     end: str = "") -> list[str]:
     """The JSON text of each row (or of ``rows``), each followed by ``end``."""
@@ -55,10 +74,10 @@ def block_json_rows(blk: Block, only: set[int] | None = None, compact: bool = Fa
         recs = blk.records()
         chosen = recs if rows is None else [recs[k] for k in rows]
         return [record_json_line(r, only, compact) + end for r in chosen]
-    return _lines(blk, only, compact, rows, end)
+    return list(_line_iter(blk, only, compact, rows, end))
 
 
-def _lines(blk: Block, only: set[int] | None, compact: bool, rows: Any, end: str) -> list[str]:
+def _line_iter(blk: Block, only: set[int] | None, compact: bool, rows: Any, end: str) -> Iterator[str]:
     run = blk.run
     blob, lo = run.blob, blk.lo
     starts = run.starts[lo:blk.hi].tolist()
@@ -79,7 +98,6 @@ def _lines(blk: Block, only: set[int] | None, compact: bool, rows: Any, end: str
         lat = lats.tolist()
     models, default, vid_models = blk.models, blk.default, blk.vid_models
     only_key = None if only is None else frozenset(only)
-    out = []
     for k in (range(len(starts)) if rows is None else rows):
         s, e = starts[k], ends[k]
         raw = blob[s:e]
@@ -127,8 +145,7 @@ def _lines(blk: Block, only: set[int] | None, compact: bool, rows: Any, end: str
                     # fields_json reads the values only to pick fields by ID (``only``)
                     vals.append(fields_json(layout, data, () if only is None else layout.values(data),
                                             0 if kind == LONG else raw[AT_ID], only, compact))
-        out.append(fmt % tuple(vals) + end)
-    return out
+        yield fmt % tuple(vals) + end
 
 
 def json_template(obj: dict[str, Any], slots: tuple[str, ...], encode: Any, strings: tuple[str, ...] = (),

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import json
 from typing import IO, Any
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
-from ..render.block_json import block_json_lines, record_json_line
+from ..render.block_json import block_json_lines, block_json_pieces, record_json_line
 from ..render.block_text import block_text, record_line
 from ..decode.blocks import Block
 from ..decode.pairing import Record
@@ -74,9 +74,12 @@ class _LineSink(Sink[Record | Block]):
                     write(self.finding_line(loose.pop(0)))
             if type(rec) is Block:
                 rows = None if ids is None else block_rows_involving(rec, ids)
-                text = self.block_lines(rec, rows)
-                if text:
-                    write(text)
+                wrote = False
+                for text in self.block_pieces(rec, rows):  # a long Block's text in pieces, never whole
+                    if text:
+                        write(text)
+                        wrote = True
+                if wrote:
                     self.records += len(rec) if rows is None else len(rows)
                 continue
             if (ids is None or involves(rec, ids)) and (flt is None or flt.matches(rec)):
@@ -104,6 +107,10 @@ class _LineSink(Sink[Record | Block]):
         """The lines of a Block's rows (``rows``: those alone), as ``line`` would write their records."""
         recs = blk.records()
         return "".join([self.line(recs[k]) for k in (range(len(recs)) if rows is None else rows)])
+
+    def block_pieces(self, blk: Block, rows: list[int] | None) -> Iterable[str]:
+        """``block_lines`` in pieces to write one after the other (one piece unless a sink cuts it)."""
+        return (self.block_lines(blk, rows),)
 
     def finding_line(self, f: Any) -> str:
         raise NotImplementedError
@@ -142,6 +149,9 @@ class JsonlSink(_LineSink):
 
     def block_lines(self, blk: Block, rows: list[int] | None) -> str:
         return block_json_lines(blk, self.ids, rows=rows)
+
+    def block_pieces(self, blk: Block, rows: list[int] | None) -> Iterable[str]:
+        return block_json_pieces(blk, self.ids, rows)
 
     def finding_line(self, f: Any) -> str:
         return json.dumps({"type": "diagnostic", **f.as_json()}) + "\n"
