@@ -4,7 +4,6 @@ writes for each row, byte for byte, without building the rows' Records."""
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -44,20 +43,28 @@ def _named_plan(layout: Layout) -> tuple:
     return plan
 
 
-def _named_parts(layout: Layout | MixedParts, raw: bytes) -> Iterator[tuple[int, tuple, tuple]]:
-    """(servo, its named parts as _named_plan gives them, the raw values they index) of each servo whose registers
-    the packet ``raw`` names, in field order; a long packet to servos of mixed models by each record's layout."""
-    data = raw[AT_DATA:-SUM_SIZE]
+def _state_plan(raw: bytes, kind: int, model: Any, vid_models: Any) -> tuple[Any, tuple]:
+    """What the servo states of a row of ``raw``'s shape read: (unpack, ((servo or None, VID index, parts),
+    ...)) for one layout, whose values one unpack gives, or (None, ((servo, parts, unpack, start, end), ...))
+    for a long packet to servos of mixed models, a record's slice of the data each; only the records that
+    name registers, in field order."""
+    n = len(raw) - FRAME_OVERHEAD
+    layout: Layout | MixedParts | None = None
+    if kind == LONG:
+        if raw[AT_LENGTH] and n > 0:
+            if vid_models is None:
+                layout = model.long_layout(raw[AT_ADDRESS], raw[AT_LENGTH], raw[AT_COUNT])
+            else:
+                layout = long_plan(raw, vid_models)
+    elif n > 0:
+        layout = model.layout(raw[AT_ADDRESS], n)
+    if layout is None:
+        return None, ()
     if isinstance(layout, tuple):  # MixedParts (a Layout is no tuple)
-        for sub, a, b, tid in layout:
-            parts = _named_plan(sub)[0][1]
-            if parts:
-                yield tid, parts, sub.unpack_raw(data[a:b])
-        return
-    values = layout.unpack_raw(data)
-    for vid_at, parts in _named_plan(layout):
-        if parts:
-            yield (raw[AT_ID] if vid_at is None else values[vid_at]), parts, values
+        return None, tuple((tid, parts, sub.unpack_raw, a, b) for sub, a, b, tid in layout
+                           for parts in (_named_plan(sub)[0][1],) if parts)
+    return layout.unpack_raw, tuple((raw[AT_ID] if vid_at is None else None, vid_at, parts)
+                                    for vid_at, parts in _named_plan(layout) if parts)
 
 
 def _tx_template(blk: Block, k: int, model: Any, key: tuple) -> tuple[str | None, tuple[str, ...]]:
@@ -104,6 +111,8 @@ def block_messages(ch: Any, blk: Block, emit: Any) -> None:
     slot = ch.state_slot
     state_models = ch.model_names
     blk_models, default, vid_models = blk.models, blk.default, blk.vid_models
+    plans: dict[tuple, tuple] = {}               # a row's shape -> _state_plan (the Block's models are fixed)
+    slot_of: dict[int, tuple[Any, dict[str, str]]] = {}  # ch.state_slot's, kept for the Block
     for k, (s, e, kind, log_time) in enumerate(zip(starts, ends, kinds, log_times)):
         offset = base + s
         t = t0[k] if timed else None
@@ -111,26 +120,35 @@ def block_messages(ch: Any, blk: Block, emit: Any) -> None:
         raw = blob[s:e]
         if kind == LONG:
             model = default
-            layout = None
-            if raw[AT_LENGTH] and e - s > FRAME_OVERHEAD:
-                if vid_models is None:
-                    layout = model.long_layout(raw[AT_ADDRESS], raw[AT_LENGTH], raw[AT_COUNT])
-                else:
-                    layout = long_plan(raw, vid_models)
+            shape = (raw[:HEADER_SIZE], e - s, raw[AT_DATA:-SUM_SIZE:raw[AT_LENGTH] or 1])
         else:
             sid = raw[AT_ID]
             model = blk_models[sid]
             if sid != BROADCAST_ID:
                 models[sid] = model.name  # ServoStates.changes: the model name the servo's records used
-            layout = model.layout(raw[AT_ADDRESS], e - s - FRAME_OVERHEAD) if e - s > FRAME_OVERHEAD else None
-        if layout is not None:
+            shape = (raw[:HEADER_SIZE], e - s, b"")
+        plan = plans.get(shape)
+        if plan is None:
+            plan = plans[shape] = _state_plan(raw, kind, model, vid_models)
+        unpack, entries = plan
+        if entries:
+            data = raw[AT_DATA:-SUM_SIZE]
+            if unpack is not None:
+                values = unpack(data)
+                items = [(fixed if vid_at is None else values[vid_at], parts, values)
+                         for fixed, vid_at, parts in entries]
+            else:
+                items = [(tid, parts, sub(data[a:b])) for tid, parts, sub, a, b in entries]
             # Each servo's fragments are set as its parts come (a servo named twice keeps the later
             # value, as when its pairs were gathered first); one message per servo after them all.
             changed: dict[int, tuple[Any, dict[str, str]]] = {}
-            for tid, parts, values in _named_parts(layout, raw):
+            for tid, parts, values in items:
                 got = changed.get(tid)
                 if got is None:
-                    got = changed[tid] = slot(tid)
+                    got = slot_of.get(tid)
+                    if got is None:
+                        got = slot_of[tid] = slot(tid)
+                    changed[tid] = got
                     known[tid] = None
                 st = got[1]
                 for at, name, prefix, text in parts:
