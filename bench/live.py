@@ -114,10 +114,21 @@ def drain(fd: int) -> threading.Thread:
     return th
 
 
-def played(pid: int, chunks, master: int, baud: int) -> tuple[float, float, float, list[float]]:
+WRITER_LATE = 0.002  # a write this much past its time makes a reply B006 names (its latency-margin)
+
+
+def played(pid: int, chunks, master: int, baud: int) -> tuple[float, float, float, list[float], list[float]]:
     """Play ``chunks`` onto the pty's ``master`` at the line rate while the reader ``pid`` reads it: its CPU seconds
-    (with its children, and its own), the wall time, and its memory every half second."""
+    (with its children, and its own), the wall time, its memory every half second, and how late the writer woke
+    for each write it waited for (a late reply on the pty is the writer's, and B006 rightly names it)."""
     rss: list[float] = []
+    late: list[float] = []
+
+    def sleep(seconds: float) -> None:
+        woke = time.monotonic() + seconds
+        time.sleep(seconds)
+        late.append(time.monotonic() - woke)
+
     done = threading.Event()
 
     def sample() -> None:
@@ -127,12 +138,12 @@ def played(pid: int, chunks, master: int, baud: int) -> tuple[float, float, floa
     sampler = threading.Thread(target=sample)
     sampler.start()
     cpu0, own0, t0 = cpu_seconds(pid), cpu_seconds(pid, False), time.monotonic()
-    play(chunks, lambda b: os.write(master, b), byte_seconds=byte_time(baud))
+    play(chunks, lambda b: os.write(master, b), byte_seconds=byte_time(baud), sleep=sleep)
     time.sleep(0.3)  # the last bytes read
     cpu1, own1, t1 = cpu_seconds(pid), cpu_seconds(pid, False), time.monotonic()
     done.set()
     sampler.join()
-    return cpu1 - cpu0, own1 - own0, t1 - t0, rss
+    return cpu1 - cpu0, own1 - own0, t1 - t0, rss, late
 
 
 def measure(name: str, cmd: list[str], ready, chunks, master: int, baud: int, terminal: bool = False) -> dict:
@@ -155,7 +166,7 @@ def measure(name: str, cmd: list[str], ready, chunks, master: int, baud: int, te
         if not terminal:
             drain(proc.stdout.fileno())  # record --print's lines
         time.sleep(0.5)  # its start-up is not what is measured
-        cpu, own, wall, rss = played(proc.pid, chunks, master, baud)
+        cpu, own, wall, rss, late = played(proc.pid, chunks, master, baud)
     finally:
         proc.send_signal(signal.SIGTERM)
         try:
@@ -165,7 +176,8 @@ def measure(name: str, cmd: list[str], ready, chunks, master: int, baud: int, te
             proc.wait()
         if term is not None:
             os.close(term_master)
-    return {"name": name, "cpu": cpu, "children": cpu - own, "wall": wall, "rss": rss, "code": proc.returncode}
+    return {"name": name, "cpu": cpu, "children": cpu - own, "wall": wall, "rss": rss, "code": proc.returncode,
+            "late": late}
 
 
 def cost(args: argparse.Namespace) -> int:
@@ -240,8 +252,11 @@ def cost(args: argparse.Namespace) -> int:
             ok = False
         reader = f" (its port reader {r['children']:.2f} s)" if r["children"] > 0 else ""
         ratio = "" if floor is None else f", {r['cpu'] / floor:4.2f}x the bare loop{verdict}"
+        late = [x for x in r["late"] if x > WRITER_LATE]
+        writer = (f"; the writer woke over {WRITER_LATE * 1e3:g} ms late {len(late)} times (max {max(late) * 1e3:.1f} ms:"
+                  " a late reply on the pty, which B006 names)" if late else "")
         print(f"  {r['name']:20s} CPU {r['cpu']:6.2f} s{reader} = {r['cpu'] / r['wall'] * 100:5.1f} % of a core"
-              f"{ratio}; {mem}{kept_s}")
+              f"{ratio}; {mem}{kept_s}{writer}")
     return 0 if ok else 1
 
 
