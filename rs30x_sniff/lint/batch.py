@@ -151,11 +151,14 @@ class BlockLinter:
         self.lint = lint
         self.header_verdicts: dict[tuple, bool] = {}
         self.bails: tuple[tuple, tuple] = ((), ())  # (the rules run, the bail-outs they ask)
+        # After quiet() said False: the rows the rule that spoke named (its column form's array), or None.
+        self.suspects: np.ndarray | None = None
 
     def quiet(self, blk: Any) -> bool:
         """True if no enabled rule finds anything in ``blk``, with the linter moved past it; else False
         and the linter untouched."""
         lint = self.lint
+        self.suspects = None
         lint.begin(blk.t0 is not None)
         run = lint.active_rules
         if self.bails[0] is not run:
@@ -177,7 +180,13 @@ class BlockLinter:
             if callable(quiet):
                 if r.state is not None:
                     quiet = partial(quiet, lint.state_of(r.code))
-                if not quiet(view):
+                said = quiet(view)
+                if said is True:
+                    continue
+                if said is False:
+                    return False
+                if len(said):  # the rows it speaks of
+                    self.suspects = said
                     return False
         # ---- quiet: move the linter's memory past the rows, as feeding them would have -----------
         for s in shadow_order:

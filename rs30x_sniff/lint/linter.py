@@ -211,6 +211,24 @@ class Linter:
             out.append(blk)
             return
         n = len(blk)
+        rows = self._columns.suspects
+        if rows is not None and tries[0] > 0 and 8 * len(rows) < n:
+            # A rule named the few rows it speaks of (a late reply): those rows, with a reply's request, go
+            # record by record, and the rows before and after are checked again on the columns.
+            tries[0] -= 1
+            r = int(rows[0])
+            a = r - 1 if r and blk.answered[r - 1] else r
+            b = r + 2 if blk.answered[r] else r + 1  # a request with its reply
+            if a:
+                self._check_parts(blk.part(0, a), out, tries)
+            cut = blk.part(a, b)
+            feed = self.feed
+            for rec in cut.records():
+                feed(rec)
+            out.append(cut)
+            if b < n:
+                self._check_parts(blk.part(b, n), out, tries)
+            return
         mid = n // 2
         if mid and blk.answered[mid - 1]:
             mid += 1  # a request and its reply stay together (Block.part)

@@ -200,7 +200,10 @@ class Rule:
     when: str | None = None  # a cheap precondition the linter tests once for all rules sharing it (WHEN)
     state: Callable[[], Any] | None = None  # makes the rule's own memory, once per linter run
     handlers: dict[str, Callable[..., Any]] = field(default_factory=dict)  # kind -> check, where not ``check``
-    column: str | Callable[..., bool] | None = None  # the column form: "header", "silent" or quiet(view) (KINDS)
+    # The column form: "header", "silent" or quiet(view) (KINDS). quiet(view) answers whether the rule is silent on
+    # the Block's rows, or may name the rows it speaks of instead (an array of row indexes, empty when silent), so
+    # that a finding here and there is cut out of a live Block rather than found by halving it (Linter.feed_block).
+    column: str | Callable[..., Any] | None = None
 
     @property
     def bails(self) -> tuple[str, ...]:
@@ -369,7 +372,7 @@ def _expand(code: str, kinds: tuple[str, ...]) -> list[str]:
 
 def rule(code: str, name: str, severity: str, summary: str, doc: str, *, kinds: tuple[str, ...],
          needs_time: bool = False, fields: tuple[str, ...] | None = None, when: str | None = None,
-         state: Callable[[], Any] | None = None, column: str | Callable[..., bool] | None = None) -> Callable:
+         state: Callable[[], Any] | None = None, column: str | Callable[..., Any] | None = None) -> Callable:
     """Declare a rule; the decorated function is its check (see KINDS for how it is called).
 
     ``column`` is the rule's column form, required: "header", "silent" or a function (see

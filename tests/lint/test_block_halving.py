@@ -91,3 +91,30 @@ def test_halving_matches_the_record_path(late, frames, group, split_rows):
     for blk in items:
         if type(blk) is Block:
             assert block_json_lines(blk) == "".join(record_json_text(r) + "\n" for r in blk.records())
+
+
+def test_a_late_reply_is_cut_out_of_its_block_by_the_rows_b006_names(monkeypatch):
+    """B006's column form names its late replies: the reply and its request go by rows, and the rows before and
+    after are checked once more on the columns (no halving down to it)."""
+    chunks = with_late_replies(4000, [0.5])
+    checks, blocks_in = [], []
+    real_check, real_feed = linter_module.Linter._check_parts, linter_module.Linter.feed_block
+
+    def check(self, blk, out, tries):
+        checks.append(len(blk))
+        return real_check(self, blk, out, tries)
+
+    def feed_block(self, blk):
+        blocks_in.append(len(blk))
+        return real_feed(self, blk)
+
+    monkeypatch.setattr(linter_module.Linter, "_check_parts", check)
+    monkeypatch.setattr(linter_module.Linter, "feed_block", feed_block)
+    items, linter = columnar_steps(chunks)
+    assert [f.code for f in linter.findings] == ["B006"]
+    blocks = [x for x in items if type(x) is Block]
+    by_rows = [b for b in blocks if b.linted_by_rows]
+    assert [len(b) for b in by_rows] == [2]  # the late reply and its request
+    (request, reply) = by_rows[0].records()
+    assert reply.request is not None and reply.findings and reply.findings[0].code == "B006"
+    assert len(checks) == len(blocks_in) + 2  # the Block that held it, then the rows before and after it

@@ -229,8 +229,9 @@ def latency_off(lint, latency, expected):
     return abs(latency - expected) > lint.config.latency_margin
 
 
-def _return_latency_columns(view) -> bool:
-    """B006 on a Block: every reply's latency within the margin of its servo's return delay."""
+def _return_latency_columns(view) -> bool | np.ndarray:
+    """B006 on a Block: the replies whose latency is off the margin of their servo's return delay (their rows:
+    a late reply now and then on a live port is cut out of its Block, Linter.feed_block)."""
     if not view.timed:
         return True
     replies, lat = view.blk.reply_latencies()
@@ -238,7 +239,7 @@ def _return_latency_columns(view) -> bool:
         return True
     # The answering servos' return delay (0 while unknown), as return_latency reads it.
     rd = view.shadows("return_delay")[view.ids[replies]]
-    return not latency_off(view.lint, lat, expected_latency(np.where(rd == UNKNOWN, 0, rd))).any()
+    return replies[latency_off(view.lint, lat, expected_latency(np.where(rd == UNKNOWN, 0, rd)))]
 
 
 @rule("B006", "return-latency", "warning", "A reply much earlier or later than the servo's return delay.", f"""
