@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import argparse
 import errno
+import gc
 import importlib
 import math
 import os
 import re
 import signal
 import sys
-import threading
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any, NoReturn
 
 from . import language
@@ -156,6 +157,28 @@ def one_thread_blas() -> None:
         os.environ.setdefault(name, "1")
 
 
+# Whether modules_kept froze the collector's objects: once per process.
+_frozen = {"done": False}
+
+
+@contextmanager
+def modules_kept(frozen: bool) -> Iterator[None]:
+    """The command's modules imported with the cyclic collector off, and (``frozen``: a process's own command
+    line) what they made kept out of its later passes: it all lives until the process ends, yet numpy's and ours
+    cost 60-odd collections, 15 ms of CPU at start-up (issue 35), and each later full pass would walk it again."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if frozen and not _frozen["done"]:
+            # Once, and never for a library caller's main(argv): cyclic garbage of the moment is never freed.
+            _frozen["done"] = True
+            gc.freeze()
+        if was:
+            gc.enable()
+
+
 def check_bounds(command: CommandParser, args: argparse.Namespace) -> None:
     """Each command-only number within OPTION_MAX (the settings check their own keys)."""
     for option, dest in command.numbers:
@@ -178,12 +201,13 @@ def stop_on_hangup() -> dict:
     by the same code (a live capture and the monitor install their own handlers while they run).
     Returns the handlers replaced, for :func:`main` to put back."""
     saved: dict = {}
-    if threading.current_thread() is not threading.main_thread():
-        return saved
     for name in ("SIGTERM", "SIGHUP"):
         sig = getattr(signal, name, None)
         if sig is not None and signal.getsignal(sig) is signal.SIG_DFL:
-            saved[sig] = signal.signal(sig, _stop)
+            try:
+                saved[sig] = signal.signal(sig, _stop)
+            except ValueError:  # not the main thread (a library caller's): it may set no handler
+                break
     return saved
 
 
@@ -192,9 +216,10 @@ def interrupt_by_default() -> dict:
     job with SIGINT ignored, and Python keeps an ignored signal ignored (then `kill -INT` would not stop
     `serve`). The monitor and a live capture put their own handlers in while they run. Returns the
     handler replaced, for :func:`main` to put back."""
-    if threading.current_thread() is not threading.main_thread():
+    try:
+        return {signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler)}
+    except ValueError:  # not the main thread: it may set no handler (threading would cost each start-up 1 ms)
         return {}
-    return {signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler)}
 
 
 def _reader_gone() -> int:
@@ -222,7 +247,8 @@ def aliased(argv: list[str]) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     one_thread_blas()
     words = aliased(list(sys.argv[1:] if argv is None else argv))
-    parser = build_parser(words)
+    with modules_kept(frozen=argv is None):
+        parser = build_parser(words)
     language.deprecation_notes.clear()  # this command's notes, not a former one's (a library caller's main)
     try:
         args = parser.parse_args(words)

@@ -322,18 +322,32 @@ def find_config(start: Path | None = None) -> Path | None:
             return own
         py = folder / "pyproject.toml"
         if py.is_file():
-            import tomllib  # only where a pyproject.toml is met: most start-ups parse no TOML
-
             try:
                 text = py.read_text(encoding="utf-8")
-                if "rs30x-sniff" not in text:
-                    continue  # its tables cannot name ours
-                doc = tomllib.loads(text)
-            except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            except (OSError, UnicodeDecodeError):
                 return py  # broken: let load_config say so rather than silently skip the project's settings
+            if not _may_hold_our_table(text):
+                continue  # its tables cannot name ours
+            import tomllib  # only where a pyproject.toml may name us: most start-ups parse no TOML
+
+            try:
+                doc = tomllib.loads(text)
+            except tomllib.TOMLDecodeError:
+                return py
             if "rs30x-sniff" in doc.get("tool", {}):
                 return py
     return None
+
+
+def _may_hold_our_table(text: str) -> bool:
+    """Whether a pyproject.toml's text may hold [tool.rs30x-sniff], so it is worth parsing: it names us, and a key
+    tool. names ours, or a [tool] table or tool = {...} may. A project that only depends on us, or runs our
+    command from its [project.scripts], is not parsed (tomllib: 3 ms of a start-up)."""
+    if "rs30x-sniff" not in text:
+        return False
+    import re
+
+    return re.search(r"""\btool["']?\s*(?:\.\s*["']?rs30x-sniff|\]|=)""", text) is not None
 
 
 def load_config(path: Path | str) -> dict[str, Any]:

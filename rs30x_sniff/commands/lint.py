@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Any
 from collections.abc import Callable
 
 from ..sources.captures import CaptureError
-from ..lint.baseline import BASELINE_VERSION, Baseline, BaselineError, BaselineReport
 from ..lint.config import FAIL_ON, FORMATS
 from ..lint.linter import Linter
 from ..lint.report import FileResult, append_step_summary, fails, write_report, write_step_summary
@@ -21,10 +20,10 @@ from ..decode.decoder import Decoder, Sink
 if TYPE_CHECKING:
     from ..decode.blocks import Block
     from ..decode.pairing import Record
+    from ..lint.baseline import Baseline, BaselineReport
 from ..sinks.pipeline import columnar_for, drive
 from ..settings import Settings
 from ..sinks.lines import FindingsSink, ProgressSink
-from ..sinks.stats import CaptureStats
 from .common import (CliError, check_positive, config_layer, is_live, lint_config, live_sinks, no_data, open_input,
                      settings_for)
 from .options import add_decode_options, add_format_option, add_lint_selection, add_live_options
@@ -75,8 +74,11 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     # Figure checks ([[expect]]) need info's figures: CaptureStats runs as one more sink, only for them.
     enabled, severities = set(cfg.enabled_codes()), cfg.severities()
     checks = [replace(c, severity=severities[c.code]) for c in settings.expects if c.code in enabled]
-    stats = CaptureStats(opts.baud, ranges=any(c.reads_ranges for c in checks)) if checks else None
-    if stats is not None:
+    stats = None
+    if checks:
+        from ..sinks.stats import CaptureStats  # here: info's figures cost every other lint's start-up 4 ms
+
+        stats = CaptureStats(opts.baud, ranges=any(c.reads_ranges for c in checks))
         stats.timing_unsupported = settings.timing_unsupported
         sinks.append(stats)
     result = FileResult(path, rules=[r.code for r in linter.rules], rule_set=cfg.rules)
@@ -213,6 +215,8 @@ def _baseline_options(args: argparse.Namespace) -> Baseline | None:
         return None
     if not args.baseline:
         return None
+    from ..lint.baseline import BASELINE_VERSION, Baseline, BaselineError  # here: only --baseline reads one
+
     try:
         baseline = Baseline.load(args.baseline)
     except BaselineError as e:
@@ -226,6 +230,8 @@ def _baseline_options(args: argparse.Namespace) -> Baseline | None:
 
 def apply_baseline(baseline: Baseline, results: list[FileResult]) -> BaselineReport:
     """Move each result's findings the baseline holds to its ``absorbed``; what the baseline did."""
+    from ..lint.baseline import BaselineReport
+
     absorbed = []
     for r in results:
         r.findings, r.absorbed = baseline.split(r.findings)
@@ -241,6 +247,8 @@ def _write_baseline(args: argparse.Namespace, results: list[FileResult], errors:
     if errors:
         print(f"rs30x-sniff: error: {args.write_baseline}: baseline not written", file=sys.stderr)
         return 2
+    from ..lint.baseline import Baseline
+
     findings = [f for r in results for f in r.findings]
     baseline = Baseline.of(findings)
     with output_stream(args.write_baseline, force=args.force, inputs=tuple(args.inputs)) as out:

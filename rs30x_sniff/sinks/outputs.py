@@ -7,7 +7,6 @@ import os
 import shutil
 import stat
 import sys
-import tempfile
 from contextlib import contextmanager
 from typing import IO
 from collections.abc import Iterable, Iterator
@@ -99,7 +98,12 @@ def output_path(path: str, *, force: bool = False, inputs: tuple[str, ...] = (),
         return
     to_stdout = path == STDOUT
     name = "stdout" if to_stdout else path
-    folder = tempfile.gettempdir() if to_stdout else os.path.dirname(os.path.abspath(path))
+    if to_stdout:
+        import tempfile  # here: only a whole file copied to stdout needs it (2 ms of every start-up)
+
+        folder = tempfile.gettempdir()
+    else:
+        folder = os.path.dirname(os.path.abspath(path))
     replaced = path if not to_stdout and os.path.isfile(path) else None
     try:
         fd, tmp = _create(folder, "rs30x-sniff" if to_stdout else os.path.basename(path), replaced)
