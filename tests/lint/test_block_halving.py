@@ -43,6 +43,25 @@ def columnar_steps(chunks) -> tuple[list, Linter]:
     return items, linter
 
 
+def counted(monkeypatch) -> tuple[list[int], list[int]]:
+    """The sizes of the Blocks the linter is given, and of every column check it makes, as they happen."""
+    checks: list[int] = []
+    blocks_in: list[int] = []
+    real_check, real_feed = linter_module.Linter._check_parts, linter_module.Linter.feed_block
+
+    def check(self, blk, out, tries):
+        checks.append(len(blk))
+        return real_check(self, blk, out, tries)
+
+    def feed_block(self, blk):
+        blocks_in.append(len(blk))
+        return real_feed(self, blk)
+
+    monkeypatch.setattr(linter_module.Linter, "_check_parts", check)
+    monkeypatch.setattr(linter_module.Linter, "feed_block", feed_block)
+    return checks, blocks_in
+
+
 def test_a_finding_in_a_long_stretch_costs_only_the_rows_around_it():
     chunks = with_late_replies(4000, [0.5])
     items, linter = columnar_steps(chunks)
@@ -60,19 +79,7 @@ def test_a_finding_in_a_long_stretch_costs_only_the_rows_around_it():
 def test_findings_everywhere_give_up_halving_soon(monkeypatch):
     """Findings all over a Block: at most 2 x SPLIT_TRIES + 1 column checks of it, then row by row."""
     chunks = with_late_replies(4000, [i / 40 for i in range(40)])
-    checks, blocks_in = [], []
-    real_check, real_feed = linter_module.Linter._check_parts, linter_module.Linter.feed_block
-
-    def check(self, blk, out, tries):
-        checks.append(len(blk))
-        return real_check(self, blk, out, tries)
-
-    def feed_block(self, blk):
-        blocks_in.append(len(blk))
-        return real_feed(self, blk)
-
-    monkeypatch.setattr(linter_module.Linter, "_check_parts", check)
-    monkeypatch.setattr(linter_module.Linter, "feed_block", feed_block)
+    checks, blocks_in = counted(monkeypatch)
     items, linter = columnar_steps(chunks)
     assert [f.code for f in linter.findings].count("B006") == 40
     assert blocks_in and len(checks) <= len(blocks_in) * (2 * linter_module.SPLIT_TRIES + 1)
@@ -97,19 +104,7 @@ def test_a_late_reply_is_cut_out_of_its_block_by_the_rows_b006_names(monkeypatch
     """B006's column form names its late replies: the reply and its request go by rows, and the rows before and
     after are checked once more on the columns (no halving down to it)."""
     chunks = with_late_replies(4000, [0.5])
-    checks, blocks_in = [], []
-    real_check, real_feed = linter_module.Linter._check_parts, linter_module.Linter.feed_block
-
-    def check(self, blk, out, tries):
-        checks.append(len(blk))
-        return real_check(self, blk, out, tries)
-
-    def feed_block(self, blk):
-        blocks_in.append(len(blk))
-        return real_feed(self, blk)
-
-    monkeypatch.setattr(linter_module.Linter, "_check_parts", check)
-    monkeypatch.setattr(linter_module.Linter, "feed_block", feed_block)
+    checks, blocks_in = counted(monkeypatch)
     items, linter = columnar_steps(chunks)
     assert [f.code for f in linter.findings] == ["B006"]
     blocks = [x for x in items if type(x) is Block]
