@@ -44,7 +44,7 @@ class Batch:
     findings: list = field(default_factory=list)
     servos: dict[int, ServoRow] | None = None
     bytes_in: int = 0
-    stats: dict[str, Any] | None = None  # CaptureStats.as_dict() since the last clear: info's own figures
+    stats: dict[str, Any] | None = None  # info's figures the screen shows, since the last clear (screen_figures)
     done: bool = False           # the source has ended (a file read to its end, a port closed)
     error: str | None = None     # why it ended early, in one line
     recording: str | None = None  # the MCAP file being written, if any
@@ -159,6 +159,13 @@ class _Recording(Sink[Record]):
 
     def close(self) -> None:
         self.feeder._close_sink()  # the end of the source ends the recording: the file is finished and indexed
+
+
+def screen_figures(stats: CaptureStats) -> dict[str, Any]:
+    """What the screen shows of ``info``'s figures, under their keys in CaptureStats.as_dict: the average load and
+    each servo's poll rate. Not the whole dict: its health and "what happened" parts cost a live port's screen
+    a few ms of every post, for nothing it shows."""
+    return {"bus_load": stats.bus_load, "servos": stats.servos_dict()}
 
 
 class Feeder:
@@ -321,7 +328,7 @@ class Feeder:
                             recording=self.recording))
             return
         self.post(Batch(records, findings, servo_snapshot(self.decoder.bus), self.decoder.bytes_in,
-                        stats=self.stats.as_dict(), done=done, error=error, recording=self.recording, note=note))
+                        stats=screen_figures(self.stats), done=done, error=error, recording=self.recording, note=note))
 
     # ---- recording ---------------------------------------------------------------------------------
     def _apply_commands(self) -> None:

@@ -52,7 +52,7 @@ class Store:
         self.findings_by_id: Counter = Counter()
         self.bytes_base = self.bytes_in  # bytes counted from here on
         self.servos = {}
-        self.capture_stats: dict[str, Any] = {}  # the feeder's CaptureStats.as_dict(): info's figures
+        self.capture_stats: dict[str, Any] = {}  # the feeder's screen_figures: info's figures the screen shows
         self.recent_load = RecentLoad(self.baud, LOAD_WINDOW)
         self.plotted.refill(self.held, self.servos)
         self.shown = FilteredView(self.held)
