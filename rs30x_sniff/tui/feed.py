@@ -162,10 +162,10 @@ class _Recording(Sink[Record]):
 
 
 def screen_figures(stats: CaptureStats) -> dict[str, Any]:
-    """What the screen shows of ``info``'s figures, under their keys in CaptureStats.as_dict: the average load and
-    each servo's poll rate. Not the whole dict: its health and "what happened" parts cost a live port's screen
-    a few ms of every post, for nothing it shows."""
-    return {"bus_load": stats.bus_load, "servos": stats.servos_dict()}
+    """What the screen takes of ``info``'s figures, under their keys in CaptureStats.as_dict: the average load, the
+    bus's latency and each servo's traffic. Not the whole dict: its health and "what happened" parts cost a live
+    port's screen a few ms of every post, for nothing it shows."""
+    return {"bus_load": stats.bus_load, "latency_s": stats.latency_dict(), "servos": stats.servos_dict()}
 
 
 class Feeder:
