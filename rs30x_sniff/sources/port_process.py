@@ -138,7 +138,11 @@ class PipeQueue:
         """Read what the pipe holds, waiting up to ``timeout`` for something (a signal's handler runs meanwhile)."""
         if self.ended or self._eof:
             return
-        if not select.select((self._fd,), (), (), max(0.0, timeout))[0]:
+        try:
+            if not select.select((self._fd,), (), (), max(0.0, timeout))[0]:
+                return
+        except (OSError, ValueError):  # the pipe closed already (a source finalized late): nothing more comes
+            self._eof = True
             return
         try:
             data = os.read(self._fd, 1 << 20)

@@ -140,3 +140,21 @@ def test_the_stalls_are_reported_once_at_the_end(capsys):
     assert err == ["rs30x-sniff: /dev/ttyFAKE: the reader fell behind 2 times (longest 2.604 s at 0.496 s); "
                    "their bytes are timed at the line rate",
                    f"rs30x-sniff: Ctrl-C: /dev/ttyFAKE: {tap.bytes_read:,} bytes received"]  # the end line, last
+
+
+def test_a_reader_pipe_closed_before_its_queue_is_finished_ends_it_quietly():
+    """A live source finalized late (its generator collected after the pipe from its reader process was closed)
+    finishes its queue with the end it has, not an OSError out of a finalizer."""
+    import os
+
+    from rs30x_sniff.sources.port_process import PipeQueue
+    from rs30x_sniff.sources.serial_tap import LOST, SerialTap, TapEnd
+
+    r, w = os.pipe()
+    os.close(w)
+    os.close(r)
+    queue = PipeQueue(r, SerialTap("loop://", 115200))
+    queue.finish(0.5)
+    assert queue.ended
+    (end,) = queue.take_all()
+    assert type(end) is TapEnd and end.reason == LOST
