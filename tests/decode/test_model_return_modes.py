@@ -18,6 +18,7 @@ from rs30x_sniff.protocol.wire import byte_time, encode_read, encode_return, enc
 from rs30x_sniff.render.records import record_json, text_line
 from rs30x_sniff.sim.bus import SimBus
 from rs30x_sniff.sim.servo import Servo
+from tests.decode.test_capture_edges import timed
 from tests.decode.test_columnar import assert_same, columnar_path, record_path
 
 AREA_READ = encode_short(1, 0x0D, 0, b"", length=0, count=1)  # as RS20X30Xlib and gs2d send it
@@ -105,11 +106,7 @@ def test_an_rs303mr_asked_0x0d_expects_nothing_and_keeps_p007(lint_path):
 
 
 def test_an_rs303mr_s_68_byte_return_after_0x0d_is_unsolicited():
-    t = 0.0
-    chunks = []
-    for frame in (AREA_READ, encode_return(1, 60, bytes(68))):
-        chunks.append((frame, t))
-        t += len(frame) * BT + 0.0002
+    chunks = timed([AREA_READ, encode_return(1, 60, bytes(68))])  # the reply 0.2 ms after the request
     recs, dec = record_path(chunks, DecodeOptions(default_model="RS303MR"), lint=True)
     assert recs[1].status == UNSOLICITED
     assert {"B003", "P007"} <= codes(dec)
@@ -119,11 +116,7 @@ def test_an_rs303mr_s_68_byte_return_after_0x0d_is_unsolicited():
 
 
 def test_b005_checks_the_range_the_model_defines():
-    t = 0.0
-    chunks = []
-    for frame in (AREA_READ, encode_return(1, 42, bytes(18))):
-        chunks.append((frame, t))
-        t += len(frame) * BT + 0.0002
+    chunks = timed([AREA_READ, encode_return(1, 42, bytes(18))])  # the reply 0.2 ms after the request
     recs, dec = record_path(chunks, DecodeOptions(default_model="RS204MD"), lint=True)
     b005 = [f for f in dec.linter.findings if f.code == "B005"]
     assert [f.message for f in b005] == ["returns 18 byte(s) from address 42; request @0 asked for 68 from 60"]
