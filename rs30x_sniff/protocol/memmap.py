@@ -24,7 +24,8 @@ UNKNOWN = "unknown"  # a map's word for a model fact no source gives (model_numb
 # generated plug-ins (sigrok, Logic 2, Wireshark), so they are checked as the map loads, by its schema
 # (schemas/memory_map.json): a register is a snake_case word that is neither a filter key nor the label of an
 # unnamed byte; a model, a word with - or _.
-_NAME_SCHEMA = memory_map_schema()["$defs"]["register"]["properties"]["name"]["allOf"]
+_REGISTER_NAME_SCHEMA = memory_map_schema()["$defs"]["register"]["properties"]["name"]
+_NAME_SCHEMA = _REGISTER_NAME_SCHEMA["allOf"]
 REGISTER_NAME = re.compile(_NAME_SCHEMA[0]["pattern"].strip("^$"))
 RESERVED_NAMES = frozenset(_NAME_SCHEMA[1]["not"]["anyOf"][0]["enum"])  # the filter language's keys
 # Entries a Model's cache holds before it starts afresh: its line templates go by header bytes, and a
@@ -641,6 +642,22 @@ def _register(source: str, n: int, r: dict[str, Any], names: dict[str, str], own
                     r.get("description", ""), r.get("source", ""), r.get("note", ""))
 
 
+def _names_pass(doc: dict[str, Any]) -> bool:
+    """Whether a kept document's names pass the schema's patterns once more: the model's, its other names and the
+    registers' become code (codegen) and file names, so they are checked on every load, cached or not (a document
+    that fails is read and checked whole, and says why)."""
+    schema = memory_map_schema()
+    model = schema["properties"]["model"]["properties"]
+    head = doc.get("model")
+    if not isinstance(head, dict):
+        return False
+    names = [(head.get("name"), model["name"])]
+    names += [(other, model["also_named"]["items"]) for other in head.get("also_named", ())]
+    names += [(r.get("name"), _REGISTER_NAME_SCHEMA)
+              for r in doc.get("register", ()) if isinstance(r, dict) and "name" in r]
+    return all(first_failure(value, rule) is None for value, rule in names)
+
+
 def load_model(path: str | Path) -> Model:
     """Load one memory-map file; a mistake raises ModelError naming the file and the key."""
     path = Path(path)
@@ -649,7 +666,7 @@ def load_model(path: str | Path) -> Model:
     except OSError as e:
         raise ModelError(f"{path}: cannot read: {e.strerror}") from None
     kept = map_cache.get(raw)
-    if kept is not None:
+    if kept is not None and _names_pass(kept):
         return parse_model(kept, str(path), schema_checked=True)
     import tomllib  # a map not kept yet (protocol.map_cache): most start-ups never parse TOML
 

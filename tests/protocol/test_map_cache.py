@@ -78,3 +78,18 @@ def test_a_map_that_is_not_utf8_is_one_line(cache, tmp_path):
     path.write_bytes(b'[model]\nname = "caf\xe9"\n')
     with pytest.raises(ModelError, match="not UTF-8"):
         load_model(path)
+
+
+def test_a_kept_map_whose_names_fail_is_read_and_checked_anew(cache, tmp_path):
+    """The names become code: a kept document that says otherwise than its file (a cache written by hand) is not
+    taken; the file is read and checked whole."""
+    import marshal
+
+    path = tmp_path / "rs303mr.toml"
+    path.write_bytes((ROOT / "decoders" / "rs303mr.toml").read_bytes())
+    want = _fields(load_model(path))
+    (kept,) = cache.glob("*.marshal")
+    doc = marshal.loads(kept.read_bytes())
+    doc["register"][0]["name"] = "x'); import os; ('"
+    kept.write_bytes(marshal.dumps(doc))
+    assert _fields(load_model(path)) == want
