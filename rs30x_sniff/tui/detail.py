@@ -7,11 +7,8 @@ from collections.abc import Sequence
 
 from rich.text import Text
 from textual.app import ComposeResult
-from textual.binding import Binding
-from textual.containers import Vertical, VerticalScroll
+from textual.containers import Vertical
 from textual.message import Message
-from textual.widgets import Static, Tree
-from textual.widgets.tree import TreeNode
 
 from ..decode.pairing import Record
 from ..protocol.events import Ack, Garbage, LongPacket, Nack, ReturnPacket, ShortPacket
@@ -19,9 +16,12 @@ from ..protocol.wire import (
     AT_ADDRESS, AT_COUNT, AT_DATA, AT_FLAG, AT_ID, AT_LENGTH, HEADER_SIZE, SUM_SIZE, VID_SIZE)
 from ..render.records import format_value, kind_word
 from ..render.times import ABSOLUTE, EPOCH, TimeForm, wall_text
+from .field_tree import FieldTree, Node
 from .rows import SEVERITY_STYLES, clean, kind_style, short_summary
+from .text_lines import ScrollingText
 
 HEX_PER_LINE = 16
+EMPTY = "no packet selected"
 DATE = len("2026-11-27 ")  # the date's characters before the time of day in render.times.wall_text
 
 
@@ -85,58 +85,8 @@ _STATUS_LINES: dict[str | None, tuple[str, str]] = {
 }
 
 
-def _same(a: str | Text, b: Text) -> bool:  # (textual keeps a node's label as a Text)
-    return isinstance(a, Text) and a.plain == b.plain and a.style == b.style and a.spans == b.spans
-
-
-def _relabel(node: TreeNode, label: Text, data: object) -> None:
-    """Set a node's label (only a changed one: each costs the tree a redraw of the node's lines) and data."""
-    if not _same(node.label, label):
-        node.set_label(label)
-    node.data = data
-
-
-class _Node:
-    """A node of the field tree as the pane would add it: its label, its data (a byte span or a Record to
-    jump to), its children (None: a leaf)."""
-
-    __slots__ = ("label", "data", "children", "expand", "allow_expand")
-
-    def __init__(self, label: Text, data: object = None, children: list[_Node] | None = None, *,
-                 expand: bool = False, allow_expand: bool = True) -> None:
-        self.label, self.data, self.children = label, data, children
-        self.expand, self.allow_expand = expand, allow_expand
-
-    def shape(self) -> tuple:
-        """What a tree built from this node looks like apart from its labels and data."""
-        kids = None if self.children is None else tuple(c.shape() for c in self.children)
-        return (kids, self.expand, self.allow_expand)
-
-    def add_to(self, parent: TreeNode) -> None:
-        if self.children is None and self.allow_expand:
-            parent.add_leaf(self.label, data=self.data)
-            return
-        node = parent.add(self.label, data=self.data, expand=self.expand, allow_expand=self.allow_expand)
-        for child in self.children or ():
-            child.add_to(node)
-
-    def relabel(self, node: TreeNode) -> None:
-        """Give ``node`` (built from a node of the same shape) this node's labels and data."""
-        _relabel(node, self.label, self.data)
-        for tree_node, spec in zip(node.children, self.children or ()):
-            spec.relabel(tree_node)
-
-
-class FieldTree(Tree):
-    """The field tree; space pauses the monitor here too (as everywhere), enter opens a node or follows a link."""
-
-    BINDINGS = [Binding("space", "app.toggle_pause", "Pause", show=False)]
-    ICON_NODE = "▸ "
-    ICON_NODE_EXPANDED = "▾ "
-
-
-class HexScroll(VerticalScroll, can_focus=False):
-    """Scrolls a long frame's dump with the mouse; Tab skips it (the tree drives what it shows)."""
+class HexView(ScrollingText, can_focus=False):
+    """The frame's dump; a long one scrolls with the mouse, and Tab skips it (the tree drives what it shows)."""
 
 
 class DetailPane(Vertical):
@@ -151,30 +101,23 @@ class DetailPane(Vertical):
         super().__init__(**kwargs)
         self.rec: Record | None = None
         self.times = times  # how the title shows the record's time (--time-format)
-        self._shape: tuple | None = None  # the shape of the tree shown (_Node.shape), to relabel in place
-        self._hex_lines = 1
 
     def compose(self) -> ComposeResult:
-        tree = self.field_tree = FieldTree(Text("no packet selected"), id="fields")
-        tree.show_root = True
-        tree.guide_depth = 2
-        self.hex_view = Static(Text(""), id="hex")
+        tree = self.field_tree = FieldTree(Node(Text(EMPTY)), id="fields")
+        self.hex_view = HexView(id="hex")
         yield tree
-        with HexScroll(id="hex-scroll"):
-            yield self.hex_view
+        yield self.hex_view
 
     def show(self, rec: Record | None) -> None:
         """Show ``rec`` (None: clear the pane); showing the same record again is free. A record of the same
-        shape as the one shown (the newest, as the capture follows a busy bus) has its labels set in
-        place: the tree keeps its size, so the screen needs no new layout, only the changed lines."""
+        shape as the one shown (the newest, as the capture follows a busy bus) keeps the tree's open nodes and
+        its cursor, and the screen needs no new layout, only the changed lines."""
         if (rec is self.rec and rec is not None) or not self.is_attached:
             return
         self.rec = rec
         tree = self.field_tree
         if rec is None:
-            tree.clear()
-            tree.root.set_label(Text("no packet selected"))
-            self._shape = None
+            tree.show(Node(Text(EMPTY)))
             self._hex(Text(""))
             return
         ev = rec.event
@@ -188,37 +131,23 @@ class DetailPane(Vertical):
         width = max(24, self.size.width - 8)  # the tree's guides and the border
         for f in rec.findings:
             # Whole, never cut: the message wraps onto the lines of an expanded node.
-            nodes.append(_Node(Text(f"! {f.code} {f.name}", SEVERITY_STYLES.get(f.severity, "")), None,
-                               [_Node(Text(piece)) for piece in textwrap.wrap(clean(f.message), width) or [""]],
-                               expand=True))
-        shape = tuple(n.shape() for n in nodes)
-        if shape == self._shape:
-            _relabel(tree.root, title, None)
-            for node, spec in zip(tree.root.children, nodes):
-                spec.relabel(node)
-        else:
-            self._shape = shape
-            tree.clear()
-            tree.root.set_label(title)
-            tree.root.data = None
-            for spec in nodes:
-                spec.add_to(tree.root)
-            tree.root.expand()
-        self._hex(hex_dump(ev.raw))
+            nodes.append(Node(Text(f"! {f.code} {f.name}", SEVERITY_STYLES.get(f.severity, "")), None,
+                              [Node(Text(piece)) for piece in textwrap.wrap(clean(f.message), width) or [""]],
+                              expand=True))
+        tree.show(Node(title, None, nodes, expand=True))
+        data = tree.cursor_node.data  # the same field of a record of the same shape keeps its bytes lit
+        self._hex(hex_dump(ev.raw, data if isinstance(data, tuple) else None))
 
     def _hex(self, dump: Text) -> None:
-        # A dump of as many lines as the last keeps the pane's layout (no new layout of the screen).
-        lines = len(dump.plain.split("\n"))
-        self.hex_view.update(dump, layout=lines != self._hex_lines)
-        self._hex_lines = lines
+        self.hex_view.update(dump)
 
-    def _header(self, rec: Record) -> list[_Node]:
+    def _header(self, rec: Record) -> list[Node]:
         ev = rec.event
         whole = (0, min(HEADER_SIZE, len(ev.raw)))
         if type(ev) is Garbage:
-            return [_Node(Text("header", "bold"), whole, [_Node(Text(f"skipped: {ev.reason}"), (0, len(ev.raw)))])]
+            return [Node(Text("header", "bold"), whole, [Node(Text(f"skipped: {ev.reason}"), (0, len(ev.raw)))])]
         if type(ev) is Ack or type(ev) is Nack:
-            return [_Node(Text(f"{'ACK' if ev.kind == 'ack' else 'NACK'} byte 0x{ev.raw[0]:02X}", "bold"), (0, 1),
+            return [Node(Text(f"{'ACK' if ev.kind == 'ack' else 'NACK'} byte 0x{ev.raw[0]:02X}", "bold"), (0, 1),
                           allow_expand=False)]
         t = type(ev)
         flag = ev.flags if type(ev) is ReturnPacket else ev.flag
@@ -235,8 +164,8 @@ class DetailPane(Vertical):
         for name, a, b, value in items:
             label = Text(f"{name:<10} {ev.raw[a:b].hex(' ').upper():<6} ")
             label.append(value, "red" if name == "sum" and not ev.checksum_ok else "")
-            leaves.append(_Node(label, (a, b)))
-        return [_Node(Text("header", "bold"), whole, leaves)]
+            leaves.append(Node(label, (a, b)))
+        return [Node(Text("header", "bold"), whole, leaves)]
 
     @staticmethod
     def _flag_text(rec: Record) -> str:
@@ -251,7 +180,7 @@ class DetailPane(Vertical):
             names = []
         return f" ({', '.join(names)})" if names else ""
 
-    def _fields(self, rec: Record) -> list[_Node]:
+    def _fields(self, rec: Record) -> list[Node]:
         fields = rec.fields
         if not fields:
             return []
@@ -268,10 +197,10 @@ class DetailPane(Vertical):
             if f.unit:
                 label.append(f" {f.unit}", "grey70")
             desc = f.register.description
-            children.append(_Node(label, span, [_Node(Text(clean(desc), "italic grey70"), span)] if desc else None))
-        return [_Node(Text(f"fields ({len(fields)})", "bold"), None, children, expand=True)]
+            children.append(Node(label, span, [Node(Text(clean(desc), "italic grey70"), span)] if desc else None))
+        return [Node(Text(f"fields ({len(fields)})", "bold"), None, children, expand=True)]
 
-    def _pair(self, rec: Record) -> list[_Node]:
+    def _pair(self, rec: Record) -> list[Node]:
         other = rec.request if rec.is_reply else rec.reply
         if other is not None:
             arrow = "↰ request" if rec.is_reply else "↳ reply"
@@ -281,12 +210,12 @@ class DetailPane(Vertical):
             lat = rec.latency if rec.latency is not None else other.latency
             if lat is not None:
                 label.append(f" ({lat * 1e3:.3f} ms)", "grey70")
-            return [_Node(label, other)]
+            return [Node(label, other)]
         said = _STATUS_LINES.get(rec.status)
-        return [_Node(Text(*said))] if said else []
+        return [Node(Text(*said))] if said else []
 
     # ---- events ---------------------------------------------------------------------------------------
-    def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:
+    def on_field_tree_highlighted(self, event: FieldTree.Highlighted) -> None:
         event.stop()
         if self.rec is None:
             return
@@ -294,7 +223,7 @@ class DetailPane(Vertical):
         span = data if isinstance(data, tuple) else None
         self.hex_view.update(hex_dump(self.rec.event.raw, span))
 
-    def on_tree_node_selected(self, event: Tree.NodeSelected) -> None:
+    def on_field_tree_chosen(self, event: FieldTree.Chosen) -> None:
         event.stop()
         if isinstance(event.node.data, Record):
             self.post_message(self.Jump(event.node.data))

@@ -1,12 +1,29 @@
-"""A widget that shows lines of Rich Text with the Line API, each line rendered once when it is set."""
+"""Widgets that show lines of Rich Text with the Line API, each line rendered once when it is set."""
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 
 from rich.text import Text
+from textual.geometry import Size
+from textual.scroll_view import ScrollView
 from textual.strip import Strip
 from textual.widget import Widget
+
+
+def steady_size(view: ScrollView, width: int, height: int) -> None:
+    """Give ``view`` the virtual size of content ``width`` x ``height`` cells, changed only where a scrollbar
+    must come or go: any change of a virtual size lays out the whole screen, and the monitor's detail pane
+    takes a record of another size several times a second."""
+    fits = view.size.width - view.styles.scrollbar_size_vertical  # content that fits needs no wider a size
+    size = Size(max(width, fits), max(height, view.size.height))
+    if size != view.virtual_size:
+        view.virtual_size = size
+
+
+def _strips(widget: Widget, lines: list[Text]) -> list[Strip]:
+    console = widget.app.console
+    return [Strip(list(line.render(console)), line.cell_len) for line in lines]
 
 
 class TextLines(Widget):
@@ -27,8 +44,7 @@ class TextLines(Widget):
         if shown == self._shown:
             return
         self._shown = shown
-        console = self.app.console
-        self._strips = [Strip(list(line.render(console)), line.cell_len) for line in lines]
+        self._strips = _strips(self, lines)
         self.refresh()
 
     def render_line(self, y: int) -> Strip:
@@ -37,3 +53,39 @@ class TextLines(Widget):
         if y >= len(self._strips):
             return Strip.blank(width, base)
         return self._strips[y].crop_extend(0, width, base).apply_style(base)
+
+
+class ScrollingText(ScrollView):
+    """A Text of several lines that scrolls, drawn with the Line API; a Text of another height costs the screen
+    no new layout while it fits (``steady_size``)."""
+
+    def __init__(self, text: Text | None = None, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.text = Text("")
+        self._strips: list[Strip] = []
+        self._width = 0
+        if text is not None:
+            self.text = text
+
+    def on_mount(self) -> None:
+        self.update(self.text)
+
+    def update(self, text: Text) -> None:
+        self.text = text
+        lines = text.split("\n", allow_blank=True)
+        self._strips = _strips(self, list(lines))
+        self._width = max((line.cell_len for line in lines), default=0)
+        steady_size(self, self._width, len(self._strips))
+        self.refresh()
+
+    def on_resize(self) -> None:
+        steady_size(self, self._width, len(self._strips))
+
+    def render_line(self, y: int) -> Strip:
+        width = self.size.width
+        base = self.rich_style
+        scroll_x, scroll_y = self.scroll_offset
+        y += scroll_y
+        if y >= len(self._strips):
+            return Strip.blank(width, base)
+        return self._strips[y].crop_extend(scroll_x, scroll_x + width, base).apply_style(base)
