@@ -27,6 +27,7 @@ KEYS = (
     ("[ / ]", "pan the plot back / on in time; 0 shows the whole series again"),
     ("tab / shift+tab", "move between panes"),
     ("enter", "in findings: show the packet; in the field tree: open a node or follow the link"),
+    ("left / right", "in the field tree: close a node (on a closed one: go to its parent) / open it"),
     ("ctrl+p", "command palette"),
     ("?", "this help (escape closes)"),
 )
