@@ -302,8 +302,9 @@ def _other_encoding(head: bytes) -> str | None:
 
 def _encoding_error(path: str, named: str) -> CaptureError:
     code = named.split(" without")[0].replace(" ", "")
+    # Line 1: the file's first bytes (a byte-order mark, or the NULs beside its first characters) tell the encoding.
     return CaptureError(f"{path}: a text capture in {named}, which is not read (ASCII, UTF-8 and UTF-16 with a "
-                        f"byte-order mark are): save it as UTF-8 (iconv -f {code} -t UTF-8)")
+                        f"byte-order mark are): save it as UTF-8 (iconv -f {code} -t UTF-8)", line=1)
 
 
 def _data_lines(head: bytes, complete: bool) -> list[list[bytes]]:

@@ -143,6 +143,7 @@ def test_another_encoding_is_one_line_naming_it(tmp_path, encoding, name, src):
     with pytest.raises(CaptureError) as e:
         list(read_capture(str(p)))
     assert str(e.value).startswith(f"{p}: a text capture in {name}, which is not read ")
+    assert e.value.line == 1  # where the encoding shows (an editor's or CI annotation's place)
     proc = subprocess.run([sys.executable, "-m", "rs30x_sniff", "decode", str(p), "--isolated"], capture_output=True,
                           text=True, cwd=ROOT, timeout=60)
     assert proc.returncode == 2 and proc.stdout == ""
