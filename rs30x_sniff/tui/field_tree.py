@@ -69,6 +69,14 @@ def _lines(root: Node) -> list[_Line]:
     return out
 
 
+class _NodeMessage(Message):
+    """A message about ``node`` of the tree."""
+
+    def __init__(self, node: Node) -> None:
+        super().__init__()
+        self.node = node
+
+
 class FieldTree(SettingsPerRender, ScrollView, can_focus=True):
     """A tree of labelled nodes with a cursor. ``show`` sets a new tree: one of the same shape as the last keeps
     its open nodes and the cursor's line, and costs the screen no new layout (the monitor shows the newest
@@ -125,19 +133,11 @@ class FieldTree(SettingsPerRender, ScrollView, can_focus=True):
     }
     """
 
-    class Highlighted(Message):
+    class Highlighted(_NodeMessage):
         """The cursor moved to ``node``."""
 
-        def __init__(self, node: Node) -> None:
-            super().__init__()
-            self.node = node
-
-    class Chosen(Message):
+    class Chosen(_NodeMessage):
         """Enter was pressed on ``node`` (or it was clicked), a node that does not open: a link."""
-
-        def __init__(self, node: Node) -> None:
-            super().__init__()
-            self.node = node
 
     def __init__(self, root: Node, **kwargs) -> None:
         super().__init__(**kwargs)
