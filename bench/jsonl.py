@@ -2,6 +2,8 @@
 
 Run: python bench/jsonl.py [--frames N] [--repeat R]
 Target (issue 12): the decode command reaches at least 0.3 of the bare loop's frames per second.
+Beside it, `decode --fields` of five columns (issue 35's compact form for scripts), its time and its size
+against the JSON lines'.
 The bare loop reads the same file, splits frames with bytes.find, checks each Sum, and writes one
 json.dumps line per frame (offset, hex and the header fields): the floor any JSON-lines decoder pays.
 """
@@ -21,6 +23,7 @@ sys.path.insert(0, str(HERE))
 
 from traffic import hexapod_bytes  # noqa: E402
 
+FIELDS = "t,id,kind,goal_position,present_position"
 BARE = r'''
 import json, sys
 from functools import reduce
@@ -69,11 +72,17 @@ def main() -> None:
         bare = best([sys.executable, "-c", BARE, cap, out], args.repeat)
         full = best([sys.executable, "-m", "rs30x_sniff", "decode", cap, "--format", "jsonl", "-o", out, "--force"],
                     args.repeat)
-        lines = sum(1 for _ in open(out))
-    print(f"capture: {args.frames} frames ({lines} JSON lines written by decode)")
+        lines, size = sum(1 for _ in open(out)), os.path.getsize(out)
+        tsv = os.path.join(tmp, "out.tsv")
+        cols = best([sys.executable, "-m", "rs30x_sniff", "decode", cap, "--fields", FIELDS, "-o", tsv, "--force"],
+                    args.repeat)
+        tsv_size = os.path.getsize(tsv)
+    print(f"capture: {args.frames} frames ({lines} JSON lines written by decode, {size / 1e6:.0f} MB)")
     print(f"bare split+XOR+json.dumps:  {args.frames / bare:10,.0f} frames/s  ({bare:.2f} s)")
     print(f"decode --format jsonl:      {args.frames / full:10,.0f} frames/s  ({full:.2f} s)   ratio {bare / full:.2f}")
     print("target: ratio >= 0.30")
+    print(f"decode --fields {FIELDS}: {args.frames / cols:,.0f} frames/s ({cols:.2f} s), "
+          f"{tsv_size / 1e6:.1f} MB: {cols / full:.2f} of the JSON lines' time, {tsv_size / size:.3f} of their size")
 
 
 if __name__ == "__main__":

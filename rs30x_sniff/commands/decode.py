@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 
 from ..filters import FilterError, parse_filter
+from ..protocol.memmap import ModelRegistry, default_registry
+from ..render.columns import ColumnError, Columns, parse_columns
 from ..decode.decoder import Decoder
 from ..sinks.pipeline import columnar_for, drive
-from ..sinks.lines import JsonlSink, TextSink
+from ..sinks.lines import FieldsSink, JsonlSink, TextSink
 from .common import (CliError, capture_start_time, check_positive, is_live, live_sinks, make_linter, no_data,
                      open_input, settings_for, time_form)
 from .options import (SERVO_IDS, add_decode_options, add_format_option, add_lint_selection, add_live_options,
@@ -24,8 +26,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="capture file (.bin/.raw, .hex, timestamped hex, .mcap), - for stdin, or a serial port")
     add_decode_options(p)
     add_live_options(p)
-    add_format_option(p, ("text", "jsonl"), default="text",
-                      help="output format (default text)")
+    add_format_option(p, ("text", "jsonl", "fields"), default=None,
+                      help="output format (default text; fields: the --fields columns, tab-separated)")
+    p.add_argument("--fields", metavar="NAMES",
+                   help="columns for --format fields (implied), comma-separated: keys of the JSON lines (t, offset, "
+                        "type, id, op, latency_s, status, diagnostics, ...) and registers' names "
+                        "(present_position; a long packet's values joined by commas)")
     p.add_argument("--id", type=servo_ids, action="append", default=None, metavar="IDS",
                    help=f"only events to or from these servos: an ID or a range (3, 1-6,9; {SERVO_IDS}); repeatable")
     p.add_argument("--filter", metavar="EXPR",
@@ -47,13 +53,16 @@ def run(args: argparse.Namespace) -> int:
         flt = parse_filter(args.filter or "", opts.registry)
     except FilterError as e:
         raise CliError(f"--filter: {e}") from None
+    columns = _columns(args, opts.registry or default_registry())
     linter = make_linter(args, settings)
     chunks = open_input(args.input, args.input_format, settings, duration=args.duration)
     ids = {sid for given in args.id for sid in given} if args.id else None
     with output_stream(args.output, force=args.force, inputs=(args.input,)) as out:
-        sink: JsonlSink | TextSink
+        sink: JsonlSink | TextSink | FieldsSink
         if args.format == "jsonl":
             sink = JsonlSink(out, ids=ids, filter=flt, flush=is_live(chunks))
+        elif columns is not None:
+            sink = FieldsSink(out, columns, ids=ids, filter=flt, flush=is_live(chunks))
         else:
             sink = TextSink(out, ids=ids, filter=flt, flush=is_live(chunks), verbose=args.verbose,
                             times=time_form(settings, lambda: capture_start_time(chunks)))
@@ -62,3 +71,21 @@ def run(args: argparse.Namespace) -> int:
                     *live_sinks(settings, chunks, args.input))
     no_data(args.input, dec, chunks)
     return 1 if getattr(chunks, "lost", False) else 0  # a live port that failed (the source said why)
+
+
+def _columns(args: argparse.Namespace, registry: ModelRegistry) -> Columns | None:
+    """--format fields and --fields (each implies the other's need): the columns, checked before the input opens."""
+    if args.format is None:
+        args.format = "fields" if args.fields is not None else "text"
+    if args.format != "fields":
+        if args.fields is not None:
+            raise CliError(f"--fields: only with --format fields, not {args.format}")
+        return None
+    if args.fields is None:
+        raise CliError("--format fields: name the columns with --fields (e.g. --fields t,id,type,present_position)")
+    if args.verbose:
+        raise CliError("--verbose: a field tree is text's, not --format fields'")
+    try:
+        return parse_columns(args.fields, registry)
+    except ColumnError as e:
+        raise CliError(f"--fields: {e}") from None

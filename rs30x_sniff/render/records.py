@@ -211,6 +211,14 @@ def record_json_text(rec: Record, only: set[int] | None = None, compact: bool = 
     return text
 
 
+def json_id(rec: Record) -> int | None:
+    """The JSON object's ``id``: a packet's header ID (a long packet's is 0), an ACK/NACK's request's, else none."""
+    ev = rec.event
+    if isinstance(ev, (ReturnPacket, ShortPacket, LongPacket)):
+        return ev.id
+    return rec.id if rec.is_reply else None
+
+
 def record_json(rec: Record, only: set[int] | None = None, *, fields: bool = True) -> dict[str, Any]:
     """The public JSON object of a record (``decode --format jsonl``, MCAP /rs30x/packets); ``only``
     keeps a long packet's fields for those servo IDs alone (``decode --id``); ``fields=False`` leaves
@@ -235,16 +243,15 @@ def record_json(rec: Record, only: set[int] | None = None, *, fields: bool = Tru
         "status": rec.status,
         "diagnostics": [d.as_json() for d in rec.findings],
     }
+    obj["id"] = json_id(rec)
     if type(ev) is ReturnPacket:
-        obj.update(id=ev.id, address=ev.address, length=ev.length, count=ev.count)
+        obj.update(address=ev.address, length=ev.length, count=ev.count)
         obj["flag"] = ev.flags
         obj["flags"] = list(ev.flag_names)
     elif type(ev) is ShortPacket or type(ev) is LongPacket:
-        obj.update(id=ev.id, address=ev.address, length=ev.length, count=ev.count)
+        obj.update(address=ev.address, length=ev.length, count=ev.count)
         obj["flag"] = ev.flag
         obj["flags"] = request_flag_names(ev)
-    elif rec.is_reply:
-        obj["id"] = rec.id
     if type(ev) is ShortPacket:
         obj["op"] = rec.op
         read = rec.read_range

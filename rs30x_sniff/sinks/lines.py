@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterable
 
 from ..render.block_json import block_json_lines, block_json_pieces, record_json_line
 from ..render.block_text import block_text, record_line
+from ..render.columns import Columns
 from ..decode.blocks import Block
 from ..decode.pairing import Record
 from ..decode.frame_runs import LONG
@@ -155,6 +156,22 @@ class JsonlSink(_LineSink):
 
     def finding_line(self, f: Any) -> str:
         return json.dumps({"type": "diagnostic", **f.as_json()}) + "\n"
+
+
+class FieldsSink(_LineSink):
+    """``decode --format fields``: the chosen columns of each event, tab-separated under a heading line; a
+    finding only the end of input reveals is a line of its own (its record's offset, the code)."""
+
+    def __init__(self, out: IO[str], columns: Columns, **kw: Any) -> None:
+        super().__init__(out, **kw)
+        self.columns = columns
+        out.write(columns.heading())
+
+    def line(self, rec: Record) -> str:
+        return self.columns.line(rec, self.ids)
+
+    def finding_line(self, f: Any) -> str:
+        return f"# {f.code} {f.name} @{f.offset}: {f.message}\n"
 
 
 class FindingsSink(Sink[Record | Block]):
