@@ -31,7 +31,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fields", metavar="NAMES",
                    help="columns for --format fields (implied), comma-separated: keys of the JSON lines (t, offset, "
                         "type, id, op, latency_s, status, diagnostics, ...) and registers' names "
-                        "(present_position; a long packet's values joined by commas)")
+                        "(present_position; a long packet's values joined by spaces)")
     p.add_argument("--id", type=servo_ids, action="append", default=None, metavar="IDS",
                    help=f"only events to or from these servos: an ID or a range (3, 1-6,9; {SERVO_IDS}); repeatable")
     p.add_argument("--filter", metavar="EXPR",

@@ -55,8 +55,9 @@ def run(args: argparse.Namespace) -> int:
     check_output(args.output, args.force, (args.input,))
     settings = settings_for(args, args.input)
     opts = settings.decode_options()
-    # Only the findings table needs the rules run; the others read the records alone.
-    linter = make_linter(args, settings) if args.of == "findings" else None
+    # The findings table and the packets table's findings column need the rules run; the others read the records
+    # alone.
+    linter = make_linter(args, settings) if args.of in ("findings", "packets") else None
     chunks = open_input(args.input, args.input_format, settings, locate=args.of == "findings")
     decoder = Decoder(opts, linter, columnar=columnar_for(chunks))  # a file: the columnar path, the same rows
     kw: dict = {"baud": settings.baud}

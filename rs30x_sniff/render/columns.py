@@ -10,10 +10,12 @@ from typing import Any
 from ..decode.pairing import Record
 from ..protocol.memmap import ByRaw, Layout, ModelRegistry, Register
 from .layout_json import value_text
-from .records import json_id, record_json
+from .records import direction, json_id, record_json
 
-OCCURRENCES = ","  # between the values of one column in one record (tshark's default -E occurrence separator)
-ALIASES = {"kind": "type"}  # the filter language's word for the JSON's "type" (kind:return), the same values
+OCCURRENCES = " "  # between the values of one column in one record, as the tables' list columns (sinks/tables.py)
+# Other names of a column: the filter language's word for the JSON's "type" (kind:return), and the packets table's
+# for its "diagnostics" (their codes, as that table's column holds them).
+ALIASES = {"kind": "type", "findings": "diagnostics"}
 Column = Callable[[Record, set[int] | None], str]
 
 
@@ -35,8 +37,8 @@ def _from_object(key: str) -> Column:
     return column
 
 
-# The JSON object's keys a column reads straight from the record (each as record_json sets it); every other
-# key of the object comes from record_json itself.
+# The JSON object's keys a column reads straight from the record (each as record_json sets it), and the packets
+# table's direction; every other key of the object comes from record_json itself.
 _DIRECT: dict[str, Column] = {
     "type": lambda rec, only: rec.event.kind,
     "offset": lambda rec, only: str(rec.event.offset),
@@ -50,6 +52,7 @@ _DIRECT: dict[str, Column] = {
     "latency_s": lambda rec, only: _text(rec.latency),
     "status": lambda rec, only: _text(rec.status),
     "diagnostics": lambda rec, only: OCCURRENCES.join(d.code for d in rec.findings),
+    "direction": lambda rec, only: direction(rec),  # the packets table's (host, servo, ?); no key of the JSON
 }
 _OBJECT_KEYS = ("flag", "address", "length", "count", "op", "model", "flags", "vids", "reason")
 
