@@ -90,7 +90,7 @@ def _check_text(data: bytes, fmt: str) -> None:
         assert b"".join(d for d, _ in got) == b"".join(d for d, _ in expected)
     # Every byte is accounted for: locate() points at its two hex digits.
     text = data[3:] if data.startswith(b"\xef\xbb\xbf") else data
-    lines = text.split(b"\n")
+    lines = re.split(rb"\r\n|\r|\n", text)  # a lone CR ends a line too, as the reader counts lines
     stream = b"".join(d for d, _ in got)
     for offset, byte in enumerate(stream):
         where = reader.locate(offset)
