@@ -28,11 +28,11 @@ def _text(v: Any) -> str:
     return repr(v) if isinstance(v, float) else str(v)
 
 
-def _from_object(key: str) -> Column:
-    """A column read from the record's whole JSON object (render.records.record_json), for the keys whose value
-    takes that object's logic (flag, address, op, model, flags, vids, ...)."""
-    def column(rec: Record, only: set[int] | None) -> str:
-        v = record_json(rec, only, fields=False).get(key)
+def _from_object(key: str) -> Callable[[dict[str, Any]], str]:
+    """A column read from the record's whole JSON object (render.records.record_json, made once per line), for the
+    keys whose value takes that object's logic (flag, address, op, model, flags, vids, ...)."""
+    def column(obj: dict[str, Any]) -> str:
+        v = obj.get(key)
         return OCCURRENCES.join(map(_text, v)) if isinstance(v, list) else _text(v)
     return column
 
@@ -54,6 +54,13 @@ _DIRECT: dict[str, Column] = {
     "diagnostics": lambda rec, only: OCCURRENCES.join(d.code for d in rec.findings),
     "direction": lambda rec, only: direction(rec),  # the packets table's (host, servo, ?); no key of the JSON
 }
+
+
+def _later(rec: Record, only: set[int] | None) -> str:
+    """The place of a column read from the line's JSON object instead (Columns.line)."""
+    return ""
+
+
 _OBJECT_KEYS = ("flag", "address", "length", "count", "op", "model", "flags", "vids", "reason")
 
 
@@ -117,12 +124,14 @@ class Columns:
         registers = {n for m in registry.models.values() for reg in m.registers if (n := reg.name) is not None}
         known = set(_DIRECT) | set(_OBJECT_KEYS) | set(ALIASES) | registers
         self._columns: list[Column] = []
+        self._from_object: dict[int, Callable[[dict[str, Any]], str]] = {}  # by place: they share one object a line
         for given in self.names:
             name = ALIASES.get(given, given)
             if name in _DIRECT:
                 self._columns.append(_DIRECT[name])
             elif name in _OBJECT_KEYS:
-                self._columns.append(_from_object(name))
+                self._from_object[len(self._columns)] = _from_object(name)
+                self._columns.append(_later)
             elif name in registers:
                 self._columns.append(_register(name))
             else:
@@ -137,7 +146,12 @@ class Columns:
         return "\t".join(self.names) + "\n"
 
     def line(self, rec: Record, only: set[int] | None = None) -> str:
-        return "\t".join([col(rec, only) for col in self._columns]) + "\n"
+        cells = [col(rec, only) for col in self._columns]
+        if self._from_object:
+            obj = record_json(rec, only, fields=False)
+            for k, col in self._from_object.items():
+                cells[k] = col(obj)
+        return "\t".join(cells) + "\n"
 
 
 def parse_columns(text: str, registry: ModelRegistry) -> Columns:

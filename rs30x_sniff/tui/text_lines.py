@@ -61,11 +61,9 @@ class ScrollingText(ScrollView):
 
     def __init__(self, text: Text | None = None, **kwargs) -> None:
         super().__init__(**kwargs)
-        self.text = Text("")
+        self.text = text if text is not None else Text("")
         self._strips: list[Strip] = []
         self._width = 0
-        if text is not None:
-            self.text = text
 
     def on_mount(self) -> None:
         self.update(self.text)
