@@ -13,6 +13,11 @@ from ..protocol.wire import byte_time
 # The peak bus load is the busiest of these windows from the capture start: long enough to hold many
 # poll cycles, short enough that a burst is not averaged away over a long capture.
 LOAD_WINDOW = 1.0
+# A live reader's stall (sources/serial_tap.py) is found as its bytes arrive, and reaches back over them: at
+# most one read, 1 MiB (the reader's DRAIN_MAX), which at 9600 baud is 1092 s. So the last HELD_WINDOWS closed
+# windows are kept as they are, for a stall found later to take out of the peak; older ones are folded into the
+# busiest so far, and memory stays the same however long the capture (about 130 kB).
+HELD_WINDOWS = 1200
 
 
 def stalled(start: float, stalls: list[tuple[float, float, int]]) -> bool:
@@ -31,7 +36,12 @@ class LoadWindows:
         self.start: float | None = None  # the open window
         self.end = float("-inf")
         self.bytes = 0
-        self.closed: list[tuple[float, float]] = []  # (load, start) of every closed window, in time order
+        # (load, start) of the last HELD_WINDOWS closed windows, in the order closed; the busiest of those before
+        # them (the first of equals), none of them over a stall known when they were folded.
+        self.closed: deque[tuple[float, float]] = deque()
+        self.folded: tuple[float, float] | None = None
+        # Where a live reader fell behind, (t, seconds, bytes): no load is measured over it (CaptureStats.stalls).
+        self.stalls: list[tuple[float, float, int]] = []
 
     # ---- the record form -------------------------------------------------------------------------
     def add(self, ts: float, nbytes: int) -> None:
@@ -69,7 +79,7 @@ class LoadWindows:
         if self.start is None:
             self.start = ts
         else:
-            self.closed.append((min(1.0, self.bytes * self.byte_s / LOAD_WINDOW), self.start))
+            self._close((min(1.0, self.bytes * self.byte_s / LOAD_WINDOW), self.start))
             self.start += (ts - self.start) // LOAD_WINDOW * LOAD_WINDOW
         self.end = self.start + LOAD_WINDOW
         self.bytes = 0
@@ -79,8 +89,16 @@ class LoadWindows:
         the next segment starts its own windows."""
         load, start = self.open_load(last), self.start
         if load is not None and start is not None:  # (a load is measured only in an open window)
-            self.closed.append((load, start))
+            self._close((load, start))
         self.start, self.end, self.bytes = None, float("-inf"), 0
+
+    def _close(self, window: tuple[float, float]) -> None:
+        closed = self.closed
+        closed.append(window)
+        if len(closed) > HELD_WINDOWS:
+            old = closed.popleft()
+            if (self.folded is None or old[0] > self.folded[0]) and not (self.stalls and stalled(old[1], self.stalls)):
+                self.folded = old
 
     def open_load(self, last: float | None) -> float | None:
         """The load of the window still open, up to ``last``: counted over its own span once that is half
@@ -92,11 +110,15 @@ class LoadWindows:
             return None
         return min(1.0, self.bytes * self.byte_s / min(span, LOAD_WINDOW))
 
-    def busiest(self, last: float | None, stalls: list[tuple[float, float, int]]) -> tuple[float, float] | None:
+    def busiest(self, last: float | None,
+                stalls: list[tuple[float, float, int]] | None = None) -> tuple[float, float] | None:
         """(load, start) of the first of the busiest windows, the open one counted up to ``last``; none
-        measured over a reader's stall."""
-        best = max((w for w in self.closed if not (stalls and stalled(w[1], stalls))), key=lambda w: w[0],
-                   default=None)
+        measured over a reader's stall (``stalls``: :attr:`stalls` unless given)."""
+        stalls = self.stalls if stalls is None else stalls
+        best = self.folded
+        for w in self.closed:
+            if (best is None or w[0] > best[0]) and not (stalls and stalled(w[1], stalls)):
+                best = w
         load, start = self.open_load(last), self.start
         if load is not None and start is not None and not stalled(start, stalls) and (best is None or load > best[0]):
             best = (load, start)

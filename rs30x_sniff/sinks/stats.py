@@ -76,9 +76,16 @@ class CaptureStats(Sink[Record | Block]):
         self.health = HealthRecorder(ranges)
         self.timing_unsupported: str | None = None
         self.wall_anchor: float | None = None  # epoch seconds of capture time 0, where the source says
-        # Where a live reader fell behind: (t, seconds, bytes) of bytes timed at the line rate, not as
-        # they came (rs30x_sniff.sources.serial_tap); no load is measured over them. The source's own list.
-        self.stalls: list[tuple[float, float, int]] = []
+
+    @property
+    def stalls(self) -> list[tuple[float, float, int]]:
+        """Where a live reader fell behind: (t, seconds, bytes) of bytes timed at the line rate, not as they
+        came (rs30x_sniff.sources.serial_tap); no load is measured over them. The source's own list, set here."""
+        return self.load.stalls
+
+    @stalls.setter
+    def stalls(self, stalls: list[tuple[float, float, int]]) -> None:
+        self.load.stalls = stalls
 
     # ---- as a sink ---------------------------------------------------------------------------------
     def chunk(self, data: bytes, t: float | None, sender: str | None = None, error: str | None = None) -> None:
@@ -318,7 +325,7 @@ class CaptureStats(Sink[Record | Block]):
         """
         if not self.timed or self.timing_unsupported or self.duration < LOAD_WINDOW:
             return None
-        best = self.load.busiest(self.last_t, self.stalls)
+        best = self.load.busiest(self.last_t)
         avg = self.bus_load
         if avg is not None and self.first_t is not None and (best is None or avg > best[0]):
             best = (avg, self.first_t)

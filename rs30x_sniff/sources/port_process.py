@@ -241,7 +241,6 @@ class _Sender:
         self.tap = tap
         self.items: deque = deque()
         self.ready = threading.Event()
-        self.sent_stalls = 0
         self.thread = threading.Thread(target=self._send_all, name="send", daemon=True)
         self.thread.start()
 
@@ -269,8 +268,11 @@ class _Sender:
             self.tap.request_stop()  # the parent is gone: nobody to read for
 
     def _send_chunks(self, batch: list) -> None:
-        stalls = self.tap.stalls[self.sent_stalls:]
-        self.sent_stalls += len(stalls)
+        # Sent stalls leave the child's list (the parent keeps them): it would grow for as long as the port is read.
+        # A del of a slice and the reader's append hold the interpreter lock: none is lost between the two lines.
+        pending = self.tap.stalls
+        stalls = pending[:len(pending)]
+        del pending[:len(stalls)]
         self._dump(("data", b"".join(d for d, _ in batch), array("I", [len(d) for d, _ in batch]).tobytes(),
                     array("d", [t for _, t in batch]).tobytes(), stalls, self.tap.bytes_read))
 

@@ -284,10 +284,8 @@ def test_joined_with_a_frame_cut_at_the_seam_is_clean(names, seeds, mode, gap, s
 
 # ---- 3. figures of the joined capture -----------------------------------------------------------
 def _merged(h1: LatencyHistogram, h2: LatencyHistogram) -> LatencyHistogram:
-    m = LatencyHistogram()
-    m.bins = h1.bins + h2.bins
-    m.count = h1.count + h2.count
-    m.max = max(x for x in (h1.max, h2.max) if x is not None)
+    m = h1 + h2
+    assert m.count == h1.count + h2.count and m.max == max(x for x in (h1.max, h2.max) if x is not None)
     return m
 
 
