@@ -252,7 +252,7 @@ def make_linter(args: argparse.Namespace, settings: Settings) -> Any:
         return None
     from ..lint import Linter  # imported here: only linting commands pay for the rules
 
-    return Linter(lint_config(settings))
+    return Linter(lint_config(settings), keep_findings=False)  # the decoder hands them on: none kept here
 
 
 def check_positive(option: str, value: float | None) -> None:

@@ -68,7 +68,7 @@ def lint_file(path: str, fmt: str | None, settings: Settings,
     ``allow_empty``), gives a result with ``error`` set (findings so far kept)."""
     opts = settings.decode_options()
     cfg = lint_config(settings)
-    linter = Linter(cfg)
+    linter = Linter(cfg, keep_findings=False)
     found = FindingsSink()
     sinks: list[Sink[Record | Block]] = [found] if progress is None else [found, ProgressSink(progress)]
     # Figure checks ([[expect]]) need info's figures: CaptureStats runs as one more sink, only for them.

@@ -52,7 +52,7 @@ def prepare(args: argparse.Namespace) -> tuple[Any, DecodeOptions, dict[str, Any
         from ..lint import Linter
 
         cfg = lint_config(settings)
-        config["linter_factory"] = lambda: Linter(cfg)
+        config["linter_factory"] = lambda: Linter(cfg, keep_findings=False)
     if args.history is not None:
         config["history"] = args.history
     try:

@@ -107,7 +107,8 @@ def write_file(path: str | IO[bytes], chunks, fmt: str, baud: int) -> int:
 
         settings = resolve({"baud": baud})
         sink = open_mcap_sink(path, "rs30x-sniff simulate", settings, timed=True)
-        dec = drive(chunks, Decoder(settings.decode_options(), Linter(settings.lint_config())), sink)
+        linter = Linter(settings.lint_config(), keep_findings=False)
+        dec = drive(chunks, Decoder(settings.decode_options(), linter), sink)
         return dec.bytes_in
     assert isinstance(path, str), "only an MCAP is written to a stream; a capture goes to a named file"
     return write_capture(path, chunks, fmt)

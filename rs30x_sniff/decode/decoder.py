@@ -160,17 +160,11 @@ class Decoder:
             linter.senders = self.senders
         self.bytes_in = 0
         self.late_findings: list[Finding] = []  # after close(): findings only the end of input revealed
-        self._seen = 0  # findings of linter.findings already handed out
         self._seams = 0  # seams of frames.seams already handed out
 
     def _new_findings(self) -> list[Finding]:
         assert self.linter is not None  # asked only of a decoder that lints
-        found = self.linter.findings
-        if len(found) == self._seen:
-            return []
-        new = found[self._seen:]
-        self._seen = len(found)
-        return new
+        return self.linter.new_findings()
 
     def feed(self, data: bytes, t: float | None = None, sender: str | None = None,
              error: str | None = None) -> Step[Record | Block]:

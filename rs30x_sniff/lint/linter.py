@@ -37,10 +37,16 @@ class Linter:
 
     Whether the capture has timestamps is decided from the first record: without them the rules
     that need time are skipped, and :attr:`skipped` names them.
+
+    :attr:`findings` holds every finding so far; with ``keep_findings=False`` it holds only those not yet taken by
+    :meth:`new_findings` (the decoder takes them a step at a time): a live run that lints for days keeps none it
+    has handed on, however noisy the bus.
     """
 
-    def __init__(self, config: LintConfig | None = None) -> None:
+    def __init__(self, config: LintConfig | None = None, keep_findings: bool = True) -> None:
         c = self.config = config or LintConfig()
+        self.keep_findings = keep_findings
+        self._taken = 0  # findings already taken by new_findings (when they are kept)
         codes = c.enabled_codes()
         rule_set = c.rules  # the run's: built-in rules and its user rules (LintConfig.rules)
         self.rules = [rule_set[code] for code in codes]
@@ -132,6 +138,20 @@ class Linter:
         return p
 
     # ---- findings ----------------------------------------------------------------------------
+    def new_findings(self) -> list[Finding]:
+        """The findings reported since the last call, in the order reported."""
+        found = self.findings
+        if self.keep_findings:
+            if len(found) == self._taken:
+                return []
+            new = found[self._taken:]
+            self._taken = len(found)
+            return new
+        if not found:
+            return []
+        self.findings = []
+        return found
+
     def emit(self, code: str, rec: Record, message: str, sid: Any = _AUTO) -> Finding:
         """Report a finding of rule ``code`` on ``rec`` (appended to ``rec.findings``)."""
         ev = rec.event

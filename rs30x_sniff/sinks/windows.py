@@ -72,7 +72,7 @@ def window_writer(folder: Path, *, opts: Any, lint_config: Any, source: str, met
             sink = McapSink(str(tmp), source=source, baud=opts.baud, time_base="wall", models=opts.models,
                             extra_metadata=meta)
             try:
-                drive(chunks, Decoder(opts, Linter(lint_config), columnar=True), sink)
+                drive(chunks, Decoder(opts, Linter(lint_config, keep_findings=False), columnar=True), sink)
                 os.replace(tmp, path)
             except BaseException:
                 sink.finish()

@@ -58,7 +58,7 @@ def default_linter() -> Any:
         from ..lint import Linter
     except ImportError:
         return None
-    return Linter()
+    return Linter(keep_findings=False)
 
 
 class _Collect(Sink[Record | Block]):
