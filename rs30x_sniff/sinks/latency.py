@@ -72,10 +72,14 @@ class LatencyHistogram:
         if k >= DENSE_US:
             self._late[_coarse(k)] += n
             return
+        self._grow_to(k)
+        self._dense[k] += n
+
+    def _grow_to(self, k: int) -> None:
+        """The array long enough to hold bin ``k`` (< DENSE_US): grown to a power of two, at least _FIRST_DENSE."""
         size = len(self._dense)
         if k >= size:
             self._dense.frombytes(bytes(8 * (min(DENSE_US, max(_FIRST_DENSE, 1 << k.bit_length())) - size)))
-        self._dense[k] += n
 
     # ---- the column form -------------------------------------------------------------------------
     def add_array(self, lat: np.ndarray) -> None:
@@ -89,8 +93,7 @@ class LatencyHistogram:
             keys = keys[~late]
             top = int(keys.max()) if len(keys) else -1
         if top >= 0:
-            if top >= len(self._dense):
-                self.add_bin(top, 0)
+            self._grow_to(top)
             k0 = int(keys.min())
             cnt = np.bincount(keys - k0)
             dense = np.frombuffer(self._dense, np.int64)  # a view: the counts are added in place
