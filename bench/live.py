@@ -7,7 +7,8 @@ read from a pipe); `monitor` on the port, in a terminal of its own (a pty, 160x4
 Each reader's CPU time (with its children: the port's reader process) is taken from /proc over the playing, its
 resident memory every half second, and the bytes it kept are checked.
 Targets, as ratios to the bare loop in the same run: record <= 1.5x, record --print <= 2.5x, monitor <= 3x;
-memory flat.
+memory flat (the second half's peak at most 2 % over the first half's). A run of ten minutes or more also prints
+the median RSS of each tenth, which says when it grew.
 
 Timing (issue 31, 4). The docs' "No hardware? Simulate the bus" recipe: `simulate --port` onto one end of a socat
 pty pair, `record` on the other; `info` of the recording against `info` of the same scenario written to a file.
@@ -98,6 +99,13 @@ def rss_mb(pid: int) -> float:
         except OSError:
             pass
     return total * PAGE / 1e6
+
+
+def rss_by_tenth(rss: list[float]) -> str:
+    """The median of each tenth of ``rss``'s samples, in order: a level a late batch's brief peak does not move."""
+    n = len(rss)
+    tenths = [sorted(rss[i * n // 10:(i + 1) * n // 10]) for i in range(10)]
+    return " ".join(f"{t[len(t) // 2]:.1f}" for t in tenths if t)
 
 
 def drain(fd: int) -> threading.Thread:
@@ -257,6 +265,8 @@ def cost(args: argparse.Namespace) -> int:
                   " a late reply on the pty, which B006 names)" if late else "")
         print(f"  {r['name']:20s} CPU {r['cpu']:6.2f} s{reader} = {r['cpu'] / r['wall'] * 100:5.1f} % of a core"
               f"{ratio}; {mem}{kept_s}{writer}")
+        if len(rss) >= 1200:  # ten minutes and more: where it grew (a peak alone does not say when)
+            print(f"  {'':20s} RSS by tenth of the run (median, MB): {rss_by_tenth(rss)}")
     return 0 if ok else 1
 
 
