@@ -143,6 +143,16 @@ class BlockView:
         """Call ``fn`` once the Block is accepted as quiet (a rule's memory moved past its rows)."""
         self.on_accept.append(fn)
 
+    def release(self) -> None:
+        """Drop what the rules made of the Block. Their closures refer to this view, and a cycle lives until the
+        cyclic collector's next full pass, minutes apart: a recorder's Blocks (a second of the bus each, with their
+        arrays and records) piled up between passes, and the allocators kept the pile's high-water mark as resident
+        memory (bench/live.py's hour; tests/sinks/test_no_cycles.py)."""
+        self.on_accept.clear()
+        self.made.clear()
+        for target in self.targets:
+            target.made.clear()
+
 
 class BlockLinter:
     """The column form of one Linter (it holds the header rules' verdicts per distinct header)."""
@@ -164,6 +174,13 @@ class BlockLinter:
         if self.bails[0] is not run:
             self.bails = (run, bail_outs(run))  # what the rules declare (rs30x_sniff.lint.registry.BAIL_OUTS)
         view = BlockView(lint, blk)
+        try:
+            return self._quiet(lint, blk, run, view)
+        finally:
+            view.release()
+
+    def _quiet(self, lint: Any, blk: Any, run: tuple, view: BlockView) -> bool:
+        """:meth:`quiet` with its view made."""
         for bail in self.bails[1]:
             if bail.in_block(view):
                 return False  # rows the rules that ask this bail-out see only one by one
