@@ -24,8 +24,9 @@ FLAG_NAMES = tuple(RETURN_FLAG_BITS.values())
 # of a byte matrix and each register's column is read by numpy's min/max, so a return costs the stats
 # sink a list append instead of Python arithmetic per value. The column form (HealthRecorder's *_rows)
 # fills the same buffers and flushes at the same count. Not more: a live bus fills a shape's buffer at its
-# poll rate, and the hexapod's (18 servos, 230400 baud) took 28 minutes to fill 4096 rows a shape, 2.7 MB of
-# buffers rising all that time. 1024 holds a quarter of that, for the same CPU (a reduction costs microseconds).
+# poll rate, and the hexapod's (18 servos, 230400 baud) took about half an hour to fill 4096 rows a shape, 2.7 MB
+# of buffers rising all that time (bench/record_memory.py). 1024 holds a quarter of that, for the same CPU (a
+# reduction costs microseconds).
 FLUSH_ROWS = 1024
 
 
