@@ -146,8 +146,11 @@ def run(args: argparse.Namespace) -> int:
     # Written beside OUT and renamed into place at the end: an input error leaves nothing behind, while
     # a stop (Ctrl-C, SIGTERM, SIGHUP) keeps the finalized log of what was converted so far.
     stopped = None
+    sink = None
     try:
-        with output_binary(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as out:
+        # A stop before the writer began (a signal as the command starts) leaves no file: it would not be a log.
+        with output_binary(args.output, force=args.force, inputs=(args.input,),
+                           keep_on_stop=lambda: sink is not None) as out:
             opener = open_pcapng_sink if kind == "pcapng" else open_mcap_sink
             sink = opener(out, source, settings, timed=first[1] is not None, start_time=start_time)
             if bar is None:
@@ -159,6 +162,8 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as e:
         stopped = str(e) or "Ctrl-C"  # the log of what was read so far is finished and kept
     name = "stdout" if args.output == STDOUT else args.output
+    if sink is None:  # stopped before the writer began
+        return report_end(f"{name}: nothing converted, nothing saved", stopped)
     count = f"{sink.packets} packets" if kind == "pcapng" else f"{sink.messages} messages"
     summary = f"{name}: {decoder.bytes_in} bytes, {count}, {sink.bytes_written} bytes written"
     return report_end(summary, stopped)

@@ -77,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
     stopped = None
     sink = None
     try:
-        with output_path(args.output, force=args.force, inputs=(args.input,), keep_on_stop=True) as tmp:
+        with output_path(args.output, force=args.force, inputs=(args.input,),
+                         keep_on_stop=lambda: sink is not None) as tmp:
             stream = open(tmp, "w", encoding="utf-8", newline="") if fmt == CSV else None
             try:
                 sink = SINKS[args.of](open_table(tmp, fmt, stream), **kw)
@@ -87,6 +88,9 @@ def run(args: argparse.Namespace) -> int:
                     stream.close()
     except KeyboardInterrupt as e:
         stopped = str(e) or "Ctrl-C"
+    name = "stdout" if args.output == STDOUT else args.output
+    if sink is None:  # stopped before the writer began: nothing read, so nothing to say of the capture
+        return report_end(f"{name}: nothing saved", stopped)
     no_data(args.input, decoder, chunks)
-    summary = f"{'stdout' if args.output == STDOUT else args.output}: {sink.rows if sink else 0} rows of {args.of}"
+    summary = f"{name}: {sink.rows} rows of {args.of}"
     return report_end(summary, stopped)

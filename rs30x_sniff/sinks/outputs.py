@@ -9,7 +9,7 @@ import stat
 import sys
 from contextlib import contextmanager
 from typing import IO
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 from ..sources.captures import BINARY, TIMESTAMPED
 from ..errors import CliError
@@ -76,14 +76,15 @@ def _create(folder: str, name: str, like: str | None) -> tuple[int, str]:
 
 @contextmanager
 def output_path(path: str, *, force: bool = False, inputs: tuple[str, ...] = (),
-                keep_on_stop: bool = False) -> Iterator[str]:
+                keep_on_stop: bool | Callable[[], bool] = False) -> Iterator[str]:
     """A temporary file to write, beside ``path``; it replaces ``path`` only when the block ends well.
 
     On an error nothing is left behind (the destination keeps whatever it held); a failed write (a full
     disk) is reported in one line that names ``path``. A stop by the user (Ctrl-C, SIGTERM, SIGHUP) keeps
-    what was written when ``keep_on_stop``: a finalized MCAP log of a stopped conversion is data, not a
-    failed run. ``-`` is stdout: the file is made in the temporary folder and copied to stdout when the
-    block ends (a writer that can stream is better given :func:`output_binary`); never a file named ``-``.
+    what was written when ``keep_on_stop`` (or when it returns True, asked at the stop: a stop before the
+    writer began leaves nothing): a finalized MCAP log of a stopped conversion is data, not a failed run.
+    ``-`` is stdout: the file is made in the temporary folder and copied to stdout when the block ends (a
+    writer that can stream is better given :func:`output_binary`); never a file named ``-``.
     """
     check_output(path, force, inputs)
     if _is_special(path):
@@ -115,7 +116,7 @@ def output_path(path: str, *, force: bool = False, inputs: tuple[str, ...] = (),
     try:
         yield tmp
     except KeyboardInterrupt:
-        if keep_on_stop:
+        if keep_on_stop() if callable(keep_on_stop) else keep_on_stop:
             _finish(tmp, path, name, unchanged)
         else:
             _discard(tmp)
@@ -153,7 +154,7 @@ def _finish(tmp: str, path: str, name: str, unchanged: str) -> None:
 
 @contextmanager
 def output_binary(path: str, *, force: bool = False, inputs: tuple[str, ...] = (),
-                  keep_on_stop: bool = False) -> Iterator[IO[bytes]]:
+                  keep_on_stop: bool | Callable[[], bool] = False) -> Iterator[IO[bytes]]:
     """A binary file object to write OUT through, for a writer that only appends: stdout itself for
     ``-`` (streamed as it is written), else a file of :func:`output_path`."""
     if path != STDOUT:
