@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import tempfile
 import time
 from pathlib import Path
@@ -17,6 +18,11 @@ ROOT = Path(__file__).resolve().parent.parent
 # never the user's own.
 os.environ["XDG_CACHE_HOME"] = tempfile.mkdtemp(prefix="rs30x-sniff-tests-cache-")
 CAPTURES = ROOT / "captures"
+# A run under `nohup` starts with SIGHUP ignored, and every command it starts would inherit that (and rightly
+# keep running on a hang-up). A handler of ours instead: this run still outlives its terminal, and the commands
+# the tests start begin with the default (exec resets a caught signal), as from a terminal.
+if hasattr(signal, "SIGHUP") and signal.getsignal(signal.SIGHUP) == signal.SIG_IGN:
+    signal.signal(signal.SIGHUP, lambda signum, frame: None)
 
 
 @pytest.fixture(autouse=True)

@@ -15,7 +15,7 @@ from ..decode.decoder import Decoder
 from ..errors import CliError
 from ..lint import Linter
 from ..protocol.chunks import SourceGap
-from ..sources.serial_tap import STOP_SIGNALS
+from ..sources.serial_tap import stop_signals
 from .blackbox import Window, wall_time
 from .mcap.writer import McapSink
 from .parts import Keep, retire
@@ -100,7 +100,7 @@ def held_signals():
         yield
         return
     came: list[int] = []
-    saved = {sig: signal.signal(sig, lambda signum, frame: came.append(signum)) for sig in STOP_SIGNALS}
+    saved = {sig: signal.signal(sig, lambda signum, frame: came.append(signum)) for sig in stop_signals()}
     try:
         yield
     finally:

@@ -11,7 +11,7 @@ from collections.abc import Callable, Iterator
 
 from ..protocol.chunks import SourceGap
 from .ports import is_port
-from .serial_tap import DURATION, GATHER_SECONDS, LOST, STOP_SIGNALS, STOPPED, LiveSource, SerialTap
+from .serial_tap import DURATION, GATHER_SECONDS, LOST, STOPPED, LiveSource, SerialTap, stop_signals
 
 BY_ID = "/dev/serial/by-id"
 WAIT_STEP = 0.2  # seconds between looks for the port while it is gone
@@ -64,7 +64,7 @@ class ReconnectingSource:
         # The handlers before any source of ours: each LiveSource installs its own and puts back what it found,
         # so across a loss they would be lost or stacked in the wrong order; we hold ours over all of them and
         # put these back at the end.
-        self._before = ({sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
+        self._before = ({sig: signal.getsignal(sig) for sig in stop_signals()}
                         if threading.current_thread() is threading.main_thread() else {})
         self.source: LiveSource = self.open_source(port, duration)  # the first open fails as LiveSource's does
 
@@ -130,7 +130,7 @@ class ReconnectingSource:
         """Our stop handler for SIGINT, SIGTERM and SIGHUP (main thread only): a stop reaches the source of the
         moment, or ends the wait for a lost port, whatever was opened in between."""
         if self._before and threading.current_thread() is threading.main_thread():
-            for sig in STOP_SIGNALS:
+            for sig in self._before:
                 signal.signal(sig, self._on_signal)
 
     def _release_signals(self) -> None:

@@ -62,6 +62,16 @@ LOST = "lost"          # the port raised an error or vanished
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, *((signal.SIGHUP,) if hasattr(signal, "SIGHUP") else ()))
 
 
+def stop_signals() -> tuple[int, ...]:
+    """The signals a capture takes as a stop: :data:`STOP_SIGNALS`, less SIGHUP when this process started with it
+    ignored. `nohup` (or a unit's `IgnoreSIGHUP`) asks the run to outlive its terminal, so a logout must not end
+    the recording; every command keeps it so (cli.stop_on_hangup leaves an ignored SIGHUP alone too)."""
+    hup = getattr(signal, "SIGHUP", None)
+    if hup is not None and signal.getsignal(hup) == signal.SIG_IGN:
+        return tuple(sig for sig in STOP_SIGNALS if sig != hup)
+    return STOP_SIGNALS
+
+
 @final  # the live source tells it from a chunk by `type(item) is TapEnd`
 @dataclass(frozen=True, slots=True)
 class TapEnd:
@@ -410,7 +420,7 @@ class LiveSource:
         self.tap.open()
         if threading.current_thread() is threading.main_thread():
             # SIGHUP too: a closed ssh session must leave a finished log, as Ctrl-C does.
-            for sig in STOP_SIGNALS:
+            for sig in stop_signals():
                 self._saved[sig] = signal.signal(sig, self._on_signal)
         if self.duration is not None:
             self._deadline = time.monotonic() + self.duration

@@ -29,6 +29,7 @@ from ..render.times import ABSOLUTE, DEFAULT_TIME_FORMAT, DELTA, EPOCH, TimeForm
 from .detail import DetailPane
 from .feed import POST_INTERVAL, Batch, Feeder, default_linter
 from ..sources.feeds import Feed
+from ..sources.serial_tap import stop_signals
 from .header import SessionInfo, StatusHeader
 from .help import HelpScreen
 from .panes import FindingsPane, PlotPane
@@ -194,11 +195,12 @@ class MonitorApp(App):
             gc.set_threshold(*self._gc_thresholds)
 
     def _quit_on_signals(self) -> None:
-        """SIGTERM and SIGHUP quit as `q` does: the recording is finished and the terminal restored."""
+        """SIGTERM and SIGHUP quit as `q` does: the recording is finished and the terminal restored (SIGHUP not when
+        it started ignored: `nohup` asked the run to outlive its terminal)."""
         try:
             loop = asyncio.get_running_loop()
             loop.add_signal_handler(signal.SIGTERM, lambda: asyncio.ensure_future(self.action_quit()))
-            if hasattr(signal, "SIGHUP"):
+            if hasattr(signal, "SIGHUP") and signal.SIGHUP in stop_signals():
                 loop.add_signal_handler(signal.SIGHUP, lambda: asyncio.ensure_future(self._hang_up()))
         except (NotImplementedError, RuntimeError, ValueError):
             pass  # not the main thread, or a platform without loop signal handlers: the default applies
