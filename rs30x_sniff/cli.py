@@ -271,7 +271,10 @@ def main(argv: list[str] | None = None) -> int:
         say_deprecations()
         print(f"{ERROR}{e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
+        # A command that keeps what it read says so in its own end line; one stopped before that (still waiting
+        # for its input's first byte) still ends with one, as every other way out does.
+        print(f"rs30x-sniff: stopped ({e or 'Ctrl-C'})", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return _reader_gone()

@@ -288,3 +288,24 @@ def test_config_file_numbers_are_bounded_too(tmp_path, capsys):
     assert cli.main(["decode", str(SESSION), "--config", str(conf)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "reply-timeout = 1e+300: must be at most 1h" in err[0], err
+
+
+def test_a_stop_before_the_first_byte_says_so(tmp_path):
+    """`convert` of a FIFO whose writer has sent nothing yet, stopped: one line saying it stopped, exit 130, no OUT."""
+    fifo, out = tmp_path / "bus.fifo", tmp_path / "bus.mcap"
+    os.mkfifo(fifo)
+    proc = subprocess.Popen([sys.executable, "-m", "rs30x_sniff", "convert", str(fifo), "-o", str(out)],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)})
+    writer = os.open(fifo, os.O_WRONLY)  # convert has opened it and waits for its first byte
+    try:
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=15)
+    finally:
+        os.close(writer)
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130
+    assert err.decode().splitlines() == ["rs30x-sniff: stopped (SIGTERM)"]
+    assert not out.exists()
