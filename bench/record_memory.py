@@ -8,7 +8,9 @@ capture's time, with glibc's heap: its size, the memory in use and the memory fr
 keeps). What grows here grows with the capture, not with the machine's load.
 Target (issue 31): flat, as bench/live.py says it: the second half's peak at most 2 % over the first half's.
 
-Run: .venv/bin/python bench/record_memory.py [--duration 3600] [--scenario hexapod] [--baud 230400]
+With --split-time, `record --split-time`'s parts (Parts closes each, and the MCAP writer's index with it).
+
+Run: .venv/bin/python bench/record_memory.py [--duration 3600] [--scenario hexapod] [--baud 230400] [--split-time S]
 """
 
 from __future__ import annotations
@@ -65,6 +67,8 @@ def main() -> int:
     ap.add_argument("--duration", type=float, default=3600.0, help="seconds of capture (default: an hour)")
     ap.add_argument("--scenario", default="hexapod")
     ap.add_argument("--baud", type=int, default=230400)
+    ap.add_argument("--split-time", type=float, default=None, metavar="S",
+                    help="a new part every S seconds of capture, as record --split-time (default: one file)")
     args = ap.parse_args()
     allocator.keep_large_buffers()  # as cli.main does for every command
     heap = heap_reader()
@@ -95,14 +99,15 @@ def main() -> int:
         def make_sink(path, part):
             return McapSink(path, source="bench", baud=args.baud, time_base="wall", decoded=False)
 
-        files = Parts(out, make_sink, say=lambda *a: None, clock=lambda: clock["now"])
+        files = Parts(out, make_sink, split_seconds=args.split_time, say=lambda *a: None, clock=lambda: clock["now"])
         cpu0 = time.process_time()
         Pipeline(Decoder(opts, Linter(LintConfig(), keep_findings=False), columnar=True), [files],
                  group_bytes=max(256, args.baud // 10)).run(chunks())
         cpu = time.process_time() - cpu0
-        size = Path(out).stat().st_size
+        size = sum(Path(p).stat().st_size for p in files.paths)
+    parts = f" in {len(files.paths)} parts" if len(files.paths) > 1 else f", {files.sink.chunks:,} chunks"
     print(f"{args.scenario} at {args.baud} baud, {args.duration:g} s of capture through record's pipeline in "
-          f"{cpu:.0f} s of CPU: {size / 1e6:.1f} MB of MCAP, {files.sink.chunks:,} chunks")
+          f"{cpu:.0f} s of CPU: {size / 1e6:.1f} MB of MCAP{parts}")
     print(f"  {'capture time':>12s}  {'RSS MB':>7s}  {'heap MB':>7s}  {'in use':>7s}  {'free':>6s}")
     for mark, rss, h in rows:
         figures = f"{h[0]:7.2f}  {h[1]:7.2f}  {h[2]:6.2f}" if h else f"{'-':>7s}  {'-':>7s}  {'-':>6s}"
