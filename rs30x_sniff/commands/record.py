@@ -58,7 +58,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(at least 0.01)")
     p.add_argument("--split-time", default=None, metavar="TIME",
                    help="start a new numbered file every TIME (30s, 10min, 1h; at least 1s), beside or instead of "
-                        "--split-size; a part ends at the first byte past it, so a quiet bus makes no empty parts")
+                        "--split-size; a part ends at the first byte past it, so a quiet bus makes no empty parts. "
+                        "A file's index stays in memory until it closes (about 1 MB an hour): a recorder left on "
+                        "for days wants parts")
     p.add_argument("--keep", default=None, metavar="AGE|SIZE",
                    help="with numbered files: delete the oldest closed ones past an age (24h, 7d) or a total size "
                         "(500MB, 5GB; a part then ends at half of it at most); numbering goes on after the parts "
