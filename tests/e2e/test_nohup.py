@@ -72,3 +72,17 @@ def test_convert_under_nohup_outlives_a_hang_up(tmp_path):
     assert rc == 130, err
     assert "stopped" in err and err.count("\n") == 1, err
     assert_finalized_mcap(out)
+
+
+def test_the_stop_signals_leave_an_ignored_hang_up_alone():
+    """One list for every live reader, the saved windows and the monitor: SIGHUP is in it unless ignored."""
+    from rs30x_sniff.sources.serial_tap import stop_signals
+
+    before = signal.getsignal(signal.SIGHUP)
+    try:
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+        assert stop_signals() == (signal.SIGINT, signal.SIGTERM)
+        signal.signal(signal.SIGHUP, signal.SIG_DFL)
+        assert stop_signals() == (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    finally:
+        signal.signal(signal.SIGHUP, before)
