@@ -30,15 +30,16 @@ def _hang_up_then_stop(proc, settle: float = 1.0) -> tuple[int, str]:
     return proc.returncode, err.decode()
 
 
-@pytest.mark.parametrize("args", [["record"], ["record", "--trigger", "kind:return"], ["decode"]],
-                         ids=["record", "record-trigger", "decode"])
-def test_a_live_run_under_nohup_outlives_a_hang_up(tmp_path, args):
+@pytest.mark.parametrize("mode", ["record", "record-trigger", "decode"])
+def test_a_live_run_under_nohup_outlives_a_hang_up(tmp_path, mode):
     pty = Pty()
     link = tmp_path / "ttyRIG"  # a link: record looks for the port again after a loss, and holds its stops
     link.symlink_to(pty.path)
-    out = ["-o", str(tmp_path / "win") + "/", "--pre", "5s"] if "--trigger" in args else \
-        ["-o", str(tmp_path / "rig.mcap")] if args == ["record"] else []
-    proc = cli(*args[:1], str(link), *args[1:], *out, preexec_fn=_nohup)
+    args = {"record": ["record", str(link), "-o", str(tmp_path / "rig.mcap")],
+            "record-trigger": ["record", str(link), "-o", str(tmp_path / "win") + "/", "--trigger", "kind:return",
+                               "--pre", "5s"],
+            "decode": ["decode", str(link)]}
+    proc = cli(*args[mode], preexec_fn=_nohup)
     try:
         wait_opened(pty.path, proc)
         sent = pty.write_sim("hexapod", duration=0.5)
@@ -50,7 +51,7 @@ def test_a_live_run_under_nohup_outlives_a_hang_up(tmp_path, args):
             proc.kill()
     assert rc == 0, err
     assert err.strip().splitlines()[-1].startswith("rs30x-sniff: SIGTERM: "), err
-    if args == ["record"]:
+    if mode == "record":
         assert recorded_bytes(tmp_path / "rig.mcap") == sent
 
 
